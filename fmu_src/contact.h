@@ -1,0 +1,114 @@
+/*
+ * Volumetric wheel/soil contact (Petersen & McPhee 2013), in SI units.
+ *
+ * The model is split MuJoCo-style: ContactModel holds constants (soil,
+ * wheel geometry, the Eqn 3 fit) that change only when parameters change;
+ * ContactMemory holds the per-wheel soil history that the rover integrates;
+ * everything else is a pure function of its arguments.
+ *
+ * Geometry (2-D, in the wheel's mid-plane; hub frame: x forward, z up, hub
+ * at the origin).  The soil surface is a straight line at z = -(R - z_s)
+ * where z_s >= 0 is the sinkage of the lowest rim point below the surface.
+ * The contact patch is split at the lowest point into a front half
+ * (x >= 0) and a rear half (x <= 0).  Soil rebound removes a layer of
+ * thickness c (the "cut") from a half: that half's surface sits c lower, so
+ * its penetration depth is d(x) - c with d(x) = sqrt(R^2 - x^2) - (R - z_s).
+ * A half with depth z_s - c <= 0 carries nothing.
+ */
+#ifndef JUNO_CONTACT_H
+#define JUNO_CONTACT_H
+
+#include <stddef.h>
+
+enum { CONTACT_CLOSED_FORM = 0, CONTACT_QUADRATURE = 1 };
+
+typedef struct {
+    /* soil (identified) */
+    double kh;          /* hyperelastic stiffness, N/m^(2+eta) */
+    double eta;         /* nonlinearity exponent, > 0 */
+    double gamma;       /* soil rebound fraction, [0, 1] */
+    double Kvx;         /* traction (shear velocity) modulus, > 0 */
+    double Kvy_ratio;   /* lateral modulus = Kvy_ratio * Kvx, > 0 */
+    /* soil (Mohr-Coulomb) */
+    double cohesion;    /* Pa, >= 0 */
+    double phi;         /* internal friction angle, rad, [0, pi/2) */
+    /* wheel */
+    double radius;      /* m, > 0 */
+    double width;       /* m, > 0 */
+    /* numerics */
+    double slip_v_eps;  /* m/s, > 0: slip denominator floor, see contact_shear */
+    int method;         /* CONTACT_CLOSED_FORM (Eqn 3) or CONTACT_QUADRATURE */
+
+    /* derived by contact_model_prepare(); read-only afterwards */
+    double A1;          /* Eqn 3 exponent factor (-> 2/3 at shallow sinkage) */
+    double Vint;        /* Eqn 3 reference volume, m^3 (full symmetric segment) */
+    double cx_eta;      /* half-patch hypervolume centroid: xbar = cx_eta * half_length */
+    double cz_eta;      /* half-patch column centre: depth of centroid = cz_eta * half_depth */
+    double tan_phi;
+} ContactModel;
+
+typedef struct {
+    double sinkage;     /* z_s, m (input echoed) */
+    double V;           /* penetration volume, m^3 */
+    double Vh;          /* hypervolume, m^(2+eta) */
+    double area;        /* contact patch area (projected length * width), m^2 */
+    double length_front, length_rear; /* m, half lengths actually in contact */
+    double xc, zc;      /* hypervolume centroid in the hub frame, m */
+    double Fn;          /* normal force magnitude k_h * Vh, N */
+    double alpha;       /* atan2(xc, -zc), rad (Eqn 7); > 0 when the centroid is ahead */
+} ContactPatch;
+
+typedef struct {
+    double zmax;        /* deepest sinkage the soil under the wheel has seen, m */
+    double travel;      /* signed distance rolled since the soil under the wheel was virgin, m */
+} ContactMemory;
+
+/* Validates parameters, computes A1, Vint (least-squares fit of
+ * ln(Vh/V) against ln(V) on quadrature over sinkage 5..80 mm, full
+ * symmetric segment) and the centroid factors.  Returns 0 on success, or
+ * -1 with a message naming the bad parameter written to err. */
+int contact_model_prepare(ContactModel *m, char *err, size_t errlen);
+
+/* Hypervolume of the patch, its volume, area and centroid, and Fn, for
+ * sinkage z_s and cuts c_front, c_rear (each clamped to [0, z_s]).
+ * Uses m->method.  No allocation; safe for z_s <= 0 (all zero). */
+void contact_patch(const ContactModel *m, double sinkage, double cut_front,
+                   double cut_rear, ContactPatch *out);
+
+/* Reference: quadrature of the hypervolume of ONE half-patch of depth h
+ * (m) with exponent eta; returns m^(2+eta).  Also the exact plain volume of
+ * a half segment.  Exposed for tests and the Eqn 3 fit. */
+double contact_half_hypervolume_quadrature(double radius, double width,
+                                           double eta, double h);
+double contact_half_volume(double radius, double width, double h);
+
+/* Shear force (Eqn 5 generalised to the slip-velocity vector).
+ * v_long, v_lat: hub velocity along the wheel heading and along the axle
+ * in the contact plane (m/s); omega_r: absolute spin times radius (m/s).
+ * den = max(|omega_r|, |v_long|, slip_v_eps);
+ * s_long = (omega_r - v_long)/den, s_lat = -v_lat/den (elliptic scaling by
+ * Kvy_ratio); F = F_taumax * tanh(|s_scaled|) along the slip direction,
+ * F_taumax = area * cohesion + Fn * tan(phi).  Straight running (v_lat = 0)
+ * gives exactly F_long = F_taumax tanh(s_long / Kvx).
+ * Outputs the force (N) along heading and axle and, if jac != NULL, its
+ * Jacobian d(F_long, F_lat)/d(v_long, v_lat, omega_r), row-major 2x3. */
+void contact_shear(const ContactModel *m, double Fn, double area,
+                   double v_long, double v_lat, double omega_r,
+                   double *F_long, double *F_lat, double *jac);
+
+/* Rear/front cuts implied by the memory at the current sinkage:
+ * the half the wheel has rolled over (rear when travel > 0) is cut by
+ * phi * (1 - gamma) * zmax with phi = min(1, |travel| / L), L the half
+ * contact length at zmax; a wheel that has not rolled has symmetric contact. */
+void contact_cuts(const ContactModel *m, const ContactMemory *mem,
+                  double sinkage, double *cut_front, double *cut_rear);
+
+/* Explicit update of the memory over dt (s) with the current sinkage and
+ * the hub's speed along the heading (m/s).  zmax follows deeper sinkage at
+ * once and relaxes towards shallower sinkage over one half contact length
+ * of travel; travel integrates v_long and saturates at +-L; lift-off
+ * (sinkage <= 0) resets the memory (virgin soil). */
+void contact_memory_update(const ContactModel *m, ContactMemory *mem,
+                           double sinkage, double v_long, double dt);
+
+#endif

@@ -1,0 +1,39 @@
+/*
+ * Terrain: flat ground (z = 0) or an ESRI ASCII elevation grid.
+ * The grid is read once (allocation happens only in terrain_load);
+ * queries are pure, allocation-free and thread-safe on a const Terrain.
+ */
+#ifndef JUNO_TERRAIN_H
+#define JUNO_TERRAIN_H
+
+#include <stddef.h>
+
+typedef struct {
+    int ncols, nrows;       /* 0 for flat ground */
+    double x0, y0;          /* world position of the centre of cell (col 0, row 0 = southernmost) */
+    double cell;            /* m */
+    double *z;              /* nrows*ncols, row-major from south (row 0) to north */
+} Terrain;
+
+/* Flat ground. */
+void terrain_init_flat(Terrain *t);
+
+/* Reads an ESRI ASCII grid (.asc): header keys ncols, nrows,
+ * xllcorner|xllcenter, yllcorner|yllcenter, cellsize, optional
+ * NODATA_value (case-insensitive), then nrows lines of ncols numbers from
+ * north to south.  NODATA cells are filled from valid neighbours.
+ * Returns 0, or -1 with a message naming the file and line written to err
+ * (missing/unreadable file, bad header, non-numeric value, too few/many
+ * values, non-finite value, grid smaller than 2x2, all NODATA). */
+int terrain_load(Terrain *t, const char *path, char *err, size_t errlen);
+
+void terrain_free(Terrain *t);
+
+/* Elevation (m) and unit upward surface normal at (x, y).  Outside the
+ * grid the edge values extend flat (clamped).  Elevation is bilinear;
+ * the normal comes from the bilinear interpolation of central-difference
+ * gradients at the nodes, so it is continuous. */
+double terrain_height(const Terrain *t, double x, double y);
+void terrain_normal(const Terrain *t, double x, double y, double n[3]);
+
+#endif
