@@ -1,0 +1,119 @@
+/*
+ * The JunoRover model: constant model vs. changing data (MuJoCo style).
+ *   Params  - what the user sets (FMU parameters), read-only after initialisation
+ *   Derived - computed from Params at initialisation (masses, contact fits)
+ *   Inputs  - FMU inputs, set between steps
+ *   State   - everything the integrator changes
+ *   Outputs - computed from State and Inputs after every step
+ * All five are plain old data (no pointers), so an FMU state is a byte copy.
+ * The terrain grid and the terrain file name live beside them in Model.
+ */
+#ifndef JUNO_MODEL_H
+#define JUNO_MODEL_H
+
+#include <stddef.h>
+#include "contact.h"
+#include "terrain.h"
+
+enum { WHEEL_FL = 0, WHEEL_RL = 1, WHEEL_FR = 2, WHEEL_RR = 3, NUM_WHEELS = 4 };
+enum { SIDE_LEFT = 0, SIDE_RIGHT = 1 };
+enum { DRIVE_TORQUE = 0, DRIVE_PID = 1, DRIVE_MOTOR = 2 };
+
+/* Generalised velocities u (9): chassis linear velocity (world, 3),
+ * chassis angular velocity (world, 3), rocker rate, left and right wheel
+ * spin relative to their rockers. */
+enum { U_VX = 0, U_WX = 3, U_BETA = 6, U_SPIN_L = 7, U_SPIN_R = 8, NU = 9 };
+
+typedef struct {
+    double soil_kh, soil_eta, soil_gamma, soil_Kvx, soil_KvyRatio, soil_cohesion, soil_phi;
+    double wheel_radius, wheel_width, wheel_mass, wheel_inertia;
+    double rover_mass, rover_wheelbase, rover_track, rover_pivotHeight, rover_rockerMass;
+    double rover_cgHeight, rover_hitchX, rover_hitchZ, rover_rockerDamping, env_gravity;
+    int drive_mode;
+    double drive_Kp, drive_Ki, drive_Kd, drive_torqueMax;
+    double motor_voltage, motor_kt, motor_resistance, motor_gearRatio, motor_efficiency;
+    double init_x, init_y, init_yaw, init_vx;
+    int contact_method;
+    double contact_slipVelocityEps, solver_step;
+} Params;
+
+typedef struct {
+    ContactModel contact;
+    double chassis_mass;
+    double chassis_inertia[3];     /* body-frame principal inertia, kg m^2 */
+    double rocker_inertia[3];
+    double wheel_inertia_transverse;
+    double chassis_cg[3];          /* chassis CG in the chassis frame, m */
+    double pivot[2][3];            /* rocker pivots in the chassis frame (left, right) */
+    double rocker_cg[3];           /* rocker CG in the rocker frame (from the pivot) */
+    double hub[2][3];              /* front, rear hub in the rocker frame */
+} Derived;
+
+typedef struct {
+    double drawbarForce, torqueLeft, torqueRight, omegaRefLeft, omegaRefRight;
+    double throttleLeft, throttleRight;
+} Inputs;
+
+typedef struct {
+    double time;
+    double pos[3];                 /* chassis reference point, world */
+    double quat[4];                /* world-from-chassis rotation (w, x, y, z) */
+    double beta;                   /* left rocker angle; right = -beta */
+    double u[NU];                  /* generalised velocities, see U_* */
+    ContactMemory memory[NUM_WHEELS];
+    double pid_integral[2];        /* rad (integral of the spin error) */
+    double torque_applied[2];      /* N m, last applied drive torque per side */
+} State;
+
+typedef struct {
+    double sinkage, slip, Fn, Ft, Fx, Fy, Fz;
+} WheelOutputs;
+
+typedef struct {
+    double x, y, z, roll, pitch, yaw, vx, omegaLeft, omegaRight;
+    double torqueLeftApplied, torqueRightApplied, rocker;
+    WheelOutputs wheel[NUM_WHEELS];
+} Outputs;
+
+typedef struct {
+    Params p;
+    Derived d;
+    Inputs in;
+    State s;
+    Outputs out;
+    /* not part of the byte-copied FMU state: */
+    char *terrain_file;            /* owned (malloc), NULL = flat ground */
+    Terrain terrain;
+} Model;
+
+void model_set_defaults(Model *m);
+
+/* After the parameters are set: checks them, prepares the contact model,
+ * loads the terrain and places the rover in static equilibrium.
+ * Returns 0, or -1 with a message in err. */
+int model_initialize(Model *m, char *err, size_t errlen);
+
+/* Advances from s.time by h_comm (s) using internal substeps.  Returns 0,
+ * or -1 with a message in err (bad input, diverging state). */
+int model_do_step(Model *m, double h_comm, char *err, size_t errlen);
+
+/* Outputs from the current state; pure. */
+void model_compute_outputs(Model *m);
+
+void model_free(Model *m);
+
+/* Variable access by value reference (model_vars.c, from the table).
+ * Return 0, or -1 for an unknown reference. */
+int model_get_real(const Model *m, unsigned vr, double *value);
+int model_set_real(Model *m, unsigned vr, double value);
+int model_get_int(const Model *m, unsigned vr, int *value);
+int model_set_int(Model *m, unsigned vr, int value);
+/* kind of a variable: 'P' parameter, 'C' calculated parameter, 'I' input,
+ * 'O' output, 0 unknown; and its name and inclusive range. */
+int model_var_kind(unsigned vr, char type);
+const char *model_var_name(unsigned vr, char type);
+void model_real_range(unsigned vr, double *min, double *max);
+void model_int_range(unsigned vr, int *min, int *max);
+int model_is_string_var(unsigned vr);
+
+#endif

@@ -1,0 +1,763 @@
+/*
+ * The CSA Juno rover: chassis (6 DOF), two main rockers coupled by the
+ * transverse differential (left angle beta, right -beta), one spin DOF per
+ * side (1:1 chain), four volumetric wheel/soil contacts, a drawbar hitch.
+ *
+ * Formulation: Kane's equations in the 9 generalised velocities u of
+ * model.h.  Each of the 7 bodies (chassis, 2 rockers, 4 wheels) has a
+ * linear and angular velocity Jacobian J(q) (3 x 9) and a bias
+ * acceleration (the J'u terms), so M(q) u' = Q(q, u) with
+ * M = sum J^T m J and Q = sum J^T (F - m b) + gyroscopic terms.
+ *
+ * Integrator: linearly implicit Euler in the velocities (the stiff soil
+ * shear, normal stiffness and drive damping are linearised), then the
+ * positions with the new velocities (symplectic):
+ *   (M + h D + h^2 K) du = h (Q - h K u),   u += du,   q += h u.
+ * The contact memory (max sinkage, distance rolled) and the PID integral
+ * are advanced explicitly once per internal step.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "model.h"
+#include "vec3.h"
+
+#define NUM_BODIES 7
+enum { BODY_CHASSIS = 0, BODY_ROCKER_L = 1, BODY_ROCKER_R = 2, BODY_WHEEL0 = 3 };
+
+static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
+
+/* Per-wheel contact result of one evaluation. */
+typedef struct {
+    int in_contact;
+    double sinkage, slip, Fn, F_long, F_lat, alpha, v_long;
+    double force[3];               /* world force on the wheel, N */
+} WheelContact;
+
+/* Everything one evaluation of the dynamics computes; lives on the stack. */
+typedef struct {
+    double R[9];                   /* world from chassis */
+    double e[3];                   /* chassis lateral axis = rocker and wheel axles */
+    double heading[3];             /* horizontal unit heading */
+    double pivot[2][3], hub[NUM_WHEELS][3];
+    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];
+    double M[NU][NU], Q[NU], D[NU][NU];
+    WheelContact wheel[NUM_WHEELS];
+    double torque[2];
+} Eval;
+
+static inline int side_of(int w) { return w / 2; }
+static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
+
+/* ------------------------------------------------------------ set-up */
+
+static int check_params(const Params *p, char *err, size_t n)
+{
+    const double wheels = 4 * p->wheel_mass, rockers = 2 * p->rover_rockerMass;
+    if (!(p->wheel_mass > 0)) return snprintf(err, n, "wheel.mass = %g must be positive", p->wheel_mass), -1;
+    if (!(p->wheel_inertia > 0)) return snprintf(err, n, "wheel.inertia = %g must be positive", p->wheel_inertia), -1;
+    if (!(p->rover_rockerMass > 0)) return snprintf(err, n, "rover.rockerMass = %g must be positive", p->rover_rockerMass), -1;
+    if (!(p->rover_mass > wheels + rockers))
+        return snprintf(err, n, "rover.mass = %g must exceed the wheels' and rockers' mass (%g kg)", p->rover_mass,
+                        wheels + rockers), -1;
+    if (!(p->rover_wheelbase > 0)) return snprintf(err, n, "rover.wheelbase = %g must be positive", p->rover_wheelbase), -1;
+    if (!(p->rover_track > p->wheel_width))
+        return snprintf(err, n, "rover.track = %g must exceed wheel.width = %g", p->rover_track, p->wheel_width), -1;
+    if (!(p->env_gravity > 0)) return snprintf(err, n, "env.gravity = %g must be positive", p->env_gravity), -1;
+    if (!(p->solver_step > 0)) return snprintf(err, n, "solver.step = %g must be positive", p->solver_step), -1;
+    if (p->drive_mode == DRIVE_MOTOR) {
+        if (!(p->motor_resistance > 0)) return snprintf(err, n, "motor.resistance = %g must be positive", p->motor_resistance), -1;
+        if (!(p->motor_gearRatio > 0)) return snprintf(err, n, "motor.gearRatio = %g must be positive", p->motor_gearRatio), -1;
+    }
+    return 0;
+}
+
+static void derive(Model *m)
+{
+    const Params *p = &m->p;
+    Derived *d = &m->d;
+    const double L = p->rover_wheelbase, W = p->rover_track, hp = p->rover_pivotHeight;
+    d->chassis_mass = p->rover_mass - 4 * p->wheel_mass - 2 * p->rover_rockerMass;
+    /* Assumption (model-notes 4): chassis inertia of a uniform 1.38 x 1.6 x 0.5 m box. */
+    const double bx = 1.38, by = 1.6, bz = 0.5;
+    d->chassis_inertia[0] = d->chassis_mass * (by * by + bz * bz) / 12;
+    d->chassis_inertia[1] = d->chassis_mass * (bx * bx + bz * bz) / 12;
+    d->chassis_inertia[2] = d->chassis_mass * (bx * bx + by * by) / 12;
+    /* Assumption: a rocker is a slender beam between its two axles. */
+    d->rocker_inertia[0] = 0.02 * p->rover_rockerMass;
+    d->rocker_inertia[1] = p->rover_rockerMass * L * L / 12;
+    d->rocker_inertia[2] = d->rocker_inertia[1];
+    /* Assumption: a wheel is a disc for the transverse axes. */
+    d->wheel_inertia_transverse = 0.5 * p->wheel_inertia + p->wheel_mass * p->wheel_width * p->wheel_width / 12;
+    /* Chassis frame: origin midway between the rocker pivots, x forward, y left, z up. */
+    v3_set(d->chassis_cg, 0, 0, p->rover_cgHeight - hp);
+    v3_set(d->pivot[SIDE_LEFT], 0, W / 2, 0);
+    v3_set(d->pivot[SIDE_RIGHT], 0, -W / 2, 0);
+    v3_set(d->rocker_cg, 0, 0, -hp);
+    v3_set(d->hub[0], L / 2, 0, -hp);
+    v3_set(d->hub[1], -L / 2, 0, -hp);
+}
+
+/* ------------------------------------------------------- kinematics */
+
+/* Jacobian rows of a point x (world) moving with the chassis, or with a
+ * rocker of the given side (side < 0: chassis). */
+static void point_jacobian(const Eval *ev, const double pos[3], const double x[3], int side, double J[3][NU])
+{
+    double r[3];
+    v3_sub(r, x, pos);
+    memset(J, 0, sizeof(double) * 3 * NU);
+    for (int i = 0; i < 3; ++i) J[i][U_VX + i] = 1;
+    /* v = v_c + w x r  ->  columns of -[r]x */
+    J[0][U_WX + 1] = r[2];  J[0][U_WX + 2] = -r[1];
+    J[1][U_WX + 0] = -r[2]; J[1][U_WX + 2] = r[0];
+    J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0];
+    if (side >= 0) {
+        double s[3], c[3];
+        v3_sub(s, x, ev->pivot[side]);
+        v3_cross(c, ev->e, s);
+        for (int i = 0; i < 3; ++i) J[i][U_BETA] = sigma_of(side) * c[i];
+    }
+}
+
+/* Adds to the point Jacobian J the motion of a point on a wheel body
+ * (offset r from its hub): -[r]x times the wheel's angular Jacobian. */
+static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3])
+{
+    for (int k = 0; k < NU; ++k) {
+        double w[3] = {Jw[0][k], Jw[1][k], Jw[2][k]}, c[3];
+        v3_cross(c, w, r);
+        for (int i = 0; i < 3; ++i) J[i][k] += c[i];
+    }
+}
+
+static double row_dot(const double row[NU], const double u[NU])
+{
+    double s = 0;
+    for (int k = 0; k < NU; ++k) s += row[k] * u[k];
+    return s;
+}
+
+/* a^T J for a 3-vector a: a row of NU. */
+static void vec_times_jac(double out[NU], const double a[3], double J[3][NU])
+{
+    for (int k = 0; k < NU; ++k) out[k] = a[0] * J[0][k] + a[1] * J[1][k] + a[2] * J[2][k];
+}
+
+/* Q += J^T F */
+static void add_generalised(double Q[NU], double J[3][NU], const double F[3])
+{
+    for (int k = 0; k < NU; ++k) Q[k] += J[0][k] * F[0] + J[1][k] * F[1] + J[2][k] * F[2];
+}
+
+/* M += a^T s b for rows a, b */
+static void add_outer(double Mx[NU][NU], const double a[NU], double s, const double b[NU])
+{
+    for (int i = 0; i < NU; ++i) {
+        if (a[i] == 0) continue;
+        for (int j = 0; j < NU; ++j) Mx[i][j] += a[i] * s * b[j];
+    }
+}
+
+/* ---------------------------------------------------------- drive */
+
+static void drive_torques(const Model *m, double torque[2], double dtorque_domega[2])
+{
+    const Params *p = &m->p;
+    const double omega[2] = {m->s.u[U_SPIN_L], m->s.u[U_SPIN_R]};
+    for (int k = 0; k < 2; ++k) {
+        double t = 0, slope = 0;
+        if (p->drive_mode == DRIVE_TORQUE) {
+            t = k == SIDE_LEFT ? m->in.torqueLeft : m->in.torqueRight;
+        } else if (p->drive_mode == DRIVE_PID) {
+            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            t = p->drive_Kp * (ref - omega[k]) + p->drive_Ki * m->s.pid_integral[k];
+            slope = -p->drive_Kp;
+        } else {
+            /* DC motor at throttle u: T = eff * n * kt * (u V - ke n w) / Ra, ke = kt (SI). */
+            double u = k == SIDE_LEFT ? m->in.throttleLeft : m->in.throttleRight;
+            double n = p->motor_gearRatio, kt = p->motor_kt;
+            t = p->motor_efficiency * n * kt * (u * p->motor_voltage - kt * n * omega[k]) / p->motor_resistance;
+            slope = -p->motor_efficiency * n * n * kt * kt / p->motor_resistance;
+        }
+        if (p->drive_mode != DRIVE_TORQUE && fabs(t) > p->drive_torqueMax) {
+            t = copysign(p->drive_torqueMax, t);
+            slope = 0;
+        }
+        torque[k] = t;
+        dtorque_domega[k] = slope;
+    }
+}
+
+/* ---------------------------------------------------- the dynamics */
+
+/* Contact of wheel w: fills ev->wheel[w]; if J is given (matrices wanted),
+ * adds its generalised force, damping and stiffness.  The wheel's angular
+ * Jacobian is Jw; hub velocity Jacobian Jh. */
+static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], double Jw[3][NU],
+                          int matrices, double K[NU][NU])
+{
+    const ContactModel *cm = &m->d.contact;
+    const double R = cm->radius;
+    const double *u = m->s.u;
+    const double *H = ev->hub[w];
+    WheelContact *wc = &ev->wheel[w];
+    memset(wc, 0, sizeof *wc);
+
+    const double zt = terrain_height(&m->terrain, H[0], H[1]);
+    double n[3];
+    terrain_normal(&m->terrain, H[0], H[1], n);
+    /* Assumption: the soil is locally a plane through the terrain point
+     * below the hub; the contact is solved in the wheel's mid-plane. */
+    const double hub_height = (H[2] - zt) * n[2];
+    double np[3];
+    v3_copy(np, n);
+    v3_axpy(np, -v3_dot(n, ev->e), ev->e);
+    const double in_plane = v3_norm(np);
+    if (in_plane < 1e-6) return;                        /* wheel lying on its side */
+    v3_scale(np, np, 1.0 / in_plane);
+    const double sinkage = R - hub_height / in_plane;
+    wc->sinkage = sinkage;
+    double f[3], l[3];
+    v3_cross(f, ev->e, np);                            /* heading in the contact plane */
+    v3_cross(l, n, f);
+    v3_normalize(l);
+    double vh[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i) vh[i] = row_dot(Jh[i], u);
+    wc->v_long = v3_dot(f, vh);
+    if (sinkage <= 0) return;
+    wc->in_contact = 1;
+
+    double cut_front, cut_rear;
+    contact_cuts(cm, &m->s.memory[w], sinkage, &cut_front, &cut_rear);
+    ContactPatch patch;
+    contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
+    const double sa = sin(patch.alpha), ca = cos(patch.alpha);
+    double nvec[3], t[3], r_rim[3];
+    for (int i = 0; i < 3; ++i) {
+        nvec[i] = -sa * f[i] + ca * np[i];             /* Eqn 6: from the centroid towards the hub */
+        t[i] = ca * f[i] + sa * np[i];                 /* tangential direction of Eqns 8-9 */
+        r_rim[i] = -R * nvec[i];                       /* rim point on the centroid ray */
+    }
+    /* The shear acts on the rim where the centroid ray meets it, so its
+     * moment about the axle is exactly -R F_t and the normal force passes
+     * through the hub. */
+    double Jp[3][NU];
+    memcpy(Jp, Jh, sizeof Jp);
+    add_wheel_offset(Jp, Jw, r_rim);
+    double wheel_omega[3], v_rim[3];
+    for (int i = 0; i < 3; ++i) {
+        wheel_omega[i] = row_dot(Jw[i], u);
+        v_rim[i] = row_dot(Jp[i], u);
+    }
+    const double omega_r = R * v3_dot(wheel_omega, ev->e);
+    const double v_lat = v3_dot(l, v_rim);
+    double F_long, F_lat, jac[6];
+    contact_shear(cm, patch.Fn, patch.area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
+
+    const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
+    wc->slip = (omega_r - wc->v_long) / den;
+    wc->Fn = patch.Fn;
+    wc->F_long = F_long;
+    wc->F_lat = F_lat;
+    wc->alpha = patch.alpha;
+    for (int i = 0; i < 3; ++i) wc->force[i] = patch.Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
+    if (!matrices) return;
+
+    add_generalised(ev->Q, Jp, wc->force);
+    /* Damping: -dQ/du of the shear, through v_long, v_lat and omega R. */
+    double g_long[NU], g_lat[NU], g_spin[NU], a_t[NU], e_row[NU];
+    vec_times_jac(g_long, f, Jh);
+    vec_times_jac(g_lat, l, Jp);
+    vec_times_jac(e_row, ev->e, Jw);
+    for (int k = 0; k < NU; ++k) g_spin[k] = R * e_row[k];
+    vec_times_jac(a_t, t, Jp);
+    double dFl[NU], dFy[NU];
+    for (int k = 0; k < NU; ++k) {
+        dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
+        dFy[k] = jac[3] * g_long[k] + jac[4] * g_lat[k] + jac[5] * g_spin[k];
+    }
+    add_outer(ev->D, a_t, -1.0, dFl);
+    add_outer(ev->D, g_lat, -1.0, dFy);
+    /* Normal stiffness dFn/dz by a one-sided difference (closed form is cheap). */
+    ContactPatch deeper;
+    const double dz = 1e-6;
+    contact_patch(cm, sinkage + dz, cut_front, cut_rear, &deeper);
+    const double kn = (deeper.Fn - patch.Fn) / dz;
+    double a_n[NU];
+    vec_times_jac(a_n, nvec, Jh);
+    add_outer(K, a_n, kn, a_n);
+}
+
+/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
+static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
+{
+    const Params *p = &m->p;
+    const Derived *d = &m->d;
+    const State *s = &m->s;
+    const double *u = s->u;
+    const double g = p->env_gravity;
+
+    quat_to_m3(ev->R, s->quat);
+    v3_set(ev->e, ev->R[1], ev->R[4], ev->R[7]);
+    v3_set(ev->heading, ev->R[0], ev->R[3], 0);
+    v3_normalize(ev->heading);
+    const double *w = &u[U_WX];
+
+    double Rr[2][9];
+    for (int k = 0; k < 2; ++k) {
+        const double b = sigma_of(k) * s->beta, cb = cos(b), sb = sin(b);
+        const double Ry[9] = {cb, 0, sb, 0, 1, 0, -sb, 0, cb};
+        m3_mul(Rr[k], ev->R, Ry);
+        double tmp[3];
+        m3_mul_v(tmp, ev->R, d->pivot[k]);
+        v3_add(ev->pivot[k], s->pos, tmp);
+    }
+    for (int wh = 0; wh < NUM_WHEELS; ++wh) {
+        double tmp[3];
+        m3_mul_v(tmp, Rr[side_of(wh)], d->hub[wh % 2]);
+        v3_add(ev->hub[wh], ev->pivot[side_of(wh)], tmp);
+    }
+
+    if (matrices) {
+        memset(ev->M, 0, sizeof ev->M);
+        memset(ev->Q, 0, sizeof ev->Q);
+        memset(ev->D, 0, sizeof ev->D);
+        memset(K, 0, sizeof(double) * NU * NU);
+    }
+
+    /* Body data: CG (world), mass, world inertia, Jacobians, biases. */
+    for (int body = 0; body < NUM_BODIES; ++body) {
+        double cg[3], I[9], mass;
+        int side = -1;
+        double (*Jv)[NU] = ev->Jv[body];
+        double (*Jw)[NU] = ev->Jw[body];
+        memset(Jw, 0, sizeof(double) * 3 * NU);
+        for (int i = 0; i < 3; ++i) Jw[i][U_WX + i] = 1;
+        double spin_rate = 0;                           /* about e, relative to the chassis */
+        if (body == BODY_CHASSIS) {
+            double tmp[3];
+            m3_mul_v(tmp, ev->R, d->chassis_cg);
+            v3_add(cg, s->pos, tmp);
+            mass = d->chassis_mass;
+            m3_rotate_diag(I, ev->R, d->chassis_inertia);
+        } else if (body == BODY_ROCKER_L || body == BODY_ROCKER_R) {
+            side = body - BODY_ROCKER_L;
+            double tmp[3];
+            m3_mul_v(tmp, Rr[side], d->rocker_cg);
+            v3_add(cg, ev->pivot[side], tmp);
+            mass = p->rover_rockerMass;
+            m3_rotate_diag(I, Rr[side], d->rocker_inertia);
+            for (int i = 0; i < 3; ++i) Jw[i][U_BETA] = sigma_of(side) * ev->e[i];
+            spin_rate = sigma_of(side) * u[U_BETA];
+        } else {
+            const int wh = body - BODY_WHEEL0;
+            side = side_of(wh);
+            v3_copy(cg, ev->hub[wh]);
+            mass = p->wheel_mass;
+            const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j) I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
+            for (int i = 0; i < 3; ++i) {
+                Jw[i][U_BETA] = sigma_of(side) * ev->e[i];
+                Jw[i][U_SPIN_L + side] = ev->e[i];
+            }
+            spin_rate = sigma_of(side) * u[U_BETA] + u[U_SPIN_L + side];
+        }
+        point_jacobian(ev, s->pos, cg, side, Jv);
+        if (!matrices) continue;
+
+        /* bias accelerations (u' = 0) */
+        double r_d[3], sv[3], bv[3], bw[3], wxe[3], tmp[3], tmp2[3];
+        v3_cross(wxe, w, ev->e);
+        if (side < 0) {
+            v3_sub(r_d, cg, s->pos);
+            v3_cross(tmp, w, r_d);
+            v3_cross(bv, w, tmp);
+            v3_set(bw, 0, 0, 0);
+        } else {
+            const double sb_rate = sigma_of(side) * u[U_BETA];
+            double wr[3];
+            v3_sub(r_d, ev->pivot[side], s->pos);
+            v3_sub(sv, cg, ev->pivot[side]);
+            v3_cross(tmp, w, r_d);
+            v3_cross(bv, w, tmp);
+            v3_cross(tmp, wxe, sv);
+            v3_axpy(bv, sb_rate, tmp);
+            v3_copy(wr, w);
+            v3_axpy(wr, sb_rate, ev->e);
+            v3_cross(tmp, wr, sv);
+            v3_cross(tmp2, wr, tmp);
+            v3_add(bv, bv, tmp2);
+            v3_scale(bw, wxe, spin_rate);
+        }
+        /* body angular velocity and gyroscopic torque */
+        double wb[3], Iw[3], gyro[3], Ibw[3];
+        v3_copy(wb, w);
+        v3_axpy(wb, spin_rate, ev->e);
+        m3_mul_v(Iw, I, wb);
+        v3_cross(gyro, wb, Iw);
+        m3_mul_v(Ibw, I, bw);
+
+        double F[3] = {-mass * bv[0], -mass * bv[1], -mass * (bv[2] + g)};
+        double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
+        add_generalised(ev->Q, Jv, F);
+        add_generalised(ev->Q, Jw, T);
+        for (int i = 0; i < NU; ++i)
+            for (int j = 0; j < NU; ++j) {
+                double acc = mass * (Jv[0][i] * Jv[0][j] + Jv[1][i] * Jv[1][j] + Jv[2][i] * Jv[2][j]);
+                for (int a = 0; a < 3; ++a)
+                    for (int b = 0; b < 3; ++b) acc += Jw[a][i] * I[3 * a + b] * Jw[b][j];
+                ev->M[i][j] += acc;
+            }
+    }
+
+    /* Contacts: the hub Jacobian is the wheel body's CG Jacobian. */
+    for (int wh = 0; wh < NUM_WHEELS; ++wh)
+        wheel_contact(m, ev, wh, ev->Jv[BODY_WHEEL0 + wh], ev->Jw[BODY_WHEEL0 + wh], matrices, K);
+
+    double slope[2];
+    drive_torques(m, ev->torque, slope);
+    if (!matrices) return;
+
+    /* Drive: the motor on each rocker turns its side's wheels relative to it. */
+    for (int k = 0; k < 2; ++k) {
+        ev->Q[U_SPIN_L + k] += ev->torque[k];
+        ev->D[U_SPIN_L + k][U_SPIN_L + k] -= slope[k];
+    }
+    /* Rocker differential friction. */
+    ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
+    ev->D[U_BETA][U_BETA] += p->rover_rockerDamping;
+    /* Drawbar: horizontal, backwards along the heading, at the hitch. */
+    double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ}, hitch[3], Jhitch[3][NU], Fd[3];
+    m3_mul_v(hitch, ev->R, hitch_local);
+    v3_add(hitch, hitch, s->pos);
+    point_jacobian(ev, s->pos, hitch, -1, Jhitch);
+    v3_scale(Fd, ev->heading, -m->in.drawbarForce);
+    add_generalised(ev->Q, Jhitch, Fd);
+}
+
+/* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
+ * A and b are overwritten.  Returns -1 if singular. */
+static int solve(double A[NU][NU], double b[NU])
+{
+    for (int c = 0; c < NU; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < NU; ++r)
+            if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
+        if (!(fabs(A[piv][c]) > 1e-300)) return -1;
+        if (piv != c) {
+            for (int k = 0; k < NU; ++k) {
+                double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t;
+            }
+            double t = b[c]; b[c] = b[piv]; b[piv] = t;
+        }
+        for (int r = c + 1; r < NU; ++r) {
+            double f = A[r][c] / A[c][c];
+            if (f == 0) continue;
+            for (int k = c; k < NU; ++k) A[r][k] -= f * A[c][k];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int c = NU - 1; c >= 0; --c) {
+        double s = b[c];
+        for (int k = c + 1; k < NU; ++k) s -= A[c][k] * b[k];
+        b[c] = s / A[c][c];
+    }
+    return 0;
+}
+
+static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
+{
+    const State *s = &m->s;
+    for (int i = 0; i < 3; ++i)
+        if (!isfinite(s->pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", s->time), 0;
+    for (int i = 0; i < NU; ++i)
+        if (!isfinite(s->u[i]) || fabs(s->u[i]) > 1e3)
+            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g", s->time, i, s->u[i]), 0;
+    if (fabs(s->beta) > 1.2)
+        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", s->time, s->beta), 0;
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        if (ev->wheel[w].sinkage >= m->p.wheel_radius)
+            return snprintf(err, n,
+                            "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius "
+                            "(soil too soft for the load? check soil.kh, soil.eta)",
+                            s->time, wheel_names[w], ev->wheel[w].sinkage), 0;
+    return 1;
+}
+
+/* One internal step of length h. */
+static int substep(Model *m, double h, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    Eval ev;
+    double K[NU][NU], A[NU][NU], b[NU];
+    evaluate(m, &ev, 1, K);
+    for (int i = 0; i < NU; ++i) {
+        double Ku = 0;
+        for (int j = 0; j < NU; ++j) {
+            A[i][j] = ev.M[i][j] + h * ev.D[i][j] + h * h * K[i][j];
+            Ku += K[i][j] * s->u[j];
+        }
+        b[i] = h * (ev.Q[i] - h * Ku);
+    }
+    if (solve(A, b) != 0)
+        return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
+
+    /* PID integral with anti-windup: integrate only while not saturated,
+     * or while the error would bring the torque back inside the limit. */
+    if (m->p.drive_mode == DRIVE_PID) {
+        for (int k = 0; k < 2; ++k) {
+            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            double e = ref - s->u[U_SPIN_L + k];
+            int saturated = fabs(ev.torque[k]) >= m->p.drive_torqueMax;
+            if (!saturated || e * ev.torque[k] < 0) s->pid_integral[k] += e * h;
+        }
+    }
+    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev.torque[k];
+    for (int i = 0; i < NU; ++i) s->u[i] += b[i];
+    for (int i = 0; i < 3; ++i) s->pos[i] += h * s->u[U_VX + i];
+    quat_integrate_world(s->quat, &s->u[U_WX], h);
+    s->beta += h * s->u[U_BETA];
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        contact_memory_update(&m->d.contact, &s->memory[w], ev.wheel[w].sinkage, ev.wheel[w].v_long, h);
+    s->time += h;
+    if (!state_is_sane(m, &ev, err, errlen)) return -1;
+    return 0;
+}
+
+static int inputs_are_finite(const Inputs *in, char *err, size_t n)
+{
+    const double v[7] = {in->drawbarForce, in->torqueLeft, in->torqueRight, in->omegaRefLeft,
+                         in->omegaRefRight, in->throttleLeft, in->throttleRight};
+    static const char *const names[7] = {"drawbarForce", "torqueLeft", "torqueRight", "omegaRefLeft",
+                                         "omegaRefRight", "throttleLeft", "throttleRight"};
+    for (int i = 0; i < 7; ++i)
+        if (!isfinite(v[i])) return snprintf(err, n, "input %s = %g is not finite", names[i], v[i]), 0;
+    return 1;
+}
+
+int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
+{
+    if (!inputs_are_finite(&m->in, err, errlen)) return -1;
+    const double t_end = m->s.time + h_comm;
+    int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
+    if (n < 1) n = 1;
+    const double h = h_comm / n;
+    for (int i = 0; i < n; ++i)
+        if (substep(m, h, err, errlen) != 0) return -1;
+    m->s.time = t_end;
+    model_compute_outputs(m);
+    return 0;
+}
+
+/* ------------------------------------------------------------ outputs */
+
+void model_compute_outputs(Model *m)
+{
+    Eval ev;
+    evaluate(m, &ev, 0, NULL);
+    Outputs *o = &m->out;
+    const double *R = ev.R;
+    o->x = m->s.pos[0];
+    o->y = m->s.pos[1];
+    o->z = m->s.pos[2];
+    o->yaw = atan2(R[3], R[0]);
+    o->pitch = asin(fmax(-1.0, fmin(1.0, -R[6])));
+    o->roll = atan2(R[7], R[8]);
+    o->vx = v3_dot(&m->s.u[U_VX], ev.heading);
+    o->omegaLeft = m->s.u[U_SPIN_L];
+    o->omegaRight = m->s.u[U_SPIN_R];
+    o->torqueLeftApplied = ev.torque[SIDE_LEFT];
+    o->torqueRightApplied = ev.torque[SIDE_RIGHT];
+    o->rocker = m->s.beta;
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const WheelContact *wc = &ev.wheel[w];
+        WheelOutputs *wo = &o->wheel[w];
+        const double sa = sin(wc->alpha), ca = cos(wc->alpha);
+        wo->sinkage = wc->sinkage;
+        wo->slip = wc->slip;
+        wo->Fn = wc->Fn;
+        wo->Ft = wc->F_long;
+        wo->Fx = wc->F_long * ca - wc->Fn * sa;
+        wo->Fy = wc->F_lat;
+        wo->Fz = wc->Fn * ca + wc->F_long * sa;
+    }
+}
+
+/* --------------------------------------------------- static equilibrium */
+
+/* Places the chassis at height z with roll, pitch (yaw from init) and
+ * rocker angle beta, at rest, with the soil memory of a wheel pressed
+ * straight down (or rolling, when init.vx != 0). */
+static void place(Model *m, const double x[4])
+{
+    State *s = &m->s;
+    s->pos[0] = m->p.init_x;
+    s->pos[1] = m->p.init_y;
+    s->pos[2] = x[0];
+    quat_from_euler(s->quat, x[1], x[2], m->p.init_yaw);
+    s->beta = x[3];
+    Eval ev;
+    evaluate(m, &ev, 0, NULL);
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        double z = ev.wheel[w].sinkage;
+        s->memory[w].zmax = z > 0 ? z : 0;
+        double L = z > 0 ? m->p.wheel_radius * sin(acos(1 - fmin(z, m->p.wheel_radius) / m->p.wheel_radius)) : 0;
+        s->memory[w].travel = m->p.init_vx > 0 ? L : m->p.init_vx < 0 ? -L : 0;
+    }
+}
+
+/* Residual: the generalised forces along z, roll, pitch and beta at rest. */
+static void equilibrium_residual(Model *m, const double x[4], double r[4])
+{
+    place(m, x);
+    Eval ev;
+    double K[NU][NU];
+    double saved[NU];
+    memcpy(saved, m->s.u, sizeof saved);
+    memset(m->s.u, 0, sizeof m->s.u);
+    evaluate(m, &ev, 1, K);
+    memcpy(m->s.u, saved, sizeof saved);
+    r[0] = ev.Q[U_VX + 2];
+    r[1] = ev.Q[U_WX + 0];
+    r[2] = ev.Q[U_WX + 1];
+    r[3] = ev.Q[U_BETA];
+}
+
+static int solve4(double A[4][4], double b[4])
+{
+    for (int c = 0; c < 4; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < 4; ++r)
+            if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
+        if (!(fabs(A[piv][c]) > 1e-300)) return -1;
+        for (int k = 0; k < 4; ++k) { double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t; }
+        double t = b[c]; b[c] = b[piv]; b[piv] = t;
+        for (int r = c + 1; r < 4; ++r) {
+            double f = A[r][c] / A[c][c];
+            for (int k = c; k < 4; ++k) A[r][k] -= f * A[c][k];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int c = 3; c >= 0; --c) {
+        double s = b[c];
+        for (int k = c + 1; k < 4; ++k) s -= A[c][k] * b[k];
+        b[c] = s / A[c][c];
+    }
+    return 0;
+}
+
+static double norm4(const double r[4], double weight, double moment_scale)
+{
+    return sqrt(r[0] * r[0] / (weight * weight) +
+                (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]) / (moment_scale * moment_scale));
+}
+
+static int find_equilibrium(Model *m, char *err, size_t errlen)
+{
+    const Params *p = &m->p;
+    const double weight = p->rover_mass * p->env_gravity, moment_scale = weight * p->rover_wheelbase;
+    /* Start: chassis where the wheels just touch the terrain below their nominal positions. */
+    const double cy = cos(p->init_yaw), sy = sin(p->init_yaw);
+    double ground = -HUGE_VAL;
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        double lx = (w % 2 == 0 ? 0.5 : -0.5) * p->rover_wheelbase;
+        double ly = (side_of(w) == SIDE_LEFT ? 0.5 : -0.5) * p->rover_track;
+        double gx = p->init_x + cy * lx - sy * ly, gy = p->init_y + sy * lx + cy * ly;
+        ground = fmax(ground, terrain_height(&m->terrain, gx, gy));
+    }
+    double x[4] = {ground + p->rover_pivotHeight + p->wheel_radius - 1e-3, 0, 0, 0};
+    double r[4];
+    equilibrium_residual(m, x, r);
+    double res = norm4(r, weight, moment_scale);
+    /* Lower the rover until every wheel carries load, then Newton. */
+    for (int it = 0; it < 200 && r[0] < 0; ++it) {
+        x[0] -= 2e-3;
+        equilibrium_residual(m, x, r);
+    }
+    res = norm4(r, weight, moment_scale);
+    for (int it = 0; it < 100 && res > 1e-10; ++it) {
+        double J[4][4], step[4];
+        const double dx[4] = {1e-6, 1e-6, 1e-6, 1e-6};
+        for (int j = 0; j < 4; ++j) {
+            double xp[4], rp[4];
+            memcpy(xp, x, sizeof xp);
+            xp[j] += dx[j];
+            equilibrium_residual(m, xp, rp);
+            for (int i = 0; i < 4; ++i) J[i][j] = (rp[i] - r[i]) / dx[j];
+        }
+        for (int i = 0; i < 4; ++i) step[i] = -r[i];
+        if (solve4(J, step) != 0) break;
+        /* Backtracking keeps every Newton step an improvement. */
+        double lambda = 1.0, xn[4], rn[4], resn = res;
+        for (int ls = 0; ls < 30; ++ls, lambda *= 0.5) {
+            double len = 0;
+            for (int i = 0; i < 4; ++i) len = fmax(len, fabs(lambda * step[i]));
+            double clip = len > 0.05 ? 0.05 / len : 1.0;    /* at most 5 cm / 0.05 rad per step */
+            for (int i = 0; i < 4; ++i) xn[i] = x[i] + clip * lambda * step[i];
+            equilibrium_residual(m, xn, rn);
+            resn = norm4(rn, weight, moment_scale);
+            if (resn < res) break;
+        }
+        if (!(resn < res)) break;
+        memcpy(x, xn, sizeof x);
+        memcpy(r, rn, sizeof r);
+        res = resn;
+    }
+    if (!(res < 1e-8)) {
+        snprintf(err, errlen,
+                 "no static equilibrium found for the rover at init.x = %g, init.y = %g (residual %.3g of the "
+                 "weight): is the terrain too steep or the soil too soft?", p->init_x, p->init_y, res);
+        return -1;
+    }
+    place(m, x);
+    return 0;
+}
+
+/* ------------------------------------------------------------- life cycle */
+
+int model_initialize(Model *m, char *err, size_t errlen)
+{
+    const Params *p = &m->p;
+    if (check_params(p, err, errlen) != 0) return -1;
+    ContactModel *cm = &m->d.contact;
+    memset(cm, 0, sizeof *cm);
+    cm->kh = p->soil_kh;
+    cm->eta = p->soil_eta;
+    cm->gamma = p->soil_gamma;
+    cm->Kvx = p->soil_Kvx;
+    cm->Kvy_ratio = p->soil_KvyRatio;
+    cm->cohesion = p->soil_cohesion;
+    cm->phi = p->soil_phi;
+    cm->radius = p->wheel_radius;
+    cm->width = p->wheel_width;
+    cm->slip_v_eps = p->contact_slipVelocityEps;
+    cm->method = p->contact_method;
+    if (contact_model_prepare(cm, err, errlen) != 0) return -1;
+    derive(m);
+
+    terrain_free(&m->terrain);
+    if (m->terrain_file && m->terrain_file[0]) {
+        if (terrain_load(&m->terrain, m->terrain_file, err, errlen) != 0) return -1;
+    } else {
+        terrain_init_flat(&m->terrain);
+    }
+
+    const double t0 = m->s.time;
+    memset(&m->s, 0, sizeof m->s);
+    m->s.time = t0;
+    if (find_equilibrium(m, err, errlen) != 0) return -1;
+    /* Initial forward speed: chassis moving along the heading, wheels rolling without slip. */
+    m->s.u[U_VX + 0] = p->init_vx * cos(p->init_yaw);
+    m->s.u[U_VX + 1] = p->init_vx * sin(p->init_yaw);
+    m->s.u[U_SPIN_L] = m->s.u[U_SPIN_R] = p->init_vx / p->wheel_radius;
+    model_compute_outputs(m);
+    return 0;
+}
+
+void model_free(Model *m)
+{
+    terrain_free(&m->terrain);
+}

@@ -1,0 +1,699 @@
+/*
+ * Terrain: flat ground or an ESRI ASCII elevation grid (see terrain.h).
+ *
+ * Only standard C is used here (no POSIX) so that the file builds unchanged
+ * with mingw-w64 for the Windows FMU binary.
+ *
+ * Reading is token based: values may be split across lines arbitrarily, so
+ * the reader works on whitespace-separated tokens but remembers the line
+ * (and the position on the line) where each token started, so that every
+ * error message can point at the offending place in the file.
+ *
+ * Grid convention: node (col i, row j) sits at the centre of its cell,
+ * x = x0 + i*cell, y = y0 + j*cell, with row 0 the southernmost row (the
+ * file lists rows from north to south).
+ */
+#include "terrain.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Size limits: guard against absurd headers before allocating. */
+#define TERRAIN_MAX_DIM   20000L
+#define TERRAIN_MAX_CELLS 50000000L
+
+/* Longest token kept verbatim.  Longer tokens are still consumed entirely
+ * (so line counting stays right) but are never valid numbers. */
+#define TOK_MAX 256
+
+/* How many characters of an offending token to quote in a message. */
+#define QUOTE_MAX 40
+
+/* ------------------------------------------------------------------ */
+/* Error messages                                                      */
+/* ------------------------------------------------------------------ */
+
+#if defined(__GNUC__)
+#define TERRAIN_PRINTF(f, a) __attribute__((format(printf, f, a)))
+#else
+#define TERRAIN_PRINTF(f, a)
+#endif
+
+/* Writes a message into err (if any); vsnprintf always NUL-terminates and
+ * truncates safely when errlen > 0. */
+static void set_err(char *err, size_t errlen, const char *fmt, ...) TERRAIN_PRINTF(3, 4);
+static void set_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    va_list ap;
+    if (err == NULL || errlen == 0)
+        return;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+    err[errlen - 1] = '\0'; /* belt and braces for non-conforming C libraries */
+}
+
+/* Copies a token for quoting in a message: at most QUOTE_MAX characters,
+ * non-printable bytes replaced by '?', "..." appended if it was cut. */
+static void quote_token(char out[QUOTE_MAX + 4], const char *tok, size_t len)
+{
+    size_t i, n = len < QUOTE_MAX ? len : QUOTE_MAX;
+    for (i = 0; i < n && tok[i] != '\0'; i++) {
+        unsigned char c = (unsigned char)tok[i];
+        out[i] = (c >= 0x20 && c < 0x7f) ? (char)c : '?';
+    }
+    if (len > QUOTE_MAX)
+        out[i++] = '.', out[i++] = '.', out[i++] = '.';
+    out[i] = '\0';
+}
+
+/* ------------------------------------------------------------------ */
+/* Tokenizer                                                           */
+/* ------------------------------------------------------------------ */
+
+typedef struct {
+    FILE *f;
+    long line;          /* current reader line, 1-based */
+    long ntok_line;     /* tokens started so far on the current line */
+    int at_file_start;  /* no token read yet (for stripping a UTF-8 BOM) */
+    /* the last token read: */
+    char tok[TOK_MAX];  /* NUL-terminated, cut at TOK_MAX-1 characters */
+    size_t len;         /* its full length */
+    int truncated;      /* longer than TOK_MAX-1 (never a number) */
+    int has_nul;        /* contained a NUL byte (never a number) */
+    long tok_line;      /* line on which it started */
+    long tok_index;     /* 1-based position among the tokens of that line */
+} Lexer;
+
+static int is_blank(int c)
+{
+    return c == ' ' || c == '\t' || c == '\v' || c == '\f';
+}
+
+static void lex_newline(Lexer *lx)
+{
+    if (lx->line < 0x7fffffffL) /* saturate rather than overflow */
+        lx->line++;
+    lx->ntok_line = 0;
+}
+
+/* Reads the next token.  Returns 1 on a token, 0 at end of file, -1 on a
+ * read error.  LF, CRLF and lone CR all end a line.  Lines may be of any
+ * length: characters are consumed one by one, so no line buffer is needed. */
+static int lex_next(Lexer *lx)
+{
+    for (;;) {
+        int c;
+        size_t kept;
+
+        /* skip white space, counting line ends */
+        for (;;) {
+            c = getc(lx->f);
+            if (c == EOF)
+                return ferror(lx->f) ? -1 : 0;
+            if (c == '\n') {
+                lex_newline(lx);
+            } else if (c == '\r') {
+                int d = getc(lx->f);
+                if (d != '\n' && d != EOF)
+                    ungetc(d, lx->f);
+                lex_newline(lx);
+            } else if (!is_blank(c)) {
+                break;
+            }
+        }
+
+        lx->tok_line = lx->line;
+        lx->tok_index = ++lx->ntok_line;
+        lx->len = 0;
+        lx->has_nul = 0;
+        do {
+            if (c == '\0')
+                lx->has_nul = 1;
+            if (lx->len < TOK_MAX - 1)
+                lx->tok[lx->len] = (char)c;
+            lx->len++;
+            c = getc(lx->f);
+        } while (c != EOF && c != '\n' && c != '\r' && !is_blank(c));
+        kept = lx->len < TOK_MAX - 1 ? lx->len : TOK_MAX - 1;
+        lx->tok[kept] = '\0';
+        lx->truncated = lx->len > kept;
+        /* leave the terminating white space for the skip loop above, so that
+         * line counting happens in one place */
+        if (c != EOF)
+            ungetc(c, lx->f);
+        else if (ferror(lx->f))
+            return -1;
+
+        /* files saved by some Windows editors start with a UTF-8 BOM */
+        if (lx->at_file_start) {
+            lx->at_file_start = 0;
+            if (kept >= 3 && memcmp(lx->tok, "\xEF\xBB\xBF", 3) == 0) {
+                memmove(lx->tok, lx->tok + 3, kept - 2);
+                lx->len -= 3;
+                if (lx->len == 0) { /* BOM followed by white space */
+                    lx->ntok_line--;
+                    continue;
+                }
+            }
+        }
+        return 1;
+    }
+}
+
+/* Parses the current token as a complete number (finite or not).  strtod
+ * honours the C library locale's decimal point, which a host application
+ * may have changed (e.g. to ','); the file format always uses '.', so the
+ * token is translated to the locale's convention first. */
+static int lex_number(const Lexer *lx, double *v)
+{
+    char buf[TOK_MAX];
+    const char *dp = localeconv()->decimal_point;
+    char *end;
+    size_t i;
+
+    if (lx->has_nul || lx->truncated || lx->tok[0] == '\0')
+        return 0;
+    memcpy(buf, lx->tok, strlen(lx->tok) + 1);
+    if (dp != NULL && dp[0] != '\0' && dp[0] != '.' && dp[1] == '\0') {
+        for (i = 0; buf[i] != '\0'; i++) {
+            if (buf[i] == dp[0])
+                return 0; /* e.g. "1,5" is not a number in this format */
+            if (buf[i] == '.')
+                buf[i] = dp[0];
+        }
+    }
+    errno = 0;
+    *v = strtod(buf, &end);
+    return end != buf && *end == '\0';
+}
+
+/* ------------------------------------------------------------------ */
+/* Header                                                              */
+/* ------------------------------------------------------------------ */
+
+enum { K_NCOLS, K_NROWS, K_XLLCORNER, K_XLLCENTER, K_YLLCORNER, K_YLLCENTER,
+       K_CELLSIZE, K_NODATA, K_COUNT };
+
+static const char *const key_names[K_COUNT] = {
+    "ncols", "nrows", "xllcorner", "xllcenter", "yllcorner", "yllcenter",
+    "cellsize", "NODATA_value"
+};
+
+typedef struct {
+    double val[K_COUNT];
+    long line[K_COUNT];   /* line where the key was given; 0 = absent */
+    long end_line;        /* line of the first data token (or last line) */
+} Header;
+
+/* Case-insensitive lookup of a header key; -1 if unknown. */
+static int find_key(const char *tok)
+{
+    int k;
+    for (k = 0; k < K_COUNT; k++) {
+        const char *a = tok, *b = key_names[k];
+        while (*a != '\0' && tolower((unsigned char)*a) == tolower((unsigned char)*b))
+            a++, b++;
+        if (*a == '\0' && *b == '\0')
+            return k;
+    }
+    return -1;
+}
+
+/* The key that conflicts with k (corner vs centre), or -1. */
+static int rival_key(int k)
+{
+    switch (k) {
+    case K_XLLCORNER: return K_XLLCENTER;
+    case K_XLLCENTER: return K_XLLCORNER;
+    case K_YLLCORNER: return K_YLLCENTER;
+    case K_YLLCENTER: return K_YLLCORNER;
+    default: return -1;
+    }
+}
+
+/* Reads "key value" lines until the first line whose first token is a
+ * number (left in lx as the first data value).  Returns 1 when data
+ * follows, 0 at end of file, -1 on error. */
+static int read_header(Lexer *lx, Header *h, const char *path, char *err, size_t errlen)
+{
+    char q[QUOTE_MAX + 4];
+    int r = lex_next(lx);
+
+    if (r == 0) {
+        set_err(err, errlen, "%s: empty file (expected an ESRI ASCII grid header)", path);
+        return -1;
+    }
+    while (r == 1) {
+        double v;
+        int k, rival;
+        long kline;
+
+        quote_token(q, lx->tok, lx->len);
+        if (lx->tok_index != 1) {
+            set_err(err, errlen, "%s: line %ld: unexpected '%s' after a header value "
+                    "(expected one key and one value per line)", path, lx->tok_line, q);
+            return -1;
+        }
+        if (lex_number(lx, &v)) { /* first numeric line: the data begins */
+            h->end_line = lx->tok_line;
+            return 1;
+        }
+        k = find_key(lx->tok);
+        if (k < 0) {
+            set_err(err, errlen, "%s: line %ld: unknown header key '%s' (expected ncols, "
+                    "nrows, xllcorner|xllcenter, yllcorner|yllcenter, cellsize, NODATA_value)",
+                    path, lx->tok_line, q);
+            return -1;
+        }
+        kline = lx->tok_line;
+        if (h->line[k] != 0) {
+            set_err(err, errlen, "%s: line %ld: duplicate key '%s' (first given on line %ld)",
+                    path, kline, key_names[k], h->line[k]);
+            return -1;
+        }
+        rival = rival_key(k);
+        if (rival >= 0 && h->line[rival] != 0) {
+            set_err(err, errlen, "%s: line %ld: '%s' conflicts with '%s' given on line %ld",
+                    path, kline, key_names[k], key_names[rival], h->line[rival]);
+            return -1;
+        }
+        r = lex_next(lx);
+        if (r < 0)
+            break;
+        if (r == 0 || lx->tok_line != kline) {
+            set_err(err, errlen, "%s: line %ld: header key '%s' has no value",
+                    path, kline, key_names[k]);
+            return -1;
+        }
+        quote_token(q, lx->tok, lx->len);
+        if (!lex_number(lx, &v)) {
+            set_err(err, errlen, "%s: line %ld: bad number '%s' for header key '%s'",
+                    path, kline, q, key_names[k]);
+            return -1;
+        }
+        if (!isfinite(v)) {
+            set_err(err, errlen, "%s: line %ld: value '%s' for header key '%s' is not finite",
+                    path, kline, q, key_names[k]);
+            return -1;
+        }
+        h->val[k] = v;
+        h->line[k] = kline;
+        h->end_line = kline;
+        r = lex_next(lx);
+    }
+    if (r < 0) {
+        set_err(err, errlen, "%s: line %ld: read error", path, lx->line);
+        return -1;
+    }
+    return 0;
+}
+
+/* Checks a grid dimension: a positive integer no larger than the cap. */
+static int check_dim(const Header *h, int k, const char *path, char *err, size_t errlen)
+{
+    double v = h->val[k];
+    if (!(v >= 1.0) || v != floor(v)) {
+        set_err(err, errlen, "%s: line %ld: %s must be a positive integer, got %.17g",
+                path, h->line[k], key_names[k], v);
+        return -1;
+    }
+    if (v > (double)TERRAIN_MAX_DIM) {
+        set_err(err, errlen, "%s: line %ld: %s = %.17g is too large (at most %ld)",
+                path, h->line[k], key_names[k], v, TERRAIN_MAX_DIM);
+        return -1;
+    }
+    return 0;
+}
+
+/* Validates the header and derives the grid geometry. */
+static int check_header(const Header *h, Terrain *g, const char *path, char *err, size_t errlen)
+{
+    static const int required[] = { K_NCOLS, K_NROWS, K_CELLSIZE };
+    size_t i;
+
+    for (i = 0; i < sizeof required / sizeof required[0]; i++) {
+        if (h->line[required[i]] == 0) {
+            set_err(err, errlen, "%s: line %ld: missing header key '%s' (the header ends here)",
+                    path, h->end_line, key_names[required[i]]);
+            return -1;
+        }
+    }
+    if (h->line[K_XLLCORNER] == 0 && h->line[K_XLLCENTER] == 0) {
+        set_err(err, errlen, "%s: line %ld: missing header key 'xllcorner' or 'xllcenter' "
+                "(the header ends here)", path, h->end_line);
+        return -1;
+    }
+    if (h->line[K_YLLCORNER] == 0 && h->line[K_YLLCENTER] == 0) {
+        set_err(err, errlen, "%s: line %ld: missing header key 'yllcorner' or 'yllcenter' "
+                "(the header ends here)", path, h->end_line);
+        return -1;
+    }
+    if (check_dim(h, K_NCOLS, path, err, errlen) || check_dim(h, K_NROWS, path, err, errlen))
+        return -1;
+    g->ncols = (int)h->val[K_NCOLS];
+    g->nrows = (int)h->val[K_NROWS];
+    if ((long)g->ncols * (long)g->nrows > TERRAIN_MAX_CELLS) {
+        set_err(err, errlen, "%s: grid of %d x %d cells is too large (at most %ld cells)",
+                path, g->ncols, g->nrows, TERRAIN_MAX_CELLS);
+        return -1;
+    }
+    if (g->ncols < 2 || g->nrows < 2) {
+        /* bilinear interpolation and gradients need at least 2 x 2 nodes */
+        int k = g->ncols < 2 ? K_NCOLS : K_NROWS;
+        set_err(err, errlen, "%s: line %ld: grid is %d x %d cells (ncols x nrows); "
+                "at least 2 x 2 are needed", path, h->line[k], g->ncols, g->nrows);
+        return -1;
+    }
+    if (!(h->val[K_CELLSIZE] > 0.0)) {
+        set_err(err, errlen, "%s: line %ld: cellsize must be positive, got %.17g",
+                path, h->line[K_CELLSIZE], h->val[K_CELLSIZE]);
+        return -1;
+    }
+    g->cell = h->val[K_CELLSIZE];
+    /* the corner variants give the outer corner of the south-west cell;
+     * nodes sit at cell centres, half a cell further in */
+    g->x0 = h->line[K_XLLCENTER] != 0 ? h->val[K_XLLCENTER] : h->val[K_XLLCORNER] + 0.5 * g->cell;
+    g->y0 = h->line[K_YLLCENTER] != 0 ? h->val[K_YLLCENTER] : h->val[K_YLLCORNER] + 0.5 * g->cell;
+    return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* Data                                                                */
+/* ------------------------------------------------------------------ */
+
+/* Reads the nrows*ncols values (the first one is already in lx if
+ * have_first), stores them south-first and marks NODATA cells with NaN.
+ * Returns the number of NODATA cells, or -1 on error. */
+static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
+                        const char *path, char *err, size_t errlen)
+{
+    const long nc = g->ncols, nr = g->nrows, n = nc * nr;
+    const int has_nodata = h->line[K_NODATA] != 0;
+    const double nodata = h->val[K_NODATA];
+    char q[QUOTE_MAX + 4];
+    long k, nnodata = 0, last_line = h->end_line;
+    int r = have_first ? 1 : 0;
+
+    for (k = 0; k < n; k++) {
+        long frow = k / nc, col = k % nc; /* file row, counted from the north */
+        double v;
+
+        if (k > 0 || !have_first)
+            r = lex_next(lx);
+        if (r < 0) {
+            set_err(err, errlen, "%s: line %ld: read error", path, lx->line);
+            return -1;
+        }
+        if (r == 0) {
+            if (col == 0)
+                set_err(err, errlen, "%s: line %ld: expected nrows*ncols = %ld*%ld = %ld values, "
+                        "found %ld: the file ends before grid row %ld (of %ld, counted from "
+                        "the top)", path, last_line, nr, nc, n, k, frow + 1, nr);
+            else
+                set_err(err, errlen, "%s: line %ld: expected nrows*ncols = %ld*%ld = %ld values, "
+                        "found %ld: grid row %ld (counted from the top) is short, with %ld of "
+                        "%ld values", path, last_line, nr, nc, n, k, frow + 1, col, nc);
+            return -1;
+        }
+        last_line = lx->tok_line;
+        if (!lex_number(lx, &v)) {
+            quote_token(q, lx->tok, lx->len);
+            set_err(err, errlen, "%s: line %ld, value %ld on the line (grid row %ld, column %ld): "
+                    "'%s' is not a number", path, lx->tok_line, lx->tok_index, frow + 1, col + 1, q);
+            return -1;
+        }
+        if (has_nodata && v == nodata) {
+            v = NAN;
+            nnodata++;
+        } else if (!isfinite(v)) {
+            quote_token(q, lx->tok, lx->len);
+            set_err(err, errlen, "%s: line %ld, value %ld on the line (grid row %ld, column %ld): "
+                    "value '%s' is not finite", path, lx->tok_line, lx->tok_index, frow + 1,
+                    col + 1, q);
+            return -1;
+        }
+        g->z[(size_t)(nr - 1 - frow) * (size_t)nc + (size_t)col] = v;
+    }
+
+    r = lex_next(lx);
+    if (r < 0) {
+        set_err(err, errlen, "%s: line %ld: read error", path, lx->line);
+        return -1;
+    }
+    if (r > 0) {
+        quote_token(q, lx->tok, lx->len);
+        set_err(err, errlen, "%s: line %ld, value %ld on the line: extra value '%s' after the "
+                "%ld*%ld = %ld grid values", path, lx->tok_line, lx->tok_index, q, nr, nc, n);
+        return -1;
+    }
+    return nnodata;
+}
+
+/* Fills NODATA cells (NaN in g->z) from valid neighbours, front by front:
+ * every hole cell next to a valid cell gets the mean of its valid
+ * 4-neighbours, then those cells count as valid and the next front is
+ * filled.  This equals repeated Jacobi-style averaging sweeps, but costs
+ * O(cells) via a queue.  Each value is a mean over a fixed neighbour set,
+ * so the result does not depend on the visiting order (deterministic), and
+ * every filled value lies between the min and max of its final neighbours.
+ * Returns 0, or -1 if out of memory. */
+static int fill_nodata(Terrain *g, long nnodata)
+{
+    enum { VALID = 0, HOLE = 1, QUEUED = 2 };
+    const size_t nc = (size_t)g->ncols, nr = (size_t)g->nrows, n = nc * nr;
+    unsigned char *state = malloc(n);
+    size_t *queue = malloc((size_t)nnodata * sizeof *queue);
+    size_t head = 0, tail = 0, idx;
+
+    if (state == NULL || queue == NULL) {
+        free(state);
+        free(queue);
+        return -1;
+    }
+    for (idx = 0; idx < n; idx++)
+        state[idx] = (unsigned char)(isnan(g->z[idx]) ? HOLE : VALID);
+
+    /* first front: holes with at least one valid neighbour */
+    for (idx = 0; idx < n; idx++) {
+        size_t i = idx % nc, j = idx / nc;
+        if (state[idx] != HOLE)
+            continue;
+        if ((i > 0 && state[idx - 1] == VALID) || (i + 1 < nc && state[idx + 1] == VALID) ||
+            (j > 0 && state[idx - nc] == VALID) || (j + 1 < nr && state[idx + nc] == VALID)) {
+            state[idx] = QUEUED;
+            queue[tail++] = idx;
+        }
+    }
+
+    while (head < tail) {
+        const size_t front_end = tail;
+        size_t q;
+
+        /* values first, using only cells valid before this front */
+        for (q = head; q < front_end; q++) {
+            size_t i, j, cnt = 0;
+            double sum = 0.0;
+            idx = queue[q];
+            i = idx % nc;
+            j = idx / nc;
+            if (i > 0 && state[idx - 1] == VALID) sum += g->z[idx - 1], cnt++;
+            if (i + 1 < nc && state[idx + 1] == VALID) sum += g->z[idx + 1], cnt++;
+            if (j > 0 && state[idx - nc] == VALID) sum += g->z[idx - nc], cnt++;
+            if (j + 1 < nr && state[idx + nc] == VALID) sum += g->z[idx + nc], cnt++;
+            g->z[idx] = sum / (double)cnt; /* cnt >= 1 by construction */
+        }
+        for (q = head; q < front_end; q++)
+            state[queue[q]] = VALID;
+        /* next front: remaining holes touching this one */
+        for (q = head; q < front_end; q++) {
+            size_t i, j;
+            idx = queue[q];
+            i = idx % nc;
+            j = idx / nc;
+            if (i > 0 && state[idx - 1] == HOLE) state[idx - 1] = QUEUED, queue[tail++] = idx - 1;
+            if (i + 1 < nc && state[idx + 1] == HOLE) state[idx + 1] = QUEUED, queue[tail++] = idx + 1;
+            if (j > 0 && state[idx - nc] == HOLE) state[idx - nc] = QUEUED, queue[tail++] = idx - nc;
+            if (j + 1 < nr && state[idx + nc] == HOLE) state[idx + nc] = QUEUED, queue[tail++] = idx + nc;
+        }
+        head = front_end;
+    }
+    /* the grid is 4-connected and has a valid cell, so every hole was reached */
+    free(state);
+    free(queue);
+    return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* Public API                                                          */
+/* ------------------------------------------------------------------ */
+
+void terrain_init_flat(Terrain *t)
+{
+    t->ncols = t->nrows = 0;
+    t->x0 = t->y0 = 0.0;
+    t->cell = 0.0;
+    t->z = NULL;
+}
+
+void terrain_free(Terrain *t)
+{
+    if (t == NULL)
+        return;
+    free(t->z);
+    terrain_init_flat(t);
+}
+
+/* *t is overwritten, not freed: it may be uninitialised on entry. */
+int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
+{
+    Terrain g;
+    Header h;
+    Lexer lx;
+    int r;
+    long nnodata;
+
+    set_err(err, errlen, "%s", "");
+    if (t == NULL) {
+        set_err(err, errlen, "terrain_load: no Terrain given");
+        return -1;
+    }
+    terrain_init_flat(t);
+    if (path == NULL) {
+        set_err(err, errlen, "terrain_load: no file path given");
+        return -1;
+    }
+
+    memset(&lx, 0, sizeof lx);
+    lx.line = 1;
+    lx.at_file_start = 1;
+    errno = 0;
+    lx.f = fopen(path, "rb"); /* binary: line ends are handled by lex_next */
+    if (lx.f == NULL) {
+        set_err(err, errlen, "%s: cannot open: %s", path,
+                errno != 0 ? strerror(errno) : "unknown error");
+        return -1;
+    }
+
+    terrain_init_flat(&g);
+    memset(&h, 0, sizeof h);
+    r = read_header(&lx, &h, path, err, errlen);
+    if (r < 0 || check_header(&h, &g, path, err, errlen) < 0)
+        goto fail;
+
+    g.z = malloc((size_t)g.ncols * (size_t)g.nrows * sizeof *g.z);
+    if (g.z == NULL) {
+        set_err(err, errlen, "%s: out of memory for a %d x %d grid", path, g.ncols, g.nrows);
+        goto fail;
+    }
+    nnodata = read_values(&lx, r == 1, &h, &g, path, err, errlen);
+    if (nnodata < 0)
+        goto fail;
+    if (nnodata == (long)g.ncols * (long)g.nrows) {
+        set_err(err, errlen, "%s: all %ld cells are NODATA (%.17g); no elevation to use",
+                path, nnodata, h.val[K_NODATA]);
+        goto fail;
+    }
+    if (nnodata > 0 && fill_nodata(&g, nnodata) < 0) {
+        set_err(err, errlen, "%s: out of memory while filling NODATA cells", path);
+        goto fail;
+    }
+
+    fclose(lx.f);
+    *t = g;
+    return 0;
+
+fail:
+    fclose(lx.f);
+    free(g.z);
+    terrain_init_flat(t);
+    return -1;
+}
+
+/* Maps a coordinate to the grid interval [k, k+1] holding it and the
+ * fraction f in [0, 1] within it, after clamping to the grid extent (so
+ * edge values extend flat outside).  NaN is mapped to the first node only
+ * to keep the integer conversion defined; callers handle NaN themselves. */
+static void locate(double q, double q0, double cell, int n, int *k, double *f)
+{
+    double u = (q - q0) / cell;
+    int i;
+    if (!(u > 0.0))
+        u = 0.0;
+    else if (u > (double)(n - 1))
+        u = (double)(n - 1);
+    i = (int)u;
+    if (i > n - 2)
+        i = n - 2;
+    *k = i;
+    *f = u - (double)i;
+}
+
+double terrain_height(const Terrain *t, double x, double y)
+{
+    const double *z;
+    size_t nc, r0, r1;
+    int i, j;
+    double fx, fy;
+
+    if (t->ncols == 0)
+        return 0.0;
+    if (isnan(x) || isnan(y))
+        return NAN; /* a NaN position is an upstream bug: propagate, don't hide */
+    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
+    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
+    z = t->z;
+    nc = (size_t)t->ncols;
+    r0 = (size_t)j * nc + (size_t)i;
+    r1 = r0 + nc;
+    return (1.0 - fy) * ((1.0 - fx) * z[r0] + fx * z[r0 + 1])
+         + fy * ((1.0 - fx) * z[r1] + fx * z[r1 + 1]);
+}
+
+/* Elevation gradient at node (i, j): central differences inside, one-sided
+ * at the edges (the grid has at least 2 nodes each way). */
+static void node_gradient(const Terrain *t, int i, int j, double *gx, double *gy)
+{
+    const size_t nc = (size_t)t->ncols;
+    const double *row = t->z + (size_t)j * nc;
+    const int il = i > 0 ? i - 1 : i, ir = i < t->ncols - 1 ? i + 1 : i;
+    const int jl = j > 0 ? j - 1 : j, jr = j < t->nrows - 1 ? j + 1 : j;
+    *gx = (row[ir] - row[il]) / ((double)(ir - il) * t->cell);
+    *gy = (t->z[(size_t)jr * nc + (size_t)i] - t->z[(size_t)jl * nc + (size_t)i])
+        / ((double)(jr - jl) * t->cell);
+}
+
+void terrain_normal(const Terrain *t, double x, double y, double n[3])
+{
+    int i, j;
+    double fx, fy, gx00, gy00, gx10, gy10, gx01, gy01, gx11, gy11, gx, gy, s;
+
+    if (t->ncols == 0) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+        return;
+    }
+    if (isnan(x) || isnan(y)) {
+        n[0] = n[1] = n[2] = NAN;
+        return;
+    }
+    /* clamped like terrain_height, so outside the grid the normal is the
+     * edge's (continuous at the boundary) */
+    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
+    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
+    node_gradient(t, i, j, &gx00, &gy00);
+    node_gradient(t, i + 1, j, &gx10, &gy10);
+    node_gradient(t, i, j + 1, &gx01, &gy01);
+    node_gradient(t, i + 1, j + 1, &gx11, &gy11);
+    gx = (1.0 - fy) * ((1.0 - fx) * gx00 + fx * gx10) + fy * ((1.0 - fx) * gx01 + fx * gx11);
+    gy = (1.0 - fy) * ((1.0 - fx) * gy00 + fx * gy10) + fy * ((1.0 - fx) * gy01 + fx * gy11);
+    s = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
+    n[0] = -gx * s;
+    n[1] = -gy * s;
+    n[2] = s;
+}

@@ -1,0 +1,172 @@
+/*
+ * Writes modelDescription.xml from the variable table (variables.h).
+ * usage: generate OUT.xml GUID SOURCE.c...   (sources listed for the
+ * source-code FMU's <SourceFiles>).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define PARAM  'P'
+#define CALC   'C'
+#define INPUT  'I'
+#define OUTPUT 'O'
+#include "variables.h"
+
+static void put_escaped(FILE *f, const char *s)
+{
+    for (; *s; ++s) {
+        switch (*s) {
+        case '&': fputs("&amp;", f); break;
+        case '<': fputs("&lt;", f); break;
+        case '>': fputs("&gt;", f); break;
+        case '"': fputs("&quot;", f); break;
+        default: fputc(*s, f);
+        }
+    }
+}
+
+static const char *causality(int kind)
+{
+    switch (kind) {
+    case PARAM: return "parameter";
+    case CALC: return "calculatedParameter";
+    case INPUT: return "input";
+    default: return "output";
+    }
+}
+
+static const char *variability(int kind)
+{
+    return (kind == PARAM || kind == CALC) ? "fixed" : "continuous";
+}
+
+static void open_var(FILE *f, const char *name, unsigned vr, int kind, const char *desc)
+{
+    fprintf(f, "    <ScalarVariable name=\"%s\" valueReference=\"%u\" causality=\"%s\" variability=\"%s\"",
+            name, vr, causality(kind), variability(kind));
+    if (kind == CALC || kind == OUTPUT) fputs(" initial=\"calculated\"", f);
+    fputs(" description=\"", f);
+    put_escaped(f, desc);
+    fputs("\">\n", f);
+}
+
+static void real_var(FILE *f, const char *name, unsigned vr, int kind, const char *unit,
+                     double start, double lo, double hi, const char *desc)
+{
+    open_var(f, name, vr, kind, desc);
+    fprintf(f, "      <Real unit=\"");
+    put_escaped(f, unit);
+    fputc('"', f);
+    if (kind == PARAM || kind == INPUT) {
+        fprintf(f, " start=\"%.17g\"", start);
+        if (isfinite(lo)) fprintf(f, " min=\"%.17g\"", lo);
+        if (isfinite(hi)) fprintf(f, " max=\"%.17g\"", hi);
+    }
+    fputs("/>\n    </ScalarVariable>\n", f);
+}
+
+static void int_var(FILE *f, const char *name, unsigned vr, int kind, int start, int lo, int hi,
+                    const char *desc)
+{
+    open_var(f, name, vr, kind, desc);
+    fprintf(f, "      <Integer start=\"%d\" min=\"%d\" max=\"%d\"/>\n    </ScalarVariable>\n",
+            start, lo, hi);
+}
+
+static void str_var(FILE *f, const char *name, unsigned vr, int kind, const char *start,
+                    const char *desc)
+{
+    open_var(f, name, vr, kind, desc);
+    fputs("      <String start=\"", f);
+    put_escaped(f, start);
+    fputs("\"/>\n    </ScalarVariable>\n", f);
+}
+
+/* SI decomposition of every unit the table uses. */
+static const struct { const char *name, *base; } units[] = {
+    {"1", ""}, {"m", "m=\"1\""}, {"m/s", "m=\"1\" s=\"-1\""}, {"m/s2", "m=\"1\" s=\"-2\""},
+    {"m3", "m=\"3\""}, {"rad", "rad=\"1\""}, {"rad/s", "rad=\"1\" s=\"-1\""},
+    {"s", "s=\"1\""}, {"kg", "kg=\"1\""}, {"kg.m2", "kg=\"1\" m=\"2\""},
+    {"N", "kg=\"1\" m=\"1\" s=\"-2\""}, {"N.m", "kg=\"1\" m=\"2\" s=\"-2\""},
+    {"Pa", "kg=\"1\" m=\"-1\" s=\"-2\""},
+    {"N.m.s/rad", "kg=\"1\" m=\"2\" s=\"-1\" rad=\"-1\""},
+    {"N.m/rad", "kg=\"1\" m=\"2\" s=\"-2\" rad=\"-1\""},
+    {"N.m.s2/rad", "kg=\"1\" m=\"2\" rad=\"-1\""},
+    {"V", "kg=\"1\" m=\"2\" s=\"-3\" A=\"-1\""}, {"Ohm", "kg=\"1\" m=\"2\" s=\"-3\" A=\"-2\""},
+    {"N.m/A", "kg=\"1\" m=\"2\" s=\"-2\" A=\"-1\""},
+    /* the exponent depends on eta, so no fixed SI decomposition exists */
+    {"N/m^(2+eta)", NULL},
+};
+
+int main(int argc, char **argv)
+{
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s OUT.xml GUID [SOURCE.c...]\n", argv[0]);
+        return 2;
+    }
+    FILE *f = fopen(argv[1], "w");
+    if (!f) {
+        perror(argv[1]);
+        return 1;
+    }
+    fprintf(f,
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+        "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"JunoRover\" guid=\"%s\"\n"
+        "  description=\"CSA Juno rover with the volumetric wheel/soil contact model of Petersen and McPhee (2013)\"\n"
+        "  generationTool=\"juno modelDescription/generate.c\" variableNamingConvention=\"structured\"\n"
+        "  numberOfEventIndicators=\"0\">\n"
+        "  <CoSimulation modelIdentifier=\"JunoRover\" canHandleVariableCommunicationStepSize=\"true\"\n"
+        "    canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" canNotUseMemoryManagementFunctions=\"true\"\n"
+        "    canInterpolateInputs=\"false\" maxOutputDerivativeOrder=\"0\" canRunAsynchronuously=\"false\"\n"
+        "    canBeInstantiatedOnlyOncePerProcess=\"false\" providesDirectionalDerivative=\"false\">\n",
+        argv[2]);
+    if (argc > 3) {
+        fputs("    <SourceFiles>\n", f);
+        for (int i = 3; i < argc; ++i) fprintf(f, "      <File name=\"%s\"/>\n", argv[i]);
+        fputs("    </SourceFiles>\n", f);
+    }
+    fputs("  </CoSimulation>\n  <UnitDefinitions>\n", f);
+    for (size_t i = 0; i < sizeof units / sizeof units[0]; ++i) {
+        fputs("    <Unit name=\"", f);
+        put_escaped(f, units[i].name);
+        if (units[i].base == NULL) fputs("\"/>\n", f);
+        else fprintf(f, "\">\n      <BaseUnit %s/>\n    </Unit>\n", units[i].base);
+    }
+    fputs("  </UnitDefinitions>\n"
+          "  <LogCategories>\n"
+          "    <Category name=\"logStatusError\" description=\"Errors: bad parameters, inputs, files, diverging state\"/>\n"
+          "    <Category name=\"logStatusWarning\" description=\"Warnings\"/>\n"
+          "    <Category name=\"logEvents\" description=\"Initialisation summary (equilibrium, contact fit)\"/>\n"
+          "    <Category name=\"logCalls\" description=\"Every FMI call\"/>\n"
+          "  </LogCategories>\n"
+          "  <DefaultExperiment startTime=\"0\" stopTime=\"30\" stepSize=\"0.01\"/>\n"
+          "  <ModelVariables>\n", f);
+#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) real_var(f, name, vr, kind, unit, start, lo, hi, desc);
+#define INT(vr, name, kind, start, lo, hi, field, desc) int_var(f, name, vr, kind, start, lo, hi, desc);
+#define STR(vr, name, kind, start, field, desc) str_var(f, name, vr, kind, start, desc);
+    JUNO_VARIABLES
+#undef REAL
+#undef INT
+#undef STR
+    fputs("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n", f);
+    int index = 0;
+#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) ++index; if (kind == OUTPUT) fprintf(f, "      <Unknown index=\"%d\"/>\n", index);
+#define INT(vr, name, kind, start, lo, hi, field, desc) ++index;
+#define STR(vr, name, kind, start, field, desc) ++index;
+    JUNO_VARIABLES
+    fputs("    </Outputs>\n    <InitialUnknowns>\n", f);
+    index = 0;
+#undef REAL
+#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) ++index; if (kind == OUTPUT || kind == CALC) fprintf(f, "      <Unknown index=\"%d\"/>\n", index);
+    JUNO_VARIABLES
+#undef REAL
+#undef INT
+#undef STR
+    fputs("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n", f);
+    if (fclose(f) != 0) {
+        perror(argv[1]);
+        return 1;
+    }
+    return 0;
+}

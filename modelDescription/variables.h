@@ -1,0 +1,101 @@
+/*
+ * The one table of FMU variables: value references, names, causality,
+ * units, start values, ranges and where each value lives in the model.
+ * It is included (X-macro style) by the FMU's accessors (fmu_src/model_vars.c)
+ * and by the generator of modelDescription.xml (modelDescription/generate.c),
+ * so the two cannot disagree.
+ *
+ * REAL(vr, name, kind, unit, start, min, max, field, description)
+ * INT (vr, name, kind, start, min, max, field, description)
+ * STR (vr, name, kind, start, field, description)
+ *
+ * kind: PARAM (fixed parameter: set before initialisation), CALC (calculated
+ * parameter), INPUT, OUTPUT.  min/max are inclusive; NOLIM means none.
+ * field is an lvalue relative to a Model *m.
+ */
+#ifndef NOLIM
+#define NOLIM HUGE_VAL
+#endif
+#define WHEEL_OUTPUTS(w, W, base) \
+    REAL(base + 0, "wheel" W ".sinkage", OUTPUT, "m",   0, -NOLIM, NOLIM, out.wheel[w].sinkage, "Sinkage of the lowest rim point below the local soil surface") \
+    REAL(base + 1, "wheel" W ".slip",    OUTPUT, "1",   0, -NOLIM, NOLIM, out.wheel[w].slip,    "Longitudinal slip (omega R - v_x) / max(|omega R|, |v_x|, eps)") \
+    REAL(base + 2, "wheel" W ".Fn",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Fn,      "Normal force k_h V_h (Eqn 2)") \
+    REAL(base + 3, "wheel" W ".Ft",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Ft,      "Tangential (traction) force along the heading (Eqn 5)") \
+    REAL(base + 4, "wheel" W ".Fx",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Fx,      "Longitudinal force in the contact frame, Ft cos(alpha) - Fn sin(alpha) (Eqn 8)") \
+    REAL(base + 5, "wheel" W ".Fy",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Fy,      "Lateral force along the axle in the contact plane") \
+    REAL(base + 6, "wheel" W ".Fz",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Fz,      "Force along the surface normal, Fn cos(alpha) + Ft sin(alpha) (Eqn 9)")
+
+#define JUNO_VARIABLES \
+    /* ---- soil: the four identified parameters (paper Table 2) ---- */ \
+    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, NOLIM, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
+    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, NOLIM, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
+    REAL(102, "soil.gamma",     PARAM, "1",      0.0813, 0, 1,     p.soil_gamma,    "Soil rebound as a fraction of the maximum sinkage") \
+    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  0, NOLIM, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5") \
+    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    0, NOLIM, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (assumption: isotropic = 1)") \
+    REAL(105, "soil.cohesion",  PARAM, "Pa",     1000.0, 0, NOLIM, p.soil_cohesion, "Mohr-Coulomb cohesion C (assumed: dry sand)") \
+    REAL(106, "soil.phi",       PARAM, "rad",    0.5236, 0, 1.5707, p.soil_phi,     "Internal friction angle (assumed: 30 deg, dry sand)") \
+    REAL(110, "soil.A1",        CALC,  "1",      0.6667, -NOLIM, NOLIM, d.contact.A1,   "Eqn 3 exponent factor, fitted at initialisation") \
+    REAL(111, "soil.Vint",      CALC,  "m3",     1e-3,   -NOLIM, NOLIM, d.contact.Vint, "Eqn 3 reference volume, fitted at initialisation") \
+    /* ---- wheel ---- */ \
+    REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0, NOLIM, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
+    REAL(121, "wheel.width",    PARAM, "m",      0.254,  0, NOLIM, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8)") \
+    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, NOLIM, p.wheel_mass,    "Mass of one wheel") \
+    REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   0, NOLIM, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
+    /* ---- rover ---- */ \
+    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, NOLIM, p.rover_mass,        "Total mass including wheels") \
+    REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0, NOLIM, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
+    REAL(132, "rover.track",       PARAM, "m",  1.35,  0, NOLIM, p.rover_track,       "Distance between left and right wheel centres (assumed)") \
+    REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, NOLIM, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \
+    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, NOLIM, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
+    REAL(135, "rover.cgHeight",    PARAM, "m",  0.25,  -NOLIM, NOLIM, p.rover_cgHeight, "Chassis centre of gravity above the axle line (assumed)") \
+    REAL(136, "rover.hitchX",      PARAM, "m",  -0.69, -NOLIM, NOLIM, p.rover_hitchX,  "Drawbar hitch, longitudinal position in the chassis frame (rear)") \
+    REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -NOLIM, NOLIM, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
+    REAL(138, "rover.rockerDamping", PARAM, "N.m.s/rad", 20.0, 0, NOLIM, p.rover_rockerDamping, "Viscous friction of the rocker differential (assumed)") \
+    REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0, NOLIM, p.env_gravity,     "Gravitational acceleration") \
+    /* ---- terrain ---- */ \
+    STR(140, "terrain.file",       PARAM, "", terrain_file, "ESRI ASCII elevation grid (.asc); empty = flat ground at z = 0") \
+    /* ---- drive ---- */ \
+    INT (150, "drive.mode",        PARAM, 2, 0, 2, p.drive_mode, "0 = torque inputs; 1 = PID on torque tracking omegaRef; 2 = DC motors driven by throttle") \
+    REAL(151, "drive.Kp",          PARAM, "N.m.s/rad", 200.0, 0, NOLIM, p.drive_Kp, "PID proportional gain (drive.mode 1)") \
+    REAL(152, "drive.Ki",          PARAM, "N.m/rad",   400.0, 0, NOLIM, p.drive_Ki, "PID integral gain (drive.mode 1)") \
+    REAL(153, "drive.Kd",          PARAM, "N.m.s2/rad", 0.0,  0, NOLIM, p.drive_Kd, "PID derivative gain on the measured spin (drive.mode 1)") \
+    REAL(154, "drive.torqueMax",   PARAM, "N.m",       400.0, 0, NOLIM, p.drive_torqueMax, "Limit of the drive torque per side (all modes)") \
+    REAL(155, "motor.voltage",     PARAM, "V",   24.0,   0, NOLIM, p.motor_voltage,    "Supply voltage at full throttle (assumed)") \
+    REAL(156, "motor.kt",          PARAM, "N.m/A", 0.0465, 0, NOLIM, p.motor_kt,       "Torque and back-EMF constant (assumed)") \
+    REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    0, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
+    REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  0, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
+    REAL(159, "motor.efficiency",  PARAM, "1",   0.85,   0, 1,     p.motor_efficiency, "Gear and chain efficiency (assumed)") \
+    /* ---- initial state ---- */ \
+    REAL(170, "init.x",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_x,   "Initial x of the chassis reference point") \
+    REAL(171, "init.y",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_y,   "Initial y of the chassis reference point") \
+    REAL(172, "init.yaw", PARAM, "rad", 0.0, -NOLIM, NOLIM, p.init_yaw, "Initial heading") \
+    REAL(173, "init.vx",  PARAM, "m/s", 0.0, -NOLIM, NOLIM, p.init_vx,  "Initial forward speed (wheels rolling without slip)") \
+    /* ---- numerics ---- */ \
+    INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
+    REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 0, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor: below this speed the shear law is viscous") \
+    REAL(182, "solver.step",       PARAM, "s",   1e-3, 0, 0.1, p.solver_step, "Largest internal integration step") \
+    /* ---- inputs ---- */ \
+    REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
+    REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \
+    REAL(202, "torqueRight",   INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueRight,   "Total drive torque of the right wheels (drive.mode 0)") \
+    REAL(203, "omegaRefLeft",  INPUT, "rad/s", 0.0, -NOLIM, NOLIM, in.omegaRefLeft,  "Wheel spin reference, left (drive.mode 1)") \
+    REAL(204, "omegaRefRight", INPUT, "rad/s", 0.0, -NOLIM, NOLIM, in.omegaRefRight, "Wheel spin reference, right (drive.mode 1)") \
+    REAL(205, "throttleLeft",  INPUT, "1",   0.45,  -1, 1, in.throttleLeft,  "Motor throttle, left (drive.mode 2)") \
+    REAL(206, "throttleRight", INPUT, "1",   0.45,  -1, 1, in.throttleRight, "Motor throttle, right (drive.mode 2)") \
+    /* ---- outputs ---- */ \
+    REAL(300, "x",     OUTPUT, "m",   0, -NOLIM, NOLIM, out.x,     "Chassis reference point (between the rocker pivots), world x") \
+    REAL(301, "y",     OUTPUT, "m",   0, -NOLIM, NOLIM, out.y,     "Chassis reference point, world y") \
+    REAL(302, "z",     OUTPUT, "m",   0, -NOLIM, NOLIM, out.z,     "Chassis reference point, world z") \
+    REAL(303, "roll",  OUTPUT, "rad", 0, -NOLIM, NOLIM, out.roll,  "Chassis roll (Z-Y-X Euler angles)") \
+    REAL(304, "pitch", OUTPUT, "rad", 0, -NOLIM, NOLIM, out.pitch, "Chassis pitch, positive nose down") \
+    REAL(305, "yaw",   OUTPUT, "rad", 0, -NOLIM, NOLIM, out.yaw,   "Chassis heading") \
+    REAL(306, "vx",    OUTPUT, "m/s", 0, -NOLIM, NOLIM, out.vx,    "Forward speed along the heading (horizontal)") \
+    REAL(307, "omegaLeft",  OUTPUT, "rad/s", 0, -NOLIM, NOLIM, out.omegaLeft,  "Wheel spin of the left side relative to its rocker (encoder)") \
+    REAL(308, "omegaRight", OUTPUT, "rad/s", 0, -NOLIM, NOLIM, out.omegaRight, "Wheel spin of the right side relative to its rocker (encoder)") \
+    REAL(309, "torqueLeftApplied",  OUTPUT, "N.m", 0, -NOLIM, NOLIM, out.torqueLeftApplied,  "Drive torque applied to the left wheels") \
+    REAL(310, "torqueRightApplied", OUTPUT, "N.m", 0, -NOLIM, NOLIM, out.torqueRightApplied, "Drive torque applied to the right wheels") \
+    REAL(311, "rocker", OUTPUT, "rad", 0, -NOLIM, NOLIM, out.rocker, "Left rocker angle relative to the chassis (right is its negative)") \
+    WHEEL_OUTPUTS(0, "FL", 400) \
+    WHEEL_OUTPUTS(1, "RL", 410) \
+    WHEEL_OUTPUTS(2, "FR", 420) \
+    WHEEL_OUTPUTS(3, "RR", 430)

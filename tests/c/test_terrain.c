@@ -1,0 +1,677 @@
+/*
+ * Standalone tests for fmu_src/terrain.c.
+ *
+ *   gcc -std=c11 -O2 -Wall -Wextra -Werror -pedantic -D_POSIX_C_SOURCE=200809L \
+ *       fmu_src/terrain.c tests/c/test_terrain.c -Ifmu_src -lm -o /tmp/test_terrain
+ *   /tmp/test_terrain [scratch-dir]
+ *
+ * Fixture grids are written into a fresh directory (mkdtemp under argv[1],
+ * or /tmp) which is removed at the end.  Prints every failing check and a
+ * final "N passed, M failed" line; exits nonzero if anything failed.
+ */
+#include "terrain.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static int n_pass, n_fail;
+
+#define CHECK(cond, ...)                                                     \
+    do {                                                                     \
+        if (cond) {                                                          \
+            n_pass++;                                                        \
+        } else {                                                             \
+            n_fail++;                                                        \
+            printf("FAIL %s:%d: %s: ", __FILE__, __LINE__, #cond);           \
+            printf(__VA_ARGS__);                                             \
+            printf("\n");                                                    \
+        }                                                                    \
+    } while (0)
+
+static const double PI = 3.14159265358979323846;
+
+/* ---------------------------------------------------------------- */
+/* fixtures                                                          */
+/* ---------------------------------------------------------------- */
+
+#define MAX_FIXTURES 128
+static char scratch[4096];
+static char fixtures[MAX_FIXTURES][4200];
+static int n_fixtures;
+
+/* Path of a fixture in the scratch directory (registered for removal). */
+static const char *fixture_path(const char *name)
+{
+    int i;
+    char p[4200];
+    snprintf(p, sizeof p, "%s/%s", scratch, name);
+    for (i = 0; i < n_fixtures; i++)
+        if (strcmp(fixtures[i], p) == 0)
+            return fixtures[i];
+    if (n_fixtures == MAX_FIXTURES) {
+        fprintf(stderr, "too many fixtures\n");
+        exit(2);
+    }
+    strcpy(fixtures[n_fixtures], p);
+    return fixtures[n_fixtures++];
+}
+
+static FILE *open_fixture(const char *name, const char **path)
+{
+    FILE *f;
+    *path = fixture_path(name);
+    f = fopen(*path, "wb");
+    if (f == NULL) {
+        perror(*path);
+        exit(2);
+    }
+    return f;
+}
+
+static const char *write_fixture(const char *name, const char *text)
+{
+    const char *path;
+    FILE *f = open_fixture(name, &path);
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
+typedef double (*SurfaceFn)(double x, double y, const void *ctx);
+
+/* Writes an ESRI grid sampling fn at the cell centres x = x0 + i*cell,
+ * y = y0 + j*cell (rows from north to south), with %.17g precision. */
+static const char *write_surface(const char *name, int nc, int nr, double x0, double y0,
+                                 double cell, SurfaceFn fn, const void *ctx)
+{
+    const char *path;
+    FILE *f = open_fixture(name, &path);
+    int i, j;
+    fprintf(f, "ncols %d\nnrows %d\nxllcenter %.17g\nyllcenter %.17g\ncellsize %.17g\n",
+            nc, nr, x0, y0, cell);
+    for (j = nr - 1; j >= 0; j--) {
+        for (i = 0; i < nc; i++)
+            fprintf(f, "%s%.17g", i ? " " : "", fn(x0 + i * cell, y0 + j * cell, ctx));
+        fputc('\n', f);
+    }
+    fclose(f);
+    return path;
+}
+
+static void remove_fixtures(void)
+{
+    int i;
+    for (i = 0; i < n_fixtures; i++)
+        remove(fixtures[i]);
+    if (rmdir(scratch) != 0)
+        perror(scratch);
+}
+
+/* Deterministic uniform numbers in [a, b). */
+static unsigned long long rng_state = 0x9E3779B97F4A7C15ULL;
+static double urand(double a, double b)
+{
+    rng_state ^= rng_state << 13;
+    rng_state ^= rng_state >> 7;
+    rng_state ^= rng_state << 17;
+    return a + (b - a) * (double)(rng_state >> 11) / 9007199254740992.0;
+}
+
+static int is_flat(const Terrain *t)
+{
+    return t->ncols == 0 && t->nrows == 0 && t->z == NULL;
+}
+
+static double angle_deg(const double a[3], const double b[3])
+{
+    double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    double s[3] = { a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0] };
+    return atan2(sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]), c) * 180.0 / PI;
+}
+
+static double vdiff(const double a[3], const double b[3])
+{
+    return fmax(fabs(a[0] - b[0]), fmax(fabs(a[1] - b[1]), fabs(a[2] - b[2])));
+}
+
+/* ---------------------------------------------------------------- */
+/* 1. plane                                                          */
+/* ---------------------------------------------------------------- */
+
+typedef struct { double a, b, c; } Plane;
+
+static double plane_fn(double x, double y, const void *ctx)
+{
+    const Plane *p = ctx;
+    return p->a + p->b * x + p->c * y;
+}
+
+static void plane_normal(const Plane *p, double n[3])
+{
+    double s = 1.0 / sqrt(p->b * p->b + p->c * p->c + 1.0);
+    n[0] = -p->b * s, n[1] = -p->c * s, n[2] = s;
+}
+
+static void check_plane_point(const Terrain *t, const Plane *p, double x, double y, const char *what)
+{
+    double n[3], ne[3], h = terrain_height(t, x, y), he = plane_fn(x, y, p);
+    terrain_normal(t, x, y, n);
+    plane_normal(p, ne);
+    CHECK(fabs(h - he) < 1e-12, "%s (%.9g, %.9g): height %.17g, expected %.17g", what, x, y, h, he);
+    CHECK(vdiff(n, ne) < 1e-12, "%s (%.9g, %.9g): normal (%.17g %.17g %.17g), expected (%.17g %.17g %.17g)",
+          what, x, y, n[0], n[1], n[2], ne[0], ne[1], ne[2]);
+}
+
+static void test_plane(void)
+{
+    const Plane p = { 1.3, 0.2, -0.15 };
+    const int nc = 7, nr = 5;
+    const double x0 = -0.75, y0 = 2.25, cell = 0.5;
+    const double x1 = x0 + (nc - 1) * cell, y1 = y0 + (nr - 1) * cell;
+    const double eps = 1e-9;
+    char err[512];
+    Terrain t;
+    int k, rc;
+    const char *path = write_surface("plane.asc", nc, nr, x0, y0, cell, plane_fn, &p);
+
+    rc = terrain_load(&t, path, err, sizeof err);
+    CHECK(rc == 0, "plane load failed: %s", err);
+    if (rc != 0)
+        return;
+    CHECK(t.ncols == nc && t.nrows == nr, "size %d x %d", t.ncols, t.nrows);
+    CHECK(t.x0 == x0 && t.y0 == y0 && t.cell == cell, "geometry %g %g %g", t.x0, t.y0, t.cell);
+    /* row 0 must be the southernmost row (the last one in the file) */
+    CHECK(fabs(t.z[0] - plane_fn(x0, y0, &p)) < 1e-15, "z[0] = %.17g is not the SW node", t.z[0]);
+    CHECK(fabs(t.z[(nr - 1) * nc + nc - 1] - plane_fn(x1, y1, &p)) < 1e-15, "last z is not the NE node");
+
+    for (k = 0; k < 300; k++)
+        check_plane_point(&t, &p, urand(x0, x1), urand(y0, y1), "random interior");
+    for (k = 0; k < 20; k++) {
+        double s = urand(0.0, 1.0);
+        check_plane_point(&t, &p, x0 + eps, y0 + s * (y1 - y0), "inside west edge");
+        check_plane_point(&t, &p, x1 - eps, y0 + s * (y1 - y0), "inside east edge");
+        check_plane_point(&t, &p, x0 + s * (x1 - x0), y0 + eps, "inside south edge");
+        check_plane_point(&t, &p, x0 + s * (x1 - x0), y1 - eps, "inside north edge");
+    }
+    check_plane_point(&t, &p, x0, y0, "SW corner node");
+    check_plane_point(&t, &p, x1, y1, "NE corner node");
+    check_plane_point(&t, &p, x0 + 2 * cell, y0 + 3 * cell, "interior node");
+    terrain_free(&t);
+    CHECK(is_flat(&t), "terrain_free did not reset to flat");
+}
+
+/* ---------------------------------------------------------------- */
+/* 2. 15-degree slope                                                */
+/* ---------------------------------------------------------------- */
+
+static void test_slope15(void)
+{
+    const double tilt = 15.0 * PI / 180.0, dir = 30.0 * PI / 180.0;
+    const Plane p = { 0.0, tan(tilt) * cos(dir), tan(tilt) * sin(dir) };
+    char err[512];
+    Terrain t;
+    int k;
+    const char *path = write_surface("slope15.asc", 12, 9, 0.0, 0.0, 0.25, plane_fn, &p);
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "slope load failed: %s", err);
+    for (k = 0; k < 50; k++) {
+        double n[3], x = urand(-1.0, 4.0), y = urand(-1.0, 3.0); /* also outside */
+        double deg;
+        terrain_normal(&t, x, y, n);
+        deg = acos(n[2]) * 180.0 / PI;
+        CHECK(fabs(deg - 15.0) < 1e-9, "tilt %.12g deg at (%g, %g)", deg, x, y);
+        CHECK(fabs(hypot(n[0], n[1]) - sin(tilt)) < 1e-12, "horizontal part %.17g", hypot(n[0], n[1]));
+        /* the normal leans downhill, i.e. against the gradient direction */
+        CHECK(fabs(atan2(-n[1], -n[0]) - dir) < 1e-9, "lean azimuth %.12g", atan2(-n[1], -n[0]));
+        CHECK(fabs(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0) < 1e-14, "not unit");
+    }
+    terrain_free(&t);
+}
+
+/* ---------------------------------------------------------------- */
+/* 3. corner vs centre                                               */
+/* ---------------------------------------------------------------- */
+
+static void test_corner_center(void)
+{
+    const char *data = "1 2 3\n4 5 6\n7 8 10\n";
+    char text[512], err[512];
+    Terrain a, b;
+    const char *pa, *pb;
+    int k;
+
+    snprintf(text, sizeof text, "ncols 3\nnrows 3\nxllcorner 10\nyllcorner 20\ncellsize 2\n%s", data);
+    pa = write_fixture("corner.asc", text);
+    snprintf(text, sizeof text, "ncols 3\nnrows 3\nxllcenter 10\nyllcenter 20\ncellsize 2\n%s", data);
+    pb = write_fixture("center.asc", text);
+
+    CHECK(terrain_load(&a, pa, err, sizeof err) == 0, "corner load: %s", err);
+    CHECK(terrain_load(&b, pb, err, sizeof err) == 0, "center load: %s", err);
+    CHECK(a.x0 == 11.0 && a.y0 == 21.0, "corner: node origin (%g, %g), expected (11, 21)", a.x0, a.y0);
+    CHECK(b.x0 == 10.0 && b.y0 == 20.0, "center: node origin (%g, %g), expected (10, 20)", b.x0, b.y0);
+    /* SW node value is the first value of the last file row */
+    CHECK(terrain_height(&a, 11.0, 21.0) == 7.0, "corner SW node %g", terrain_height(&a, 11.0, 21.0));
+    CHECK(terrain_height(&b, 10.0, 20.0) == 7.0, "center SW node %g", terrain_height(&b, 10.0, 20.0));
+    CHECK(terrain_height(&a, 15.0, 25.0) == 3.0, "corner NE node %g", terrain_height(&a, 15.0, 25.0));
+    for (k = 0; k < 50; k++) {
+        double x = urand(9.0, 16.0), y = urand(19.0, 26.0), na[3], nb[3];
+        double ha = terrain_height(&a, x + 1.0, y + 1.0), hb = terrain_height(&b, x, y);
+        CHECK(fabs(ha - hb) < 1e-12, "shifted heights differ at (%g, %g): %.17g vs %.17g", x, y, ha, hb);
+        terrain_normal(&a, x + 1.0, y + 1.0, na);
+        terrain_normal(&b, x, y, nb);
+        CHECK(vdiff(na, nb) < 1e-12, "shifted normals differ at (%g, %g)", x, y);
+    }
+    terrain_free(&a);
+    terrain_free(&b);
+}
+
+/* ---------------------------------------------------------------- */
+/* 4. smooth mound                                                   */
+/* ---------------------------------------------------------------- */
+
+static double mound_fn(double x, double y, const void *ctx)
+{
+    (void)ctx;
+    return 0.5 * exp(-(x * x + y * y) / 2.0);
+}
+
+static void test_mound(void)
+{
+    const double cell = 0.05;
+    char err[512];
+    Terrain t;
+    int k;
+    double worst_h = 0.0, worst_a = 0.0;
+    const char *path = write_surface("mound.asc", 81, 81, -2.0, -2.0, cell, mound_fn, NULL);
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "mound load failed: %s", err);
+    for (k = 0; k < 2000; k++) {
+        double x = urand(-1.95, 1.95), y = urand(-1.95, 1.95), n[3], ne[3];
+        double e = mound_fn(x, y, NULL), gx = -x * e, gy = -y * e, s = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
+        double dh = fabs(terrain_height(&t, x, y) - e), da;
+        ne[0] = -gx * s, ne[1] = -gy * s, ne[2] = s;
+        terrain_normal(&t, x, y, n);
+        da = angle_deg(n, ne);
+        worst_h = fmax(worst_h, dh);
+        worst_a = fmax(worst_a, da);
+    }
+    CHECK(worst_h < 1e-3, "mound height error %.3g m", worst_h);
+    CHECK(worst_a < 1.0, "mound normal error %.3g deg", worst_a);
+    printf("mound: worst height error %.3g m, worst normal error %.3g deg\n", worst_h, worst_a);
+    terrain_free(&t);
+}
+
+/* ---------------------------------------------------------------- */
+/* 5. outside the grid; flat ground                                  */
+/* ---------------------------------------------------------------- */
+
+/* A curved surface, so that extrapolating instead of clamping shows up in
+ * the normal as well as in the height. */
+static double quad_fn(double x, double y, const void *ctx)
+{
+    (void)ctx;
+    return 0.5 + 0.3 * x * x - 0.2 * y * y + 0.1 * x * y;
+}
+
+static void test_outside_and_flat(void)
+{
+    const double x0 = 1.0, y0 = -2.0, cell = 0.1, x1 = x0 + 9 * cell, y1 = y0 + 7 * cell;
+    const double far[][2] = { { -100, 0 }, { 100, 0 }, { 0, -100 }, { 0, 100 } };
+    char err[512];
+    Terrain t;
+    int k;
+    double n[3], ne[3];
+    const char *path = write_surface("outside.asc", 10, 8, x0, y0, cell, quad_fn, NULL);
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "load failed: %s", err);
+    for (k = 0; k < 30; k++) {
+        double x = urand(x0, x1), y = urand(y0, y1), d = urand(0.01, 50.0);
+        CHECK(fabs(terrain_height(&t, x1 + d, y) - terrain_height(&t, x1, y)) < 1e-12, "east not clamped");
+        CHECK(fabs(terrain_height(&t, x0 - d, y) - terrain_height(&t, x0, y)) < 1e-12, "west not clamped");
+        CHECK(fabs(terrain_height(&t, x, y1 + d) - terrain_height(&t, x, y1)) < 1e-12, "north not clamped");
+        CHECK(fabs(terrain_height(&t, x, y0 - d) - terrain_height(&t, x, y0)) < 1e-12, "south not clamped");
+        terrain_normal(&t, x1 + d, y, n);
+        terrain_normal(&t, x1, y, ne);
+        CHECK(vdiff(n, ne) < 1e-12, "east normal not the edge's");
+        terrain_normal(&t, x, y0 - d, n);
+        terrain_normal(&t, x, y0, ne);
+        CHECK(vdiff(n, ne) < 1e-12, "south normal not the edge's");
+    }
+    CHECK(fabs(terrain_height(&t, x0 - 5, y0 - 5) - quad_fn(x0, y0, NULL)) < 1e-12, "SW corner extension");
+    CHECK(fabs(terrain_height(&t, x1 + 5, y1 + 5) - quad_fn(x1, y1, NULL)) < 1e-12, "NE corner extension");
+    CHECK(fabs(terrain_height(&t, 1e300, -1e300) - quad_fn(x1, y0, NULL)) < 1e-12, "huge coordinates");
+    CHECK(isnan(terrain_height(&t, NAN, 0.0)), "NaN query should give NaN");
+    terrain_free(&t);
+
+    terrain_init_flat(&t);
+    CHECK(is_flat(&t), "terrain_init_flat not flat");
+    for (k = 0; k < 4; k++) {
+        CHECK(terrain_height(&t, far[k][0], far[k][1]) == 0.0, "flat height not 0");
+        terrain_normal(&t, far[k][0], far[k][1], n);
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "flat normal (%g %g %g)", n[0], n[1], n[2]);
+    }
+}
+
+/* ---------------------------------------------------------------- */
+/* 6. NODATA filling                                                 */
+/* ---------------------------------------------------------------- */
+
+static void test_nodata(void)
+{
+    /* 6 x 5, north first; holes: isolated interior cell, a 2x2 block,
+     * a corner and an edge cell */
+    const char *text =
+        "ncols 6\nnrows 5\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\n"
+        "-9999 2 3 4 5 6\n"
+        "1 -9999 -9999 5 6 -9999\n"
+        "2 -9999 -9999 6 -9999 8\n"
+        "3 4 5 6 7 8\n"
+        "4.5 5 6.5 7 8 9\n";
+    static const int hole[5][6] = { /* file order, north first */
+        { 1, 0, 0, 0, 0, 0 }, { 0, 1, 1, 0, 0, 1 }, { 0, 1, 1, 0, 1, 0 },
+        { 0, 0, 0, 0, 0, 0 }, { 0, 0, 0, 0, 0, 0 } };
+    char err[512];
+    Terrain t, t2;
+    int i, j, ok_finite = 1, ok_range = 1, ok_valid = 1;
+    const char *path = write_fixture("nodata.asc", text);
+    double vmin = 1e300, vmax = -1e300;
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "nodata load failed: %s", err);
+    if (t.ncols != 6 || t.nrows != 5)
+        return;
+    for (j = 0; j < 5; j++)
+        for (i = 0; i < 6; i++) {
+            double v = t.z[j * 6 + i];
+            if (!isfinite(v) || v == -9999.0)
+                ok_finite = 0;
+            if (!hole[4 - j][i])
+                vmin = fmin(vmin, v), vmax = fmax(vmax, v);
+        }
+    CHECK(ok_finite, "NODATA cells left unfilled or non-finite");
+    for (j = 0; j < 5; j++)
+        for (i = 0; i < 6; i++) {
+            double v = t.z[j * 6 + i], lo = 1e300, hi = -1e300;
+            if (!hole[4 - j][i])
+                continue;
+            if (i > 0) lo = fmin(lo, t.z[j * 6 + i - 1]), hi = fmax(hi, t.z[j * 6 + i - 1]);
+            if (i < 5) lo = fmin(lo, t.z[j * 6 + i + 1]), hi = fmax(hi, t.z[j * 6 + i + 1]);
+            if (j > 0) lo = fmin(lo, t.z[(j - 1) * 6 + i]), hi = fmax(hi, t.z[(j - 1) * 6 + i]);
+            if (j < 4) lo = fmin(lo, t.z[(j + 1) * 6 + i]), hi = fmax(hi, t.z[(j + 1) * 6 + i]);
+            if (!(v >= lo && v <= hi && v >= vmin && v <= vmax)) {
+                ok_range = 0;
+                printf("  filled cell (col %d, row %d) = %g outside [%g, %g]\n", i, j, v, lo, hi);
+            }
+        }
+    CHECK(ok_range, "filled values not between their neighbours' min and max");
+    /* valid cells keep their values (spot checks; row 0 = south) */
+    ok_valid = t.z[0] == 4.5 && t.z[5] == 9.0 && t.z[1 * 6 + 3] == 6.0 && t.z[4 * 6 + 5] == 6.0;
+    CHECK(ok_valid, "valid cells changed");
+    /* the isolated hole (file row 3, column 5) has four valid neighbours
+     * 6 (west), 8 (east), 6 (north), 7 (south): it gets their mean */
+    CHECK(fabs(t.z[2 * 6 + 4] - (6.0 + 8.0 + 6.0 + 7.0) / 4.0) < 1e-15,
+          "isolated hole %.17g, expected the mean of its 4 neighbours 6.75", t.z[2 * 6 + 4]);
+    /* corner (file row 1, col 1) has neighbours 2 (east) and 1 (south) */
+    CHECK(fabs(t.z[4 * 6 + 0] - 1.5) < 1e-15, "corner hole %.17g, expected 1.5", t.z[4 * 6 + 0]);
+    /* deterministic */
+    CHECK(terrain_load(&t2, path, err, sizeof err) == 0, "second load: %s", err);
+    CHECK(t2.z != NULL && memcmp(t.z, t2.z, 30 * sizeof(double)) == 0, "fill not deterministic");
+    terrain_free(&t);
+    terrain_free(&t2);
+}
+
+/* ---------------------------------------------------------------- */
+/* 7. bad and odd files                                              */
+/* ---------------------------------------------------------------- */
+
+static const char *HDR = "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\n";
+
+/* Loads a file expected to be refused: checks -1, *t flat (even though it
+ * held junk on entry, which must not be freed), and that err names the
+ * file and contains each of the given fragments. */
+static void expect_fail(const char *name, const char *text, const char *frag1, const char *frag2)
+{
+    static double not_heap[4];
+    char err[1024];
+    Terrain t;
+    const char *path = text ? write_fixture(name, text) : fixture_path(name);
+    int rc;
+
+    t.ncols = 7, t.nrows = 7, t.cell = 1.0, t.x0 = t.y0 = 3.0, t.z = not_heap;
+    memset(err, 'X', sizeof err);
+    rc = terrain_load(&t, path, err, sizeof err);
+    CHECK(memchr(err, '\0', sizeof err) != NULL, "%s: err not NUL-terminated", name);
+    err[sizeof err - 1] = '\0';
+    CHECK(rc == -1, "%s: accepted (rc %d)", name, rc);
+    CHECK(is_flat(&t), "%s: *t not left flat", name);
+    CHECK(strstr(err, path) != NULL, "%s: err does not name the file: %s", name, err);
+    if (frag1)
+        CHECK(strstr(err, frag1) != NULL, "%s: err lacks '%s': %s", name, frag1, err);
+    if (frag2)
+        CHECK(strstr(err, frag2) != NULL, "%s: err lacks '%s': %s", name, frag2, err);
+    if (rc == 0)
+        terrain_free(&t);
+}
+
+/* Loads a file expected to be accepted and returns the terrain. */
+static int expect_ok(const char *path, Terrain *t, int nc, int nr, const char *what)
+{
+    char err[1024];
+    int rc = terrain_load(t, path, err, sizeof err);
+    CHECK(rc == 0, "%s refused: %s", what, err);
+    if (rc != 0)
+        return 0;
+    CHECK(t->ncols == nc && t->nrows == nr, "%s: size %d x %d, expected %d x %d", what, t->ncols,
+          t->nrows, nc, nr);
+    return t->ncols == nc && t->nrows == nr;
+}
+
+static void test_bad_files(void)
+{
+    char text[2048];
+
+    expect_fail("does_not_exist.asc", NULL, "cannot open", "No such file");
+    expect_fail("empty.asc", "", "empty", NULL);
+    expect_fail("blank.asc", "  \n\r\n\t\n", "empty", NULL);
+    expect_fail("no_ncols.asc", "nrows 3\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n5 6\n",
+                "ncols", "line 5:");
+    expect_fail("no_xll.asc", "ncols 2\nnrows 2\nyllcorner 0\ncellsize 1\n1 2\n3 4\n", "xllcorner", NULL);
+    expect_fail("no_cellsize.asc", "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\n1 2\n3 4\n",
+                "cellsize", NULL);
+    expect_fail("nrows_neg.asc", "ncols 2\nnrows -3\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n",
+                "nrows", "line 2:");
+    expect_fail("ncols_frac.asc", "ncols 2.5\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n",
+                "ncols", "line 1:");
+    expect_fail("ncols_huge.asc", "ncols 30000\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n",
+                "too large", "line 1:");
+    expect_fail("cells_huge.asc", "ncols 20000\nnrows 20000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1\n",
+                "too large", NULL);
+    expect_fail("cellsize0.asc", "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 0\n1 2\n3 4\n",
+                "cellsize", "line 5:");
+    expect_fail("cellsize_bad.asc", "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize abc\n1 2\n3 4\n",
+                "'abc'", "line 5:");
+    expect_fail("dup.asc", "ncols 2\nnrows 2\nxllcorner 0\nNROWS 2\nyllcorner 0\ncellsize 1\n1 2\n3 4\n",
+                "duplicate", "line 4:");
+    expect_fail("both_corner_center.asc",
+                "ncols 2\nnrows 2\nxllcorner 0\nxllcenter 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n",
+                "xllcenter", "line 4:");
+    expect_fail("unknown_key.asc", "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\nfoo 1\ncellsize 1\n1 2\n3 4\n",
+                "'foo'", "line 5:");
+    expect_fail("no_value.asc", "ncols 2\nnrows\n2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n",
+                "no value", "line 2:");
+    expect_fail("extra_hdr.asc", "ncols 2 3\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n",
+                "'3'", "line 1:");
+
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 8\n9 abc 11 12\n", HDR);
+    expect_fail("abc.asc", text, "line 9,", "'abc'");
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 8\n9 10 11\n", HDR);
+    expect_fail("few.asc", text, "expected nrows*ncols = 3*4 = 12 values, found 11", "row 3");
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 8\n", HDR);
+    expect_fail("few_rows.asc", text, "found 8", "row 3");
+    snprintf(text, sizeof text, "%s", HDR);
+    expect_fail("no_data.asc", text, "found 0", NULL);
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 8\n9 10 11 12\n\n13\n", HDR);
+    expect_fail("many.asc", text, "extra", "line 11,");
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 nan 8\n9 10 11 12\n", HDR);
+    expect_fail("nan.asc", text, "not finite", "line 8,");
+    snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 8\n9 10 11 -inf\n", HDR);
+    expect_fail("inf.asc", text, "not finite", "line 9,");
+    snprintf(text, sizeof text, "%s1 2 3 1e999\n5 6 7 8\n9 10 11 12\n", HDR);
+    expect_fail("overflow.asc", text, "not finite", "line 7,");
+    expect_fail("1x1.asc", "ncols 1\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\n5\n", "2 x 2", NULL);
+    expect_fail("3x1.asc", "ncols 3\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\n5 6 7\n", "2 x 2",
+                "line 2:");
+    snprintf(text, sizeof text, "%s-9999 -9999 -9999 -9999\n-9999 -9999 -9999 -9999\n"
+             "-9999 -9999 -9999 -9999.0\n", HDR);
+    expect_fail("all_nodata.asc", text, "NODATA", NULL);
+
+    /* a very long bad token is quoted only in part */
+    {
+        char tok[600];
+        memset(tok, 'q', sizeof tok - 1);
+        tok[sizeof tok - 1] = '\0';
+        snprintf(text, sizeof text, "%s1 2 3 4\n5 %s 7 8\n9 10 11 12\n", HDR, tok);
+        expect_fail("long_token.asc", text, "line 8,", "...");
+    }
+    /* a long number token is not silently cut to a shorter number */
+    {
+        char num[400];
+        memset(num, '1', sizeof num - 1);
+        num[0] = '0', num[1] = '.';
+        num[sizeof num - 1] = '\0';
+        snprintf(text, sizeof text, "%s1 2 3 4\n5 6 7 %s\n9 10 11 12\n", HDR, num);
+        expect_fail("long_number.asc", text, "line 8,", NULL);
+    }
+}
+
+/* Small error buffers are filled safely and NUL-terminated. */
+static void test_err_buffer(void)
+{
+    char buf[24];
+    Terrain t;
+    const char *path = fixture_path("does_not_exist_either.asc");
+    int rc;
+
+    memset(buf, 'X', sizeof buf);
+    rc = terrain_load(&t, path, buf, 10);
+    CHECK(rc == -1 && is_flat(&t), "missing file accepted");
+    CHECK(buf[9] == '\0' && strlen(buf) == 9, "small err buffer not truncated: len %zu", strlen(buf));
+    CHECK(buf[10] == 'X' && buf[23] == 'X', "err buffer overrun");
+    rc = terrain_load(&t, path, NULL, 0);
+    CHECK(rc == -1 && is_flat(&t), "NULL err buffer");
+    buf[0] = 'X';
+    rc = terrain_load(&t, path, buf, 0);
+    CHECK(rc == -1 && buf[0] == 'X', "errlen 0 must not write");
+}
+
+static void test_odd_but_valid(void)
+{
+    Terrain t;
+    const char *path;
+    FILE *f;
+    int i, j;
+
+    /* CRLF, mixed-case keys, NODATA key spelled differently, no final newline */
+    path = write_fixture("crlf.asc", "NCOLS 3\r\nNRows 2\r\nXLLCorner 1\r\nyllCORNER 2\r\n"
+                                     "CellSize 0.5\r\nnodata_VALUE -1\r\n1 2 3\r\n4 5 6");
+    if (expect_ok(path, &t, 3, 2, "CRLF file")) {
+        CHECK(t.x0 == 1.25 && t.y0 == 2.25 && t.cell == 0.5, "CRLF geometry");
+        CHECK(t.z[0] == 4 && t.z[2] == 6 && t.z[3] == 1 && t.z[5] == 3, "CRLF values");
+        terrain_free(&t);
+    }
+    /* CRLF line numbers still right in error messages */
+    expect_fail("crlf_bad.asc", "ncols 2\r\nnrows 2\r\nxllcorner 0\r\nyllcorner 0\r\ncellsize 1\r\n"
+                                "1 2\r\n3 x\r\n", "line 7,", "'x'");
+    /* old Mac line ends (lone CR) count as lines too */
+    expect_fail("cr_bad.asc", "ncols 2\rnrows 2\rxllcorner 0\ryllcorner 0\rcellsize 1\r1 2\r3 x\r",
+                "line 7,", "'x'");
+
+    /* UTF-8 BOM, tabs, blank lines, values split arbitrarily across lines */
+    path = write_fixture("split.asc", "\xEF\xBB\xBFncols\t3\n\nnrows 3\nxllcenter 0\nyllcenter 0\n"
+                                      "cellsize 1\n1\n2 3 4\n5 6 7 8\n\n   9   \n");
+    if (expect_ok(path, &t, 3, 3, "split file")) {
+        CHECK(t.z[6] == 1 && t.z[8] == 3 && t.z[0] == 7 && t.z[2] == 9, "split values");
+        terrain_free(&t);
+    }
+
+    /* 5000 columns: each row on one huge line */
+    f = open_fixture("wide.asc", &path);
+    fprintf(f, "ncols 5000\nnrows 3\nxllcenter 0\nyllcenter 0\ncellsize 0.01\n");
+    for (j = 2; j >= 0; j--) {
+        for (i = 0; i < 5000; i++)
+            fprintf(f, "%s%.17g", i ? " " : "", 1000.0 * j + i + 0.123456789012345);
+        fputc('\n', f);
+    }
+    fclose(f);
+    if (expect_ok(path, &t, 5000, 3, "5000-column file")) {
+        CHECK(t.z[4999] == 1000.0 * 0 + 4999 + 0.123456789012345 &&
+              t.z[2 * 5000 + 17] == 1000.0 * 2 + 17 + 0.123456789012345, "wide values");
+        /* midway between columns 4998/4999 and rows 1/2 */
+        CHECK(fabs(terrain_height(&t, 49.985, 0.015) - (1500.0 + 4998.5 + 0.123456789012345)) < 1e-8,
+              "wide interpolation %.17g", terrain_height(&t, 49.985, 0.015));
+        terrain_free(&t);
+    }
+
+    /* the whole grid on one line, ending without a newline; a bad token at
+     * the end of that line is reported on line 6 */
+    f = open_fixture("oneline.asc", &path);
+    fprintf(f, "ncols 4000\nnrows 4\nxllcenter 0\nyllcenter 0\ncellsize 1\n");
+    for (i = 0; i < 16000; i++)
+        fprintf(f, "%s%d", i ? " " : "", i % 97);
+    fclose(f);
+    if (expect_ok(path, &t, 4000, 4, "single-line file")) {
+        CHECK(t.z[3 * 4000] == 0 && t.z[1] == (12001 % 97), "single-line values");
+        terrain_free(&t);
+    }
+    f = open_fixture("oneline_bad.asc", &path);
+    fprintf(f, "ncols 4000\nnrows 4\nxllcenter 0\nyllcenter 0\ncellsize 1\n");
+    for (i = 0; i < 15999; i++)
+        fprintf(f, "%s%d", i ? " " : "", i % 97);
+    fprintf(f, " 1.5.3");
+    fclose(f);
+    expect_fail("oneline_bad.asc", NULL, "line 6, value 16000", "'1.5.3'");
+}
+
+/* ---------------------------------------------------------------- */
+/* 8. terrain_free                                                   */
+/* ---------------------------------------------------------------- */
+
+static void test_free(void)
+{
+    Terrain t;
+    terrain_init_flat(&t);
+    terrain_free(&t);
+    CHECK(is_flat(&t), "free of flat terrain");
+    terrain_free(&t);
+    CHECK(is_flat(&t), "second free");
+    terrain_free(NULL);
+    CHECK(terrain_height(&t, 1.0, 2.0) == 0.0, "freed terrain not flat");
+}
+
+int main(int argc, char **argv)
+{
+    const char *base = argc > 1 ? argv[1] : "/tmp";
+    snprintf(scratch, sizeof scratch, "%s/test_terrain_XXXXXX", base);
+    if (mkdtemp(scratch) == NULL) {
+        perror(scratch);
+        return 2;
+    }
+
+    test_plane();
+    test_slope15();
+    test_corner_center();
+    test_mound();
+    test_outside_and_flat();
+    test_nodata();
+    test_bad_files();
+    test_err_buffer();
+    test_odd_but_valid();
+    test_free();
+
+    remove_fixtures();
+    printf("%d passed, %d failed\n", n_pass, n_fail);
+    return n_fail != 0;
+}
