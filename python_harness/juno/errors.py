@@ -1,0 +1,86 @@
+"""Errors raised for bad input files, and the strict number parser shared by the readers.
+
+Every refusal of a user's file is an :class:`InputError`; its text names the file, the line
+(1-based) and the column where known, for example::
+
+    runs/dbp1.csv, line 17, column 'omega_left': not a number: 'abc'
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from typing import Optional, Union
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = ["InputError", "parse_finite", "NUMBER_RE"]
+
+
+class InputError(ValueError):
+    """A user's input file (or value read from one) breaks the documented format.
+
+    Attributes:
+        message: what is wrong, without the location.
+        path: the file, as given by the caller (``None`` if not from a file).
+        line: 1-based line number in that file, or ``None``.
+        column: column / key name, or ``None``.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        path: Optional[PathLike] = None,
+        line: Optional[int] = None,
+        column: Optional[str] = None,
+    ) -> None:
+        super().__init__(message, path, line, column)
+        self.message = str(message)
+        self.path = None if path is None else os.fspath(path)
+        self.line = None if line is None else int(line)
+        self.column = None if column is None else str(column)
+
+    def __str__(self) -> str:
+        where = []
+        if self.path is not None:
+            where.append(str(self.path))
+        if self.line is not None:
+            where.append(f"line {self.line}")
+        if self.column is not None:
+            where.append(f"column {self.column!r}")
+        if not where:
+            return self.message
+        return f"{', '.join(where)}: {self.message}"
+
+
+# A plain decimal number: no 'nan', 'inf', hex, underscores or non-ASCII digits
+# (all of which Python's float() would accept).
+NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def parse_finite(
+    text: str,
+    path: Optional[PathLike] = None,
+    line: Optional[int] = None,
+    column: Optional[str] = None,
+) -> float:
+    """Parse ``text`` (surrounding spaces allowed) as a finite decimal number.
+
+    Raises:
+        InputError: "not a number: 'abc'" or "not finite: 'nan'" located at path/line/column.
+    """
+    s = text.strip()
+    if NUMBER_RE.fullmatch(s) is None:
+        low = s.lower().lstrip("+-")
+        if low in ("nan", "inf", "infinity"):
+            raise InputError(f"not finite: {text!r}", path, line, column)
+        raise InputError(f"not a number: {_shorten(text)!r}", path, line, column)
+    value = float(s)
+    if not math.isfinite(value):
+        raise InputError(f"not finite (overflows a double): {_shorten(text)!r}", path, line, column)
+    return value
+
+
+def _shorten(text: str, limit: int = 60) -> str:
+    return text if len(text) <= limit else text[:limit] + "..."

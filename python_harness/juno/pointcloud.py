@@ -1,0 +1,499 @@
+"""LIDAR point clouds and terrain elevation grids.
+
+- :func:`read_xyz` / :func:`write_xyz`: scattered points ``x y z`` (m, world frame), one per
+  line, whitespace or comma separated, ``#`` comments and blank lines allowed; ASCII ``.ply``
+  (vertex x, y, z) is read too.
+- :func:`grid_from_points`: scattered points -> regular elevation :class:`Grid` (linear
+  interpolation inside the convex hull, nearest-neighbour fill outside it).
+- :func:`write_esri_ascii` / :func:`read_esri_ascii`: the ESRI ASCII grid (``.asc``) that the
+  FMU's ``terrain.file`` parameter reads (``fmu_src/terrain.h``).
+
+Grid convention (same as the FMU): ``z[row, col]`` with row 0 the southernmost row (smallest y)
+and col 0 the westernmost (smallest x); ``(x0, y0)`` is the centre of cell (row 0, col 0);
+cell centres are at ``x0 + col*cell``, ``y0 + row*cell``. Outside the grid the edge values
+extend flat (clamped), as in the FMU.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .atomic import atomic_write_text
+from .errors import InputError, parse_finite
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+__all__ = [
+    "Grid",
+    "read_xyz",
+    "write_xyz",
+    "format_xyz",
+    "check_points",
+    "grid_from_points",
+    "write_esri_ascii",
+    "read_esri_ascii",
+    "MAX_GRID_CELLS",
+]
+
+MAX_GRID_CELLS = 40_000_000
+"""Largest grid :func:`grid_from_points` builds (cells); beyond that the cell size is surely wrong."""
+
+_SEP_RE = re.compile(r"\s*,\s*|\s+")
+
+
+# --------------------------------------------------------------------------------------------
+# Point clouds
+# --------------------------------------------------------------------------------------------
+
+def _decode(path: Path, data: bytes) -> str:
+    """UTF-8 (BOM allowed); refuse other bytes naming the line of the first bad byte."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x})", path, line) from None
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("file not found", path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", path) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", path) from None
+
+
+def read_xyz(path: PathLike) -> NDArray[np.float64]:
+    """Read a LIDAR point cloud; returns an (N, 3) float array of x, y, z in m.
+
+    Text format: three numbers per line (``x y z``, whitespace or comma separated),
+    ``#`` starts a comment, blank lines are skipped. Files starting with the line ``ply`` (or
+    named ``*.ply``) are read as ASCII PLY (``element vertex`` with properties ``x``, ``y``,
+    ``z``); binary PLY is refused.
+
+    Raises:
+        InputError: wrong token count, a non-number or non-finite value (naming file and line),
+            an empty cloud, or fewer than 3 non-collinear points in x-y.
+    """
+    p = Path(path)
+    data = _read_bytes(p)
+    if p.suffix.lower() == ".ply" or data[:4] in (b"ply\n", b"ply\r"):
+        points = _parse_ply(p, data)
+    else:
+        points = _parse_xyz_text(p, _decode(p, data))
+    check_points(points, p)
+    return points
+
+
+def _parse_xyz_text(path: Path, text: str) -> NDArray[np.float64]:
+    rows: list[tuple[float, float, float]] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        tokens = _SEP_RE.split(line)
+        if len(tokens) != 3:
+            raise InputError(f"expected 3 numbers 'x y z', found {len(tokens)} fields: {line[:60]!r}", path, lineno)
+        x, y, z = (parse_finite(t, path, lineno, name) for t, name in zip(tokens, "xyz"))
+        rows.append((x, y, z))
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _parse_ply(path: Path, data: bytes) -> NDArray[np.float64]:
+    """ASCII PLY: the vertex element's x, y, z properties; other elements are skipped."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise InputError("not a PLY file (needs a 'ply' first line and 'end_header')", path, 1)
+    nl = data.find(b"\n", end)
+    header = _decode(path, data[: end + len("end_header")]).splitlines()
+    body_start_line = len(header) + 1
+    body = _decode(path, data[nl + 1:] if nl >= 0 else b"")
+    elements: list[tuple[str, int, list[str]]] = []
+    fmt = None
+    for lineno, raw in enumerate(header, start=1):
+        tok = raw.split()
+        if not tok or tok[0] in ("ply", "comment", "obj_info", "end_header"):
+            continue
+        if tok[0] == "format":
+            fmt = tok[1] if len(tok) > 1 else ""
+            if fmt != "ascii":
+                raise InputError(
+                    f"PLY format {fmt!r} is not supported: convert to ASCII PLY or to 'x y z' text", path, lineno
+                )
+        elif tok[0] == "element" and len(tok) == 3 and re.fullmatch(r"[0-9]{1,12}", tok[2]):
+            elements.append((tok[1], int(tok[2]), []))
+        elif tok[0] == "property" and elements:
+            elements[-1][2].append(tok[-1])
+        else:
+            raise InputError(f"bad PLY header line: {raw.strip()[:60]!r}", path, lineno)
+    if fmt is None:
+        raise InputError("PLY header has no 'format' line", path)
+    lines = body.splitlines()
+    skip = 0
+    for name, count, props in elements:
+        if name != "vertex":
+            skip += count
+            continue
+        missing = [c for c in "xyz" if c not in props]
+        if missing:
+            raise InputError(f"PLY vertex element lacks properties {missing}", path)
+        idx = [props.index(c) for c in "xyz"]
+        if len(lines) < skip + count:
+            raise InputError(f"PLY file ends early: {count} vertices announced", path, body_start_line + len(lines))
+        out = np.empty((count, 3))
+        for k in range(count):
+            lineno = body_start_line + skip + k
+            tok = lines[skip + k].split()
+            if len(tok) != len(props):
+                raise InputError(f"expected {len(props)} vertex values, found {len(tok)}", path, lineno)
+            for j, (i, c) in enumerate(zip(idx, "xyz")):
+                out[k, j] = parse_finite(tok[i], path, lineno, c)
+        return out
+    raise InputError("PLY file has no 'element vertex'", path)
+
+
+def check_points(points: ArrayLike, path: Optional[PathLike] = None) -> NDArray[np.float64]:
+    """Check an (N, 3) finite cloud spanning an area in x-y; returns it as a float array.
+
+    Raises:
+        InputError: empty cloud, wrong shape, non-finite values, fewer than 3 non-collinear
+            points in x-y.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InputError(f"points must be an (N, 3) array, got shape {pts.shape}", path)
+    if pts.shape[0] == 0:
+        raise InputError("empty point cloud (no points)", path)
+    if not np.all(np.isfinite(pts)):
+        raise InputError("point cloud holds non-finite values", path)
+    xy = pts[:, :2] - pts[:, :2].mean(axis=0)
+    scale = float(np.abs(xy).max()) if xy.size else 0.0
+    if pts.shape[0] < 3 or scale == 0.0:
+        raise InputError(f"need at least 3 non-collinear points in x-y, got {pts.shape[0]} points", path)
+    s = np.linalg.svd(xy / scale, compute_uv=False)
+    if s[-1] <= 1e-9 * s[0]:
+        raise InputError("all points are collinear in x-y: they do not span a terrain area", path)
+    return pts
+
+
+def format_xyz(points: ArrayLike) -> str:
+    """Text of an (N, 3) cloud, one ``x y z`` per line, shortest round-trip decimal (exact)."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must be an (N, 3) array, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points must be finite")
+    r = float.__repr__
+    return "".join(f"{r(x)} {r(y)} {r(z)}\n" for x, y, z in pts.tolist())
+
+
+def write_xyz(path: PathLike, points: ArrayLike) -> Path:
+    """Write an (N, 3) cloud as ``x y z`` text (m), atomically, exact to the last bit."""
+    return atomic_write_text(path, "# x y z (m)\n" + format_xyz(points))
+
+
+# --------------------------------------------------------------------------------------------
+# Grids
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Regular elevation grid, row 0 = south, col 0 = west.
+
+    Attributes:
+        x0, y0: centre of the south-west cell (m).
+        cell: cell size = resolution (m), the same in x and y.
+        z: (nrows, ncols) elevations (m).
+        filled: optional (nrows, ncols) bool mask of cells not measured directly but filled by
+            nearest neighbour (outside the scan's convex hull, or NODATA in a file).
+    """
+
+    x0: float
+    y0: float
+    cell: float
+    z: NDArray[np.float64]
+    filled: Optional[NDArray[np.bool_]] = dataclasses.field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        z = np.asarray(self.z, dtype=float)
+        if z.ndim != 2 or z.shape[0] < 1 or z.shape[1] < 1:
+            raise ValueError(f"Grid.z must be a non-empty 2-D array, got shape {z.shape}")
+        if not (np.isfinite(self.cell) and self.cell > 0):
+            raise ValueError(f"Grid.cell must be > 0, got {self.cell}")
+        object.__setattr__(self, "z", z)
+        object.__setattr__(self, "x0", float(self.x0))
+        object.__setattr__(self, "y0", float(self.y0))
+        object.__setattr__(self, "cell", float(self.cell))
+
+    @property
+    def nrows(self) -> int:
+        return int(self.z.shape[0])
+
+    @property
+    def ncols(self) -> int:
+        return int(self.z.shape[1])
+
+    @property
+    def resolution(self) -> float:
+        """Cell size (m)."""
+        return self.cell
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        """Cell-centre x coordinates (m), west to east."""
+        return self.x0 + self.cell * np.arange(self.ncols)
+
+    @property
+    def y(self) -> NDArray[np.float64]:
+        """Cell-centre y coordinates (m), south to north."""
+        return self.y0 + self.cell * np.arange(self.nrows)
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the cell centres (m)."""
+        return (self.x0, self.x0 + self.cell * (self.ncols - 1), self.y0, self.y0 + self.cell * (self.nrows - 1))
+
+    def height(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
+        """Bilinear elevation (m) at world (x, y) (m), vectorised; clamped to the edges outside.
+
+        Returns an array of the broadcast shape of x and y (a 0-d array for scalars).
+        """
+        xa, ya = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        u = np.clip((xa - self.x0) / self.cell, 0.0, self.ncols - 1)
+        v = np.clip((ya - self.y0) / self.cell, 0.0, self.nrows - 1)
+        i0 = np.minimum(np.floor(u).astype(np.intp), max(self.ncols - 2, 0))
+        j0 = np.minimum(np.floor(v).astype(np.intp), max(self.nrows - 2, 0))
+        i1 = np.minimum(i0 + 1, self.ncols - 1)
+        j1 = np.minimum(j0 + 1, self.nrows - 1)
+        fu = u - i0
+        fv = v - j0
+        z = self.z
+        return (
+            z[j0, i0] * (1 - fu) * (1 - fv)
+            + z[j0, i1] * fu * (1 - fv)
+            + z[j1, i0] * (1 - fu) * fv
+            + z[j1, i1] * fu * fv
+        )
+
+
+def _average_duplicates(pts: NDArray[np.float64], quantum: float) -> NDArray[np.float64]:
+    """Merge points whose x-y agree to ``quantum`` (m), averaging their z."""
+    keys = np.round(pts[:, :2] / quantum).astype(np.int64)
+    _, first, inverse, counts = np.unique(keys, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    if len(first) == len(pts):
+        return pts
+    inverse = inverse.reshape(-1)
+    zsum = np.bincount(inverse, weights=pts[:, 2])
+    out = pts[first].copy()
+    out[:, 2] = zsum / counts
+    return out
+
+
+def grid_from_points(
+    points: ArrayLike,
+    cell: float = 0.05,
+    margin: float = 0.0,
+    method: str = "linear",
+    max_cells: int = MAX_GRID_CELLS,
+) -> Grid:
+    """Grid a scattered cloud onto a regular elevation grid.
+
+    Args:
+        points: (N, 3) x, y, z (m).
+        cell: grid resolution (m), > 0.
+        margin: extra border around the points' x-y bounding box (m), >= 0; filled by nearest
+            neighbour.
+        method: scipy ``griddata`` method inside the convex hull: "linear" (default), "cubic"
+            or "nearest".
+        max_cells: refuse grids larger than this.
+
+    Points with the same x-y (to 1e-6 cell) are merged, their z averaged. Cells outside the
+    convex hull (or otherwise NaN) are filled from the nearest point; :attr:`Grid.filled`
+    marks them. The grid has at least 2 x 2 cells (the FMU's reader needs that).
+
+    Raises:
+        InputError: bad cloud (see :func:`check_points`).
+        ValueError: bad cell / margin / method or a grid larger than ``max_cells``.
+    """
+    from scipy.interpolate import griddata
+    from scipy.spatial import cKDTree
+
+    if not (np.isfinite(cell) and cell > 0):
+        raise ValueError(f"grid cell size must be a positive number of metres, got {cell!r}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"grid margin must be >= 0 m, got {margin!r}")
+    if method not in ("linear", "cubic", "nearest"):
+        raise ValueError(f"grid method must be 'linear', 'cubic' or 'nearest', got {method!r}")
+    pts = check_points(points)
+    pts = _average_duplicates(pts, quantum=cell * 1e-6)
+    xmin, ymin = pts[:, :2].min(axis=0) - margin
+    xmax, ymax = pts[:, :2].max(axis=0) + margin
+    ncols_f = np.ceil((xmax - xmin) / cell - 1e-9) + 1
+    nrows_f = np.ceil((ymax - ymin) / cell - 1e-9) + 1
+    if ncols_f * nrows_f > max_cells:
+        raise ValueError(
+            f"a {cell} m grid over {xmax - xmin:.3g} x {ymax - ymin:.3g} m would have "
+            f"{int(ncols_f)} x {int(nrows_f)} cells, more than the cap of {max_cells}: choose a larger cell"
+        )
+    ncols, nrows = max(int(ncols_f), 2), max(int(nrows_f), 2)
+    # Centre the grid on the data when it overhangs the bounding box.
+    x0 = 0.5 * (xmin + xmax) - 0.5 * cell * (ncols - 1)
+    y0 = 0.5 * (ymin + ymax) - 0.5 * cell * (nrows - 1)
+    gx = x0 + cell * np.arange(ncols)
+    gy = y0 + cell * np.arange(nrows)
+    X, Y = np.meshgrid(gx, gy)
+    if len(pts) >= 3 and method != "nearest":
+        try:
+            z = griddata(pts[:, :2], pts[:, 2], (X, Y), method=method)
+        except Exception as e:  # Qhull failure on a nearly degenerate cloud
+            raise InputError(f"cannot triangulate the point cloud: {str(e).splitlines()[0]}") from None
+    else:
+        z = np.full(X.shape, np.nan)
+    holes = ~np.isfinite(z)
+    if holes.any():
+        tree = cKDTree(pts[:, :2])
+        _, idx = tree.query(np.column_stack([X[holes], Y[holes]]))
+        z[holes] = pts[idx, 2]
+    return Grid(x0=float(x0), y0=float(y0), cell=float(cell), z=z, filled=holes)
+
+
+# --------------------------------------------------------------------------------------------
+# ESRI ASCII grids
+# --------------------------------------------------------------------------------------------
+
+NODATA = -9999.0
+
+
+def write_esri_ascii(path: PathLike, grid: Grid, nodata: float = NODATA) -> Path:
+    """Write ``grid`` as an ESRI ASCII grid (``.asc``) atomically.
+
+    Header ``ncols, nrows, xllcenter, yllcenter, cellsize, NODATA_value``; then rows from north
+    to south; numbers in shortest round-trip decimal (exact). NaN cells are written as NODATA.
+
+    Raises:
+        ValueError: a grid smaller than 2 x 2 (the FMU refuses it) or a value equal to NODATA.
+    """
+    if grid.nrows < 2 or grid.ncols < 2:
+        raise ValueError(f"ESRI grid must be at least 2 x 2 cells, got {grid.ncols} x {grid.nrows}")
+    z = np.asarray(grid.z, dtype=float)
+    if np.any(z == nodata):
+        raise ValueError(f"grid holds the NODATA value {nodata}; choose another nodata")
+    if np.any(np.isinf(z)):
+        raise ValueError("grid holds infinite values")
+    r = float.__repr__
+    nd = r(float(nodata))
+    lines = [
+        f"ncols {grid.ncols}",
+        f"nrows {grid.nrows}",
+        f"xllcenter {r(grid.x0)}",
+        f"yllcenter {r(grid.y0)}",
+        f"cellsize {r(grid.cell)}",
+        f"NODATA_value {nd}",
+    ]
+    for row in z[::-1].tolist():
+        lines.append(" ".join(nd if v != v else r(v) for v in row))
+    return atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+_HEADER_KEYS = ("ncols", "nrows", "xllcorner", "xllcenter", "yllcorner", "yllcenter", "cellsize", "nodata_value")
+
+
+def read_esri_ascii(path: PathLike) -> Grid:
+    """Read an ESRI ASCII grid strictly, as the FMU's ``terrain_load`` does.
+
+    Header keys (case-insensitive, any order, each once): ``ncols``, ``nrows``,
+    ``xllcorner`` or ``xllcenter``, ``yllcorner`` or ``yllcenter``, ``cellsize``, optional
+    ``NODATA_value``; then ``nrows * ncols`` numbers, rows from north to south. NODATA cells
+    are filled from the nearest valid cell and marked in :attr:`Grid.filled`.
+
+    Raises:
+        InputError naming file and line: unreadable file, bad or missing header key,
+        non-numeric or non-finite value, too few / too many values, grid smaller than 2 x 2,
+        all cells NODATA.
+    """
+    p = Path(path)
+    text = _decode(p, _read_bytes(p))
+    lines = text.splitlines()
+    header: dict[str, tuple[float, int]] = {}
+    k = 0
+    while k < len(lines):
+        tok = lines[k].split()
+        if not tok:
+            k += 1
+            continue
+        key = tok[0].lower()
+        if key not in _HEADER_KEYS:
+            if tok[0][:1] in "+-.0123456789":
+                break  # first data line
+            raise InputError(f"unknown header key {tok[0]!r}", p, k + 1)
+        if len(tok) != 2:
+            raise InputError(f"header line must be 'key value', got {lines[k].strip()[:60]!r}", p, k + 1)
+        if key in header:
+            raise InputError(f"header key {tok[0]!r} given twice", p, k + 1)
+        header[key] = (parse_finite(tok[1], p, k + 1, tok[0]), k + 1)
+        k += 1
+    for a, b in (("xllcorner", "xllcenter"), ("yllcorner", "yllcenter")):
+        if a in header and b in header:
+            raise InputError(f"header gives both {a} and {b}", p, header[b][1])
+    for need in ("ncols", "nrows", "cellsize"):
+        if need not in header:
+            raise InputError(f"header lacks {need!r}", p, k + 1 if k < len(lines) else len(lines))
+    for a, b in (("xllcorner", "xllcenter"), ("yllcorner", "yllcenter")):
+        if a not in header and b not in header:
+            raise InputError(f"header lacks {a!r} or {b!r}", p, k + 1 if k < len(lines) else len(lines))
+    dims = {}
+    for key in ("ncols", "nrows"):
+        value, line = header[key]
+        if value != int(value) or value < 1:
+            raise InputError(f"{key} must be a positive integer, got {value}", p, line)
+        dims[key] = int(value)
+    ncols, nrows = dims["ncols"], dims["nrows"]
+    if ncols < 2 or nrows < 2:
+        raise InputError(f"grid must be at least 2 x 2 cells, got {ncols} x {nrows}", p, header["nrows"][1])
+    if ncols * nrows > MAX_GRID_CELLS:
+        raise InputError(f"grid of {ncols} x {nrows} cells exceeds the cap of {MAX_GRID_CELLS}", p, header["nrows"][1])
+    cell, cell_line = header["cellsize"]
+    if cell <= 0:
+        raise InputError(f"cellsize must be > 0, got {cell}", p, cell_line)
+    x0 = header["xllcenter"][0] if "xllcenter" in header else header["xllcorner"][0] + 0.5 * cell
+    y0 = header["yllcenter"][0] if "yllcenter" in header else header["yllcorner"][0] + 0.5 * cell
+    nodata = header.get("nodata_value", (None, 0))[0]
+
+    n = ncols * nrows
+    values: list[float] = []
+    count = 0
+    last_line = k
+    for lineno in range(k + 1, len(lines) + 1):
+        tok = lines[lineno - 1].split()
+        if not tok:
+            continue
+        if count + len(tok) > n:
+            raise InputError(f"too many values: the header announces {ncols} x {nrows} = {n}", p, lineno)
+        values.extend(parse_finite(t, p, lineno) for t in tok)
+        count += len(tok)
+        last_line = lineno
+    if count < n:
+        raise InputError(f"too few values: {count} of {ncols} x {nrows} = {n}", p, max(last_line, 1))
+    z = np.array(values, dtype=float).reshape(nrows, ncols)[::-1].copy()  # file is north to south; row 0 = south
+    missing = np.zeros(z.shape, dtype=bool) if nodata is None else (z == nodata)
+    if missing.all():
+        raise InputError("every cell is NODATA", p)
+    if missing.any():
+        from scipy.spatial import cKDTree
+
+        jj, ii = np.nonzero(~missing)
+        tree = cKDTree(np.column_stack([jj, ii]))
+        mj, mi = np.nonzero(missing)
+        _, idx = tree.query(np.column_stack([mj, mi]))
+        z[mj, mi] = z[jj[idx], ii[idx]]
+    return Grid(x0=float(x0), y0=float(y0), cell=float(cell), z=z, filled=missing)

@@ -1,0 +1,242 @@
+"""Running the JunoRover FMU through fmpy.
+
+The FMU is extracted once per :class:`JunoFMU`; one FMI instance is created
+lazily and reused for every simulation (``fmi2Reset`` between runs), so a
+cost function can call :meth:`JunoFMU.simulate` hundreds of times cheaply.
+
+Inputs are given as sampled signals and applied sample-and-hold at each
+communication point (the value at the start of the step), which is what a
+co-simulation master does.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
+
+WHEELS = ("FL", "RL", "FR", "RR")
+WHEEL_SIGNALS = ("sinkage", "slip", "Fn", "Ft", "Fx", "Fy", "Fz")
+
+#: Outputs recorded when the caller does not choose.
+DEFAULT_OUTPUTS = (
+    "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",
+    "torqueLeftApplied", "torqueRightApplied", "rocker",
+) + tuple(f"wheel{w}.{s}" for w in WHEELS for s in WHEEL_SIGNALS)
+
+#: The four soil parameters the paper identifies, by FMU name.
+SOIL_PARAMETERS = ("soil.kh", "soil.eta", "soil.gamma", "soil.Kvx")
+
+
+def default_fmu_path() -> Path:
+    """Path of the FMU: $JUNO_FMU, else build/JunoRover.fmu of this checkout."""
+    env = os.environ.get("JUNO_FMU")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "build" / "JunoRover.fmu"
+
+
+class SimulationError(RuntimeError):
+    """The FMU refused a parameter or input, or the simulation diverged.
+
+    ``messages`` holds what the FMU logged (its reasons).
+    """
+
+    def __init__(self, what: str, messages: list[str]):
+        detail = "; ".join(messages[-3:]) if messages else "no message logged"
+        super().__init__(f"{what}: {detail}")
+        self.messages = list(messages)
+
+
+@dataclass
+class InputSignals:
+    """Sampled FMU inputs: ``time`` (s, ascending) and FMU input name -> values."""
+
+    time: np.ndarray
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def at(self, t: float) -> dict[str, float]:
+        """Linear interpolation of every input at time ``t`` (s), held at the ends."""
+        return {name: float(np.interp(t, self.time, v)) for name, v in self.values.items()}
+
+    @staticmethod
+    def constant(**values: float) -> "InputSignals":
+        """Inputs held at constant values."""
+        return InputSignals(np.array([0.0, 1.0]), {k: np.array([v, v], float) for k, v in values.items()})
+
+
+class JunoFMU:
+    """One extracted JunoRover FMU and a reusable instance of it."""
+
+    def __init__(self, fmu_path: str | os.PathLike | None = None, solver_step: float | None = None):
+        self.fmu_path = Path(fmu_path) if fmu_path else default_fmu_path()
+        if not self.fmu_path.is_file():
+            raise FileNotFoundError(f"{self.fmu_path}: FMU not found (build it with cmake first)")
+        self.model_description = read_model_description(str(self.fmu_path))
+        self._tmp = tempfile.mkdtemp(prefix="juno-fmu-")
+        self.unzip_dir = extract(str(self.fmu_path), unzipdir=self._tmp)
+        self.variables = {v.name: v for v in self.model_description.modelVariables}
+        self.solver_step = solver_step
+        self._slave: FMU2Slave | None = None
+        self._messages: list[str] = []
+        self._callbacks = None
+        self._initialised_once = False
+
+    # -- life cycle -------------------------------------------------------
+    def close(self) -> None:
+        if self._slave is not None:
+            try:
+                self._slave.freeInstance()
+            except Exception:
+                pass
+            self._slave = None
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def __enter__(self) -> "JunoFMU":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __getstate__(self):
+        """Pickle as just the path (for process pools): each process extracts its own copy."""
+        return {"fmu_path": str(self.fmu_path), "solver_step": self.solver_step}
+
+    def __setstate__(self, state):
+        self.__init__(state["fmu_path"], state["solver_step"])
+
+    def _log(self, component, instance_name, status, category, message):
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        if status >= 2:  # discard, error, fatal
+            self._messages.append(text)
+
+    def _instance(self) -> FMU2Slave:
+        if self._slave is None:
+            md = self.model_description
+            slave = FMU2Slave(guid=md.guid, unzipDirectory=self.unzip_dir,
+                              modelIdentifier=md.coSimulation.modelIdentifier, instanceName="juno")
+            callbacks = fmi2CallbackFunctions()
+            callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+            callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(_calloc)
+            callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(_free)
+            try:
+                from fmpy.logging import addLoggerProxy
+                addLoggerProxy(ctypes.byref(callbacks))
+            except Exception:  # the proxy only formats printf arguments; ours has none
+                pass
+            self._callbacks = callbacks
+            slave.instantiate(callbacks=callbacks)
+            self._slave = slave
+        else:
+            self._slave.reset()
+        return self._slave
+
+    def _call(self, what: str, fn, *args):
+        try:
+            return fn(*args)
+        except Exception as exc:  # fmpy raises on fmi2Error
+            raise SimulationError(what, self._messages or [str(exc)]) from exc
+
+    # -- variables --------------------------------------------------------
+    def _set(self, slave: FMU2Slave, values: Mapping[str, object]) -> None:
+        reals, ints, strs = {}, {}, {}
+        for name, value in values.items():
+            var = self.variables.get(name)
+            if var is None:
+                raise KeyError(f"the FMU has no variable '{name}'")
+            if var.type == "Real":
+                reals[var.valueReference] = float(value)
+            elif var.type == "Integer":
+                ints[var.valueReference] = int(value)
+            elif var.type == "String":
+                strs[var.valueReference] = str(value)
+            else:
+                raise KeyError(f"variable '{name}' has unsupported type {var.type}")
+        if reals:
+            self._call("setting " + ", ".join(n for n in values if self.variables[n].type == "Real"),
+                       slave.setReal, list(reals), list(reals.values()))
+        if ints:
+            self._call("setting integers", slave.setInteger, list(ints), list(ints.values()))
+        if strs:
+            self._call("setting strings", slave.setString, list(strs), list(strs.values()))
+
+    def real_vrs(self, names: Iterable[str]) -> list[int]:
+        out = []
+        for n in names:
+            var = self.variables.get(n)
+            if var is None or var.type != "Real":
+                raise KeyError(f"the FMU has no Real variable '{n}'")
+            out.append(var.valueReference)
+        return out
+
+    # -- simulation -------------------------------------------------------
+    def simulate(self, parameters: Mapping[str, object], inputs: InputSignals | None,
+                 stop_time: float, output_interval: float = 0.05,
+                 outputs: Iterable[str] = DEFAULT_OUTPUTS, start_time: float = 0.0) -> dict[str, np.ndarray]:
+        """Simulates from ``start_time`` to ``stop_time`` (s).
+
+        ``parameters``: FMU parameter name -> value (set before initialisation).
+        ``inputs``: sampled inputs, or None for the FMU's start values.
+        Returns output name -> array at the communication points, plus ``time``.
+        Raises :class:`SimulationError` with the FMU's message on failure.
+        """
+        self._messages.clear()
+        slave = self._instance()
+        params = dict(parameters)
+        if self.solver_step is not None and "solver.step" not in params:
+            params["solver.step"] = self.solver_step
+        n_steps = int(round((stop_time - start_time) / output_interval))
+        if n_steps < 1:
+            raise ValueError(f"stop_time {stop_time} must exceed start_time {start_time} by an output interval")
+        names = list(outputs)
+        out_vrs = self.real_vrs(names)
+        in_names = list(inputs.values) if inputs is not None else []
+        in_vrs = self.real_vrs(in_names)
+        times = start_time + output_interval * np.arange(n_steps + 1)
+        data = np.empty((n_steps + 1, len(names)))
+        if inputs is not None:
+            in_table = np.column_stack([np.interp(times, inputs.time, inputs.values[n]) for n in in_names])
+        self._call("setupExperiment", slave.setupExperiment, None, start_time)
+        self._set(slave, params)
+        if inputs is not None:
+            self._call("setting inputs", slave.setReal, in_vrs, list(in_table[0]))
+        self._call("initialisation", slave.enterInitializationMode)
+        self._call("initialisation", slave.exitInitializationMode)
+        data[0] = slave.getReal(out_vrs)
+        do_step, get_real, set_real = slave.doStep, slave.getReal, slave.setReal
+        for k in range(n_steps):
+            try:
+                if inputs is not None:
+                    set_real(in_vrs, list(in_table[k]))
+                do_step(times[k], output_interval)
+            except Exception as exc:
+                raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages) from exc
+            data[k + 1] = get_real(out_vrs)
+        self._call("terminate", slave.terminate)
+        result = {"time": times}
+        for i, n in enumerate(names):
+            result[n] = data[:, i]
+        return result
+
+
+_libc = ctypes.CDLL(None)
+_libc.calloc.restype = ctypes.c_void_p
+_libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
+_libc.free.argtypes = [ctypes.c_void_p]
+
+
+def _calloc(nobj, size):
+    return _libc.calloc(nobj, size)
+
+
+def _free(ptr):
+    _libc.free(ptr)

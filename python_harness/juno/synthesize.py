@@ -1,0 +1,227 @@
+"""Synthetic measured campaigns like the paper's, with an optional hidden effect.
+
+A campaign has three drawbar pull runs (about 22, 35 and 32 s, steady
+windows 8-18, 15-25 and 15-25 s) and one run over about 20 m^2 of soft soil
+with a 0.5 m mound.  The truth is simulated with the JunoRover FMU at a
+constant throttle (``drive.mode = 2``, DC motors), the drawbar force held by
+hand (it ramps up and wanders), and then measured the way the paper's
+instruments measure it:
+
+=================  ======  ==========================================
+sensor             rate    noise (1 sigma, at ``noise = 1``)
+=================  ======  ==========================================
+load cell          100 Hz  4 N
+motor current      50 Hz   1.5 N m + 1 % (torque per side)
+motor encoders     50 Hz   0.005 rad/s
+total station      5 Hz    2 mm horizontal, 3 mm vertical
+IMU attitude       100 Hz  0.003 rad roll/pitch, 0.005 rad yaw
+LIDAR scan         25000   5 mm vertical, random scattered points
+=================  ======  ==========================================
+
+The total station's prism sits at the chassis reference point (the FMU's
+``x, y, z``).  The truth (parameters and hidden effect) goes to
+``truth.json`` only; file names, columns and order never depend on it.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .campaign import write_campaign
+from .pointcloud import Grid, write_esri_ascii
+from .simulator import InputSignals, JunoFMU
+
+#: The paper's Table 2 values, the centre of the synthetic truth.
+TABLE2 = {"soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx": 0.819}
+
+#: Drawbar runs: (id, duration s, steady window s), as in the paper.
+DRAWBAR_RUNS = (("dbp1", 22.0, (8.0, 18.0)), ("dbp2", 35.0, (15.0, 25.0)), ("dbp3", 32.0, (15.0, 25.0)))
+
+#: Terrain area (m): x from 0 to 8, y from -1.3 to 1.3 (20.8 m^2).
+TERRAIN_X = (0.0, 8.0)
+TERRAIN_Y = (-1.3, 1.3)
+TERRAIN_DURATION = 30.0
+THROTTLE = 0.45
+
+
+@dataclass
+class Truth:
+    """What the synthetic world really is (written to truth.json only)."""
+
+    effect: str
+    strength: float
+    seed: int
+    soil: dict[str, float]
+    extension: dict[str, float] = field(default_factory=dict)   # FMU parameters of the effect
+    measurement: dict[str, float] = field(default_factory=dict) # sensor-side effect parameters
+
+
+def _ou_process(rng: np.random.Generator, t: np.ndarray, tau: float) -> np.ndarray:
+    """Unit-variance Ornstein-Uhlenbeck noise sampled at times ``t`` (s) with time constant ``tau``."""
+    x = np.empty_like(t)
+    x[0] = rng.standard_normal()
+    for k in range(1, len(t)):
+        a = np.exp(-(t[k] - t[k - 1]) / tau)
+        x[k] = a * x[k - 1] + np.sqrt(1 - a * a) * rng.standard_normal()
+    return x
+
+
+def hand_drawbar_force(rng: np.random.Generator, duration: float, level: float) -> InputSignals:
+    """Drawbar force (N) of a person holding a rope: a 3-6 s ramp to ``level``, then +-6 % wander."""
+    t = np.arange(0.0, duration + 0.05, 0.05)
+    ramp = float(rng.uniform(3.0, 6.0))
+    s = np.clip(t / ramp, 0, 1)
+    smooth = s * s * (3 - 2 * s)
+    force = level * smooth * (1 + 0.06 * _ou_process(rng, t, 1.5))
+    return InputSignals(t, {"drawbarForce": np.maximum(force, 0.0)})
+
+
+def mound_surface(x: np.ndarray, y: np.ndarray, rng_seed: int) -> np.ndarray:
+    """True elevation (m): a 0.5 m mound plus gentle undulations of about 1 cm."""
+    rng = np.random.default_rng(rng_seed + 7919)
+    z = 0.5 * np.exp(-((x - 4.0) ** 2 / (2 * 0.9**2) + (y - 0.35) ** 2 / (2 * 0.7**2)))
+    for _ in range(4):
+        kx, ky = rng.uniform(1.0, 3.0, 2)
+        phase = rng.uniform(0, 2 * np.pi)
+        z = z + 0.004 * np.sin(kx * x + ky * y + phase)
+    return z
+
+
+def truth_grid(seed: int, cell: float = 0.02) -> Grid:
+    """The true terrain as a fine grid covering the test area with a 1 m margin."""
+    xs = np.arange(TERRAIN_X[0] - 1.0, TERRAIN_X[1] + 1.0 + cell / 2, cell)
+    ys = np.arange(TERRAIN_Y[0] - 1.0, TERRAIN_Y[1] + 1.0 + cell / 2, cell)
+    X, Y = np.meshgrid(xs, ys)
+    return Grid(x0=float(xs[0]), y0=float(ys[0]), cell=cell, z=mound_surface(X, Y, seed))
+
+
+def lidar_scan(rng: np.random.Generator, seed: int, n_points: int = 25000, noise: float = 1.0,
+               transform: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """Scattered LIDAR points (N, 3) over the test area, 5 mm vertical noise at ``noise = 1``.
+
+    ``transform`` maps true points to where the scan reports them (registration errors).
+    """
+    x = rng.uniform(*TERRAIN_X, n_points)
+    y = rng.uniform(*TERRAIN_Y, n_points)
+    z = mound_surface(x, y, seed) + noise * 0.005 * rng.standard_normal(n_points)
+    pts = np.column_stack([x, y, z])
+    return transform(pts) if transform is not None else pts
+
+
+def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float,
+            torque_scale: float = 1.0, drawbar: InputSignals | None = None) -> dict[str, np.ndarray]:
+    """Turns a truth simulation into the columns of a run CSV (interfaces.md section 3).
+
+    Each sensor samples on its own clock; the CSV rows are the union of all
+    sample times with empty cells (NaN) where a sensor has no sample.
+    ``torque_scale`` is what the motor-current estimate over-reads by (1 = exact).
+    """
+    t_end = float(sim["time"][-1])
+    T = sim["time"]
+    streams: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def add(name, values, rate, sigma, offset=0.0):
+        t = np.round(np.arange(offset, t_end + 1e-9, 1.0 / rate), 6)
+        v = np.interp(t, T, values)
+        streams[name] = (t, v + noise * sigma(v) * rng.standard_normal(len(t)))
+
+    if kind == "drawbar":
+        add("drawbar_force", sim["drawbarForce"], 100, lambda v: 4.0)
+    add("torque_left", sim["torqueLeftApplied"] * torque_scale, 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
+    add("torque_right", sim["torqueRightApplied"] * torque_scale, 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
+    add("omega_left", sim["omegaLeft"], 50, lambda v: 0.005, 0.004)
+    add("omega_right", sim["omegaRight"], 50, lambda v: 0.005, 0.004)
+    for axis, col, sig in (("x", "pos_x", 0.002), ("y", "pos_y", 0.002), ("z", "pos_z", 0.003)):
+        add(col, sim[axis], 5, lambda v, s=sig: s, 0.013)
+    add("roll", sim["roll"], 100, lambda v: 0.003, 0.001)
+    add("pitch", sim["pitch"], 100, lambda v: 0.003, 0.001)
+    add("yaw", sim["yaw"], 100, lambda v: 0.005, 0.001)
+
+    times = np.unique(np.concatenate([t for t, _ in streams.values()]))
+    columns = {"time": times}
+    for name, (t, v) in streams.items():
+        col = np.full(len(times), np.nan)
+        col[np.searchsorted(times, t)] = v
+        columns[name] = col
+    return columns
+
+
+TRUTH_OUTPUTS = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",
+                 "torqueLeftApplied", "torqueRightApplied")
+
+
+def draw_truth(effect: str, strength: float, seed: int) -> Truth:
+    """The synthetic world: soil within +-10 % of Table 2 (drawn from ``seed``) and the effect."""
+    rng = np.random.default_rng([seed, 1])
+    soil = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in TABLE2.items()}
+    truth = Truth(effect=effect, strength=float(strength), seed=int(seed), soil=soil)
+    from .effects import apply_effect_to_truth
+    apply_effect_to_truth(truth, rng)
+    return truth
+
+
+def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, seed: int = 0,
+               noise: float = 1.0, fmu: JunoFMU | None = None, time_scale: float = 1.0,
+               overwrite: bool = False, progress: Callable[[str], None] | None = None) -> Path:
+    """Writes a synthetic measured campaign to ``out`` and returns its path.
+
+    ``noise`` scales every sensor's noise (0 = exact measurements).
+    ``time_scale`` < 1 shortens every run (for quick tests); windows scale too.
+    The folder is written whole or not at all; ``truth.json`` holds the truth.
+    """
+    from .effects import EFFECTS, measurement_transform, scan_transform
+    if effect not in EFFECTS:
+        raise ValueError(f"unknown effect '{effect}'; known: {', '.join(EFFECTS)}")
+    say = progress or (lambda msg: None)
+    truth = draw_truth(effect, strength, seed)
+    rng = np.random.default_rng([seed, 2])
+    own_fmu = fmu is None
+    fmu = fmu or JunoFMU()
+    try:
+        base = {**truth.soil, **truth.extension, "drive.mode": 2, "solver.step": 1e-3}
+        runs, manifest_runs = {}, []
+        levels = rng.permutation([320.0, 520.0, 720.0]) + rng.uniform(-40, 40, 3)
+        for (run_id, duration, window), level in zip(DRAWBAR_RUNS, levels):
+            duration *= time_scale
+            window = (window[0] * time_scale, window[1] * time_scale)
+            say(f"simulating drawbar run {run_id} ({duration:.0f} s)")
+            drawbar = hand_drawbar_force(rng, duration, float(level))
+            inputs = InputSignals(drawbar.time, {**drawbar.values,
+                                                 "throttleLeft": np.full(len(drawbar.time), THROTTLE),
+                                                 "throttleRight": np.full(len(drawbar.time), THROTTLE)})
+            sim = fmu.simulate(base, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
+            sim["drawbarForce"] = np.interp(sim["time"], drawbar.time, drawbar.values["drawbarForce"])
+            runs[run_id] = measure(rng, sim, "drawbar", noise, **measurement_transform(truth))
+            manifest_runs.append({"id": run_id, "kind": "drawbar", "file": f"runs/{run_id}.csv",
+                                  "steady_window": list(window)})
+
+        say("simulating the 3-D terrain run")
+        with tempfile.TemporaryDirectory(prefix="juno-truth-") as tmp:
+            grid_path = Path(tmp) / "truth.asc"
+            write_esri_ascii(grid_path, truth_grid(seed))
+            params = {**base, "terrain.file": str(grid_path), "init.x": 0.8, "init.y": 0.0}
+            inputs = InputSignals.constant(drawbarForce=0.0, throttleLeft=THROTTLE, throttleRight=THROTTLE)
+            duration = TERRAIN_DURATION * time_scale
+            sim = fmu.simulate(params, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
+        runs["t3d"] = measure(rng, sim, "terrain", noise, **measurement_transform(truth))
+        manifest_runs.append({"id": "t3d", "kind": "terrain", "file": "runs/t3d.csv",
+                              "terrain": "terrain/scan.xyz"})
+        scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth))
+
+        manifest = {"name": f"juno-synthetic-{seed}", "runs": manifest_runs, "rover": {}}
+        truth_json = json.dumps({"effect": truth.effect, "strength": truth.strength, "seed": truth.seed,
+                                 "noise": noise, "soil": truth.soil, "extension": truth.extension,
+                                 "measurement": truth.measurement}, indent=2)
+        say(f"writing {out}")
+        write_campaign(out, manifest, runs, {"terrain/scan.xyz": scan},
+                       extra_files={"truth.json": truth_json}, overwrite=overwrite)
+        return Path(out)
+    finally:
+        if own_fmu:
+            fmu.close()

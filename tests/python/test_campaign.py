@@ -1,0 +1,490 @@
+"""Specification of the measured-campaign format (interfaces.md section 3) as read by juno.campaign."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from juno.campaign import (
+    aligned,
+    forward_speed,
+    format_run_csv,
+    load_campaign,
+    read_run,
+    read_run_csv,
+    read_terrain_points,
+    steady_average,
+    write_campaign,
+)
+from juno.errors import InputError
+
+RNG_SEED = 20130815
+
+
+# ---------------------------------------------------------------------------------------------
+# A small synthetic campaign: 100 Hz motors, 50 Hz load cell, 5 Hz total station, 20 Hz IMU.
+# ---------------------------------------------------------------------------------------------
+
+def make_run(kind: str, duration: float = 6.0, seed: int = 0) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.round(np.arange(0.0, duration, 0.01), 10)
+    n = len(t)
+    every = lambda k: (np.arange(n) % k) == 0  # noqa: E731
+    run = {
+        "time": t,
+        "torque_left": 40.0 + rng.normal(0, 0.5, n),
+        "torque_right": 41.0 + rng.normal(0, 0.5, n),
+        "omega_left": 1.2 + 0.01 * np.sin(t),
+        "omega_right": 1.19 + 0.01 * np.cos(t),
+        "pos_x": np.where(every(20), 0.3 * t, np.nan),
+        "pos_y": np.where(every(20), 0.01 * t, np.nan),
+        "pos_z": np.where(every(20), 0.75, np.nan),
+        "yaw": np.where(every(5), 0.0333, np.nan),
+        "battery_volts": np.full(n, 48.1),  # unknown column: kept, ignored
+    }
+    if kind == "drawbar":
+        run["drawbar_force"] = np.where(every(2), 250.0 + rng.normal(0, 2, n), np.nan)
+    return run
+
+
+def make_manifest() -> dict:
+    return {
+        "name": "test-campaign",
+        "runs": [
+            {"id": "dbp1", "kind": "drawbar", "file": "runs/dbp1.csv", "steady_window": [2.0, 5.0]},
+            {"id": "dbp2", "kind": "drawbar", "file": "runs/dbp2.csv", "operator": "kept"},
+            {"id": "t3d", "kind": "terrain", "file": "runs/t3d.csv", "terrain": "scan"},
+        ],
+        "rover": {"wheel.width": 0.254, "drive.mode": 1, "terrain.file": ""},
+    }
+
+
+def make_terrain(seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-2.0, 2.0, size=(500, 2))
+    z = 0.5 * np.exp(-(xy ** 2).sum(axis=1) / 0.5)
+    return np.column_stack([xy, z])
+
+
+def make_runs() -> dict[str, dict[str, np.ndarray]]:
+    return {"dbp1": make_run("drawbar", seed=1), "dbp2": make_run("drawbar", seed=2), "t3d": make_run("terrain", seed=3)}
+
+
+@pytest.fixture()
+def campaign_dir(tmp_path: Path) -> Path:
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), make_runs(), {"scan": make_terrain()})
+    return root
+
+
+def snapshot(root: Path) -> dict[str, tuple[bytes, int]]:
+    return {str(p.relative_to(root)): (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def load_and_read_all(root: Path) -> None:
+    c = load_campaign(root)
+    for spec in c.runs:
+        read_run(c, spec)
+
+
+def assert_refused(root: Path, *, file: str, line: int | None = None, column: str | None = None, says: str = "") -> InputError:
+    """Loading the campaign raises InputError naming file/line/column, and changes no file."""
+    before = snapshot(root)
+    with pytest.raises(InputError) as info:
+        load_and_read_all(root)
+    err = info.value
+    msg = str(err)
+    assert file in msg, msg
+    if line is not None:
+        assert err.line == line, msg
+        assert f"line {line}" in msg, msg
+    if column is not None:
+        assert err.column == column, msg
+        assert f"column '{column}'" in msg, msg
+    assert says in msg, msg
+    assert snapshot(root) == before, "a refused input was modified"
+    return err
+
+
+def edit_csv(path: Path, row: int, column: str, value: str) -> int:
+    """Set the cell of data row ``row`` (0-based) in ``column``; returns its 1-based line."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    cells = lines[row + 1].split(",")
+    cells[header.index(column)] = value
+    lines[row + 1] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return row + 2
+
+
+# ---------------------------------------------------------------------------------------------
+# Round trip
+# ---------------------------------------------------------------------------------------------
+
+def test_round_trip_is_exact(tmp_path: Path) -> None:
+    root = tmp_path / "camp"
+    runs = make_runs()
+    runs["dbp1"]["torque_left"][7] = 1.0 / 3.0  # needs all 17 digits
+    terrain = make_terrain()
+    returned = write_campaign(root, make_manifest(), runs, {"scan": terrain}, extra_files={"truth.json": "{}"})
+
+    c = load_campaign(root)
+    assert c == returned
+    assert c.name == "test-campaign"
+    assert [r.id for r in c.runs] == ["dbp1", "dbp2", "t3d"]
+    assert c.run("dbp1").steady_window == (2.0, 5.0)
+    assert c.run("dbp2").steady_window is None
+    assert c.run("dbp2").extra == {"operator": "kept"}
+    assert c.run("t3d").terrain == "terrain/scan.xyz"
+    assert c.rover == {"wheel.width": 0.254, "drive.mode": 1, "terrain.file": ""}
+    assert isinstance(c.rover["drive.mode"], int)
+    assert (root / "truth.json").read_text() == "{}"
+    assert load_campaign(root / "campaign.json") == c
+
+    for rid, cols in runs.items():
+        data = read_run(c, rid)
+        assert data.run_id == rid and data.kind == c.run(rid).kind
+        for name, values in cols.items():
+            got = data.extra[name] if name == "battery_volts" else data[name]
+            np.testing.assert_array_equal(got, values)  # NaN where NaN, bit-exact elsewhere
+        assert "battery_volts" not in data.columns
+        np.testing.assert_array_equal(data.time, cols["time"])
+        assert data.lines[0] == 2 and data.lines[-1] == len(cols["time"]) + 1
+    np.testing.assert_array_equal(read_terrain_points(c, "t3d"), terrain)
+
+
+def test_write_campaign_refuses_to_overwrite_and_leaves_nothing_on_failure(tmp_path: Path, campaign_dir: Path) -> None:
+    before = snapshot(campaign_dir)
+    with pytest.raises(FileExistsError):
+        write_campaign(campaign_dir, make_manifest(), make_runs(), {"scan": make_terrain()})
+    bad = make_run("drawbar")
+    bad["time"] = bad["time"][::-1].copy()  # would be refused on reading
+    with pytest.raises(ValueError):
+        write_campaign(tmp_path / "new", {"runs": [{"id": "a", "kind": "drawbar"}]}, {"a": bad})
+    assert not (tmp_path / "new").exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["camp"], "temporary folders left behind"
+    assert snapshot(campaign_dir) == before
+
+
+def test_csv_text_format() -> None:
+    text = format_run_csv({"pos_x": [np.nan, 0.1], "time": [0.0, 0.5]})
+    assert text == "time,pos_x\n0.0,\n0.5,0.1\n"
+
+
+def test_reads_quoted_cells_crlf_bom_and_spaces(tmp_path: Path) -> None:
+    p = tmp_path / "r.csv"
+    p.write_bytes(
+        b"\xef\xbb\xbftime, torque_left,torque_right,omega_left,omega_right,pos_x,pos_y,pos_z,drawbar_force,note\r\n"
+        b'0.0,"1.5",2,3,4,5,6,7,8,hello\r\n'
+        b"0.1, 1.5e0 ,2,3,4,,,,,world\r\n\r\n"
+    )
+    run = read_run_csv(p, "drawbar")
+    np.testing.assert_array_equal(run["torque_left"], [1.5, 1.5])
+    np.testing.assert_array_equal(run["pos_x"], [5.0, np.nan])
+    assert list(run.extra["note"]) == ["hello", "world"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Refusals: each names the file, the line and the column, and changes nothing
+# ---------------------------------------------------------------------------------------------
+
+def test_missing_required_column(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp2.csv"
+    lines = p.read_text().splitlines()
+    header = lines[0].split(",")
+    k = header.index("omega_right")
+    p.write_text("\n".join(",".join(c for j, c in enumerate(l.split(",")) if j != k) for l in lines) + "\n")
+    assert_refused(campaign_dir, file="dbp2.csv", line=1, column="omega_right", says="missing required column")
+
+
+def test_drawbar_run_needs_drawbar_force(tmp_path: Path) -> None:
+    p = tmp_path / "x.csv"
+    p.write_text(format_run_csv(make_run("terrain")))
+    assert read_run_csv(p, "terrain").kind == "terrain"
+    with pytest.raises(InputError) as info:
+        read_run_csv(p, "drawbar")
+    assert info.value.column == "drawbar_force" and info.value.line == 1
+
+
+def test_time_going_backwards(campaign_dir: Path) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 100, "time", "0.5")
+    assert_refused(campaign_dir, file="dbp1.csv", line=line, column="time", says="time goes backwards")
+
+
+def test_repeated_time(campaign_dir: Path) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 100, "time", "0.99")
+    assert_refused(campaign_dir, file="dbp1.csv", line=line, column="time", says="time repeats")
+
+
+def test_empty_time_cell(campaign_dir: Path) -> None:
+    line = edit_csv(campaign_dir / "runs/t3d.csv", 3, "time", "")
+    assert_refused(campaign_dir, file="t3d.csv", line=line, column="time", says="time is empty")
+
+
+@pytest.mark.parametrize("cell", ["nan", "NaN", "inf", "-Infinity", "1e999"])
+def test_non_finite_cell(campaign_dir: Path, cell: str) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 15, "omega_left", cell)
+    assert_refused(campaign_dir, file="dbp1.csv", line=line, column="omega_left", says="not finite")
+
+
+@pytest.mark.parametrize("cell", ["abc", "1,5", "0x10", "1_000", "--1", "1.2.3", "٣"])
+def test_text_in_number_cell(campaign_dir: Path, cell: str) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 15, "omega_left", f'"{cell}"')
+    err = assert_refused(campaign_dir, file="dbp1.csv", line=line, column="omega_left", says="not a number")
+    assert str(err) == f"{campaign_dir / 'runs/dbp1.csv'}, line {line}, column 'omega_left': not a number: {cell!r}"
+
+
+def test_row_with_too_many_cells(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    lines[41] += ",1.0"
+    p.write_text("\n".join(lines) + "\n")
+    assert_refused(campaign_dir, file="dbp1.csv", line=42, says="cells, the header has")
+
+
+def test_row_with_too_few_cells(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    lines[9] = lines[9].rsplit(",", 1)[0]
+    p.write_text("\n".join(lines) + "\n")
+    assert_refused(campaign_dir, file="dbp1.csv", line=10, says="cells, the header has")
+
+
+def test_duplicate_column_name(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    p.write_text(p.read_text().replace("battery_volts", "pos_x", 1))
+    assert_refused(campaign_dir, file="dbp1.csv", line=1, column="pos_x", says="duplicate column")
+
+
+@pytest.mark.parametrize("content", ["", "\n\n", "time,torque_left,torque_right,omega_left,omega_right,pos_x,pos_y,pos_z,drawbar_force\n"])
+def test_empty_or_header_only_file(campaign_dir: Path, content: str) -> None:
+    (campaign_dir / "runs/dbp1.csv").write_text(content)
+    assert_refused(campaign_dir, file="dbp1.csv", line=1)
+
+
+def test_missing_header_line(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    p.write_text("\n".join(p.read_text().splitlines()[1:]) + "\n")
+    assert_refused(campaign_dir, file="dbp1.csv", line=1, says="header")
+
+
+def test_required_column_without_samples(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/t3d.csv"
+    run = make_run("terrain")
+    run["pos_z"][:] = np.nan
+    p.write_text(format_run_csv(run))
+    assert_refused(campaign_dir, file="t3d.csv", column="pos_z", says="no samples")
+
+
+def test_blank_line_inside_data(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    lines.insert(5, "")
+    p.write_text("\n".join(lines) + "\n")
+    assert_refused(campaign_dir, file="dbp1.csv", line=6, says="empty line")
+
+
+def test_not_utf8(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    data = p.read_bytes().split(b"\n")
+    data[3] = data[3] + b"\xff"
+    p.write_bytes(b"\n".join(data))
+    assert_refused(campaign_dir, file="dbp1.csv", line=4, says="UTF-8")
+
+
+def rewrite_manifest(root: Path, edit) -> None:
+    doc = json.loads((root / "campaign.json").read_text())
+    edit(doc)
+    (root / "campaign.json").write_text(json.dumps(doc, indent=2))
+
+
+def test_manifest_names_missing_run_file(campaign_dir: Path) -> None:
+    rewrite_manifest(campaign_dir, lambda d: d["runs"][1].update(file="runs/missing.csv"))
+    err = assert_refused(campaign_dir, file="campaign.json", says="missing.csv")
+    assert "'dbp2'" in str(err) and "'file'" in str(err) and "not found" in str(err)
+    assert err.line is not None and '"dbp2"' in (campaign_dir / "campaign.json").read_text().splitlines()[err.line - 1]
+
+
+def test_manifest_bad_kind(campaign_dir: Path) -> None:
+    rewrite_manifest(campaign_dir, lambda d: d["runs"][0].update(kind="drawbars"))
+    err = assert_refused(campaign_dir, file="campaign.json", says="'kind'")
+    assert "'dbp1'" in str(err) and "'drawbars'" in str(err)
+
+
+def test_manifest_duplicate_run_ids(campaign_dir: Path) -> None:
+    def edit(d: dict) -> None:
+        d["runs"][2].update(id="dbp1", kind="drawbar")
+        del d["runs"][2]["terrain"]
+
+    rewrite_manifest(campaign_dir, edit)
+    err = assert_refused(campaign_dir, file="campaign.json", says="duplicate run id 'dbp1'")
+    lines = (campaign_dir / "campaign.json").read_text().splitlines()
+    assert err.line is not None and '"dbp1"' in lines[err.line - 1]
+    assert err.line > [i for i, l in enumerate(lines, 1) if '"dbp1"' in l][0], "should point at the second one"
+
+
+def test_manifest_bad_json_names_the_line(campaign_dir: Path) -> None:
+    p = campaign_dir / "campaign.json"
+    lines = p.read_text().splitlines()
+    k = next(i for i, l in enumerate(lines) if l.rstrip().endswith('"drawbar",'))
+    lines[k] = lines[k].rstrip()[:-1]  # drop a comma: the error is reported on the next line
+    p.write_text("\n".join(lines) + "\n")
+    assert_refused(campaign_dir, file="campaign.json", line=k + 2, says="invalid JSON")
+
+
+@pytest.mark.parametrize(
+    "edit, says",
+    [
+        (lambda d: d["runs"][0].update(steady_window=[5.0, 2.0]), "steady_window"),
+        (lambda d: d["runs"][0].update(steady_window=[1.0]), "steady_window"),
+        (lambda d: d["runs"][0].update(steady_window=[1.0, "2"]), "steady_window"),
+        (lambda d: d["runs"][0].update(steady_window=[100.0, 200.0]), "holds no samples"),
+        (lambda d: d["runs"][0].update(file="../outside.csv"), "outside the campaign folder"),
+        (lambda d: d["runs"][0].update(file="/etc/passwd"), "relative"),
+        (lambda d: d["runs"][0].update(file="runs"), "not a regular file"),
+        (lambda d: d["runs"][2].pop("terrain"), "'terrain'"),
+        (lambda d: d["runs"][2].update(terrain="terrain/none.xyz"), "none.xyz"),
+        (lambda d: d["runs"][0].update(terrain="terrain/scan.xyz"), "flat ground"),
+        (lambda d: d["runs"][0].pop("id"), "'id'"),
+        (lambda d: d["runs"][0].update(id="a b"), "'id'"),
+        (lambda d: d.update(runs=[]), "'runs'"),
+        (lambda d: d.pop("runs"), "'runs'"),
+        (lambda d: d.update(rover={"wheel.width": [1]}), "wheel.width"),
+        (lambda d: d.update(rover={"wheel.width": True}), "wheel.width"),
+        (lambda d: d.update(name=3), "'name'"),
+    ],
+)
+def test_manifest_checks(campaign_dir: Path, edit, says: str) -> None:
+    (campaign_dir.parent / "outside.csv").write_text("x")
+    rewrite_manifest(campaign_dir, edit)
+    assert_refused(campaign_dir, file="campaign.json", says=says)
+
+
+@pytest.mark.parametrize("text, says", [('{"runs": [], "runs": []}', "twice"), ('{"name": NaN}', "NaN"), ("[1, 2]", "object")])
+def test_manifest_json_strictness(campaign_dir: Path, text: str, says: str) -> None:
+    (campaign_dir / "campaign.json").write_text(text)
+    assert_refused(campaign_dir, file="campaign.json", says=says)
+
+
+def test_missing_manifest(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="campaign.json.*not found"):
+        load_campaign(tmp_path)
+    with pytest.raises(InputError, match="no such campaign"):
+        load_campaign(tmp_path / "nowhere")
+
+
+# ---------------------------------------------------------------------------------------------
+# Multi-rate signals and derived signals
+# ---------------------------------------------------------------------------------------------
+
+def test_alignment_reproduces_a_linear_signal_exactly(tmp_path: Path) -> None:
+    rng = np.random.default_rng(RNG_SEED)
+    t = np.cumsum(rng.uniform(0.005, 0.02, 800))  # irregular base clock
+    run = make_run("drawbar", duration=1.0)
+    n = len(t)
+    cols = {k: np.resize(v, n) for k, v in run.items()}
+    cols["time"] = t
+    # Each sensor keeps a different random subset of rows.
+    for name, keep in (("pos_x", 0.05), ("omega_left", 0.5), ("drawbar_force", 0.2)):
+        mask = rng.uniform(size=n) < keep
+        mask[[10, n - 10]] = True
+        cols[name] = np.where(mask, 2.0 - 3.0 * t, np.nan) if name != "omega_left" else np.where(mask, 0.5 + 4.0 * t, np.nan)
+    p = tmp_path / "r.csv"
+    p.write_text(format_run_csv(cols))
+    data = read_run_csv(p, "drawbar")
+
+    grid = np.linspace(t[0] - 1.0, t[-1] + 1.0, 3001)
+    out = aligned(data, ["pos_x", "omega_left", "drawbar_force"], grid)
+    for name, f in (("pos_x", lambda x: 2.0 - 3.0 * x), ("omega_left", lambda x: 0.5 + 4.0 * x), ("drawbar_force", lambda x: 2.0 - 3.0 * x)):
+        ts, vs = data.samples(name)
+        inside = (grid >= ts[0]) & (grid <= ts[-1])
+        np.testing.assert_array_equal(out.coverage[name], inside)
+        np.testing.assert_allclose(out[name][inside], f(grid[inside]), rtol=0, atol=1e-12)
+        # no extrapolation: the end values are held
+        np.testing.assert_array_equal(out[name][grid < ts[0]], vs[0])
+        np.testing.assert_array_equal(out[name][grid > ts[-1]], vs[-1])
+    assert not out.coverage["pos_x"].all()
+
+    prev = aligned(data, "pos_x", grid, method="previous")["pos_x"]
+    ts, vs = data.samples("pos_x")
+    k = np.searchsorted(ts, grid[1500], side="right") - 1
+    assert prev[1500] == vs[k]
+    with pytest.raises(InputError, match="no column 'roll'"):
+        aligned(data, "roll", grid)
+
+
+def test_yaw_is_unwrapped_before_interpolation(tmp_path: Path) -> None:
+    run = make_run("terrain", duration=1.0)
+    run["yaw"] = np.full(len(run["time"]), np.nan)
+    run["yaw"][0], run["yaw"][50] = math.pi - 0.1, -math.pi + 0.1
+    p = tmp_path / "r.csv"
+    p.write_text(format_run_csv(run))
+    yaw = aligned(read_run_csv(p, "terrain"), "yaw", [0.25])["yaw"]
+    assert yaw[0] == pytest.approx(math.pi, abs=1e-9)
+
+
+def test_steady_average(campaign_dir: Path) -> None:
+    c = load_campaign(campaign_dir)
+    data = read_run(c, "dbp1")
+    t, v = data.samples("drawbar_force")
+    inside = (t >= 2.0) & (t <= 5.0)
+    assert steady_average(data, "drawbar_force", c.run("dbp1").steady_window) == pytest.approx(v[inside].mean(), rel=1e-12)
+    assert steady_average(data, "omega_left", (2.0, 2.0005)) == pytest.approx(1.2 + 0.01 * np.sin(2.0))
+    with pytest.raises(InputError, match="no samples of 'pos_x' inside"):
+        steady_average(data, "pos_x", (2.01, 2.1))
+
+
+def straight_run(speed: float, heading: float, with_yaw: bool, seed: int) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.round(np.arange(0.0, 20.0, 0.01), 10)
+    n = len(t)
+    ts_mask = np.zeros(n, dtype=bool)
+    ts_mask[::20] = True  # 5 Hz total station
+    s = speed * t
+    noise = lambda: rng.normal(0.0, 0.002, n)  # noqa: E731  2 mm
+    run = {
+        "time": t,
+        "torque_left": np.full(n, 30.0),
+        "torque_right": np.full(n, 30.0),
+        "omega_left": np.full(n, speed / 0.2794),
+        "omega_right": np.full(n, speed / 0.2794),
+        "pos_x": np.where(ts_mask, 1.0 + s * math.cos(heading) + noise(), np.nan),
+        "pos_y": np.where(ts_mask, -2.0 + s * math.sin(heading) + noise(), np.nan),
+        "pos_z": np.where(ts_mask, 0.75 + noise(), np.nan),
+    }
+    if with_yaw:
+        run["yaw"] = np.where(np.arange(n) % 5 == 0, heading + rng.normal(0, 0.005, n), np.nan)
+    return run
+
+
+@pytest.mark.parametrize("with_yaw", [False, True])
+def test_forward_speed_of_a_straight_run(tmp_path: Path, with_yaw: bool) -> None:
+    p = tmp_path / "r.csv"
+    p.write_text(format_run_csv(straight_run(0.3, math.radians(30.0), with_yaw, seed=7)))
+    data = read_run_csv(p, "terrain")
+    times = np.arange(0.0, 19.8, 0.01)
+    v = forward_speed(data, times)
+    assert v.shape == times.shape and np.all(np.isfinite(v))
+    assert abs(v.mean() - 0.3) < 0.003  # no bias
+    assert np.mean(np.abs(v - 0.3)) < 0.01
+    # irregular (jittered, with drop-outs) sampling is handled
+    run = straight_run(0.3, math.radians(-120.0), with_yaw, seed=8)
+    drop = np.random.default_rng(9).uniform(size=len(run["time"])) < 0.3
+    for k in ("pos_x", "pos_y", "pos_z"):
+        run[k][drop] = np.nan
+    p.write_text(format_run_csv(run))
+    v = forward_speed(read_run_csv(p, "terrain"), times)
+    assert np.mean(np.abs(v - 0.3)) < 0.015
+
+
+def test_forward_speed_is_signed_by_yaw_when_reversing(tmp_path: Path) -> None:
+    run = straight_run(-0.2, 0.0, True, seed=3)
+    p = tmp_path / "r.csv"
+    p.write_text(format_run_csv(run))
+    v = forward_speed(read_run_csv(p, "terrain"), np.arange(1.0, 19.0, 0.1))
+    assert abs(v.mean() + 0.2) < 0.01
