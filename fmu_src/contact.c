@@ -497,6 +497,22 @@ void contact_cuts(const ContactModel *m, const ContactMemory *mem,
         *cut_front = cut;       /* rolled backward */
 }
 
+double contact_rolling_factor(const ContactModel *m, const ContactMemory *mem, double v_long)
+{
+    /* Rolling resistance is the horizontal part of a normal force tilted by
+     * the rebound; it is dissipative, so like Coulomb friction it opposes
+     * the motion and has no definite direction at standstill.  Regularised
+     * like the slip law: the paper's tilt when moving at slip_v_eps or
+     * faster in the direction that shaped the patch, none at rest, and
+     * reversed (still resisting) when moving the other way.  Moving back
+     * over its own rut the real wheel meets compacted soil; the per-wheel
+     * memory cannot represent that rut, so the magnitude is kept. */
+    if (mem->travel == 0.0) return 0.0;
+    double b = v_long / m->slip_v_eps;
+    b = b > 1.0 ? 1.0 : (b < -1.0 ? -1.0 : b);
+    return mem->travel > 0.0 ? b : -b;
+}
+
 void contact_memory_update(const ContactModel *m, ContactMemory *mem,
                            double sinkage, double v_long, double dt)
 {

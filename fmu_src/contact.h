@@ -103,6 +103,16 @@ void contact_shear(const ContactModel *m, double Fn, double area,
 void contact_cuts(const ContactModel *m, const ContactMemory *mem,
                   double sinkage, double *cut_front, double *cut_rear);
 
+/* Factor in [-1, 1] on the tilt alpha of the normal force (Eqn 7) at hub
+ * speed v_long (m/s): sign(travel) * clamp(v_long / slip_v_eps, -1, 1).
+ * Assumption (model-notes section 2): rolling resistance always opposes
+ * the motion, a standing wheel is supported vertically (a rover that
+ * stops does not creep), and rolling at slip_v_eps or faster in the
+ * direction that shaped the patch gives the paper's model exactly.  The
+ * normal force magnitude is unchanged, so the regularisation adds no
+ * energy. */
+double contact_rolling_factor(const ContactModel *m, const ContactMemory *mem, double v_long);
+
 /* Explicit update of the memory over dt (s) with the current sinkage and
  * the hub's speed along the heading (m/s).  zmax follows deeper sinkage at
  * once and relaxes towards shallower sinkage over one half contact length

@@ -233,6 +233,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     contact_cuts(cm, &m->s.memory[w], sinkage, &cut_front, &cut_rear);
     ContactPatch patch;
     contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
+    patch.alpha *= contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
     const double sa = sin(patch.alpha), ca = cos(patch.alpha);
     double nvec[3], t[3], r_rim[3];
     for (int i = 0; i < 3; ++i) {
@@ -659,25 +660,34 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
     const double weight = p->rover_mass * p->env_gravity, moment_scale = weight * p->rover_wheelbase;
-    /* Start: chassis where the wheels just touch the terrain below their nominal positions. */
+    /* Start from the ground under the four nominal wheel positions: each
+     * rocker pitched along its own side's ground (their difference is the
+     * differential's twist), the chassis rolled across, a centimetre of
+     * sinkage.  Starting level on uneven ground lets Newton settle on the
+     * uphill wheels alone. */
     const double cy = cos(p->init_yaw), sy = sin(p->init_yaw);
-    double ground = -HUGE_VAL;
+    double ground[NUM_WHEELS];
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double lx = (w % 2 == 0 ? 0.5 : -0.5) * p->rover_wheelbase;
         double ly = (side_of(w) == SIDE_LEFT ? 0.5 : -0.5) * p->rover_track;
-        double gx = p->init_x + cy * lx - sy * ly, gy = p->init_y + sy * lx + cy * ly;
-        ground = fmax(ground, terrain_height(&m->terrain, gx, gy));
+        ground[w] = terrain_height(&m->terrain, p->init_x + cy * lx - sy * ly, p->init_y + sy * lx + cy * ly);
     }
-    double x[4] = {ground + p->rover_pivotHeight + p->wheel_radius - 1e-3, 0, 0, 0};
+    const double pitch_left = -atan((ground[WHEEL_FL] - ground[WHEEL_RL]) / p->rover_wheelbase);
+    const double pitch_right = -atan((ground[WHEEL_FR] - ground[WHEEL_RR]) / p->rover_wheelbase);
+    const double roll = atan(0.5 * (ground[WHEEL_FL] + ground[WHEEL_RL] - ground[WHEEL_FR] - ground[WHEEL_RR]) /
+                             p->rover_track);
+    const double mean_ground = 0.25 * (ground[0] + ground[1] + ground[2] + ground[3]);
+    const double pitch = 0.5 * (pitch_left + pitch_right);
+    double x[4] = {mean_ground + (p->rover_pivotHeight + p->wheel_radius - 0.01) * cos(pitch) * cos(roll), roll,
+                   pitch, 0.5 * (pitch_left - pitch_right)};
     double r[4];
     equilibrium_residual(m, x, r);
-    double res = norm4(r, weight, moment_scale);
-    /* Lower the rover until every wheel carries load, then Newton. */
+    /* Lower the rover until the soil carries its weight, then Newton. */
     for (int it = 0; it < 200 && r[0] < 0; ++it) {
         x[0] -= 2e-3;
         equilibrium_residual(m, x, r);
     }
-    res = norm4(r, weight, moment_scale);
+    double res = norm4(r, weight, moment_scale);
     for (int it = 0; it < 100 && res > 1e-10; ++it) {
         double J[4][4], step[4];
         const double dx[4] = {1e-6, 1e-6, 1e-6, 1e-6};
@@ -713,6 +723,16 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
         return -1;
     }
     place(m, x);
+    Eval ev;
+    evaluate(m, &ev, 0, NULL);
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        if (!(ev.wheel[w].sinkage > 0)) {
+            snprintf(err, errlen,
+                     "the static equilibrium at init.x = %g, init.y = %g leaves wheel %s off the ground "
+                     "(the rocker differential cannot reach it): choose another start pose",
+                     p->init_x, p->init_y, wheel_names[w]);
+            return -1;
+        }
     return 0;
 }
 

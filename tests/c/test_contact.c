@@ -503,6 +503,20 @@ static void test_memory(void)
     CHECK(cf == 0.0 && rel_err(cr, (1.0 - m.gamma) * s) < 1e-12,
           "after rolling L forward: rear cut = (1-gamma) zmax = %.3f mm, front cut 0", 1e3 * cr);
 
+    /* the same rolled wheel standing still, or creeping slower than the
+     * regularisation speed: it keeps its rut (the force magnitude is
+     * continuous) but its support turns vertical, so a stopped rover does
+     * not push itself backwards (model-notes section 2) */
+    contact_cuts(&m, &mem, s, &cf, &cr);
+    CHECK(cf == 0.0 && rel_err(cr, (1.0 - m.gamma) * s) < 1e-12, "standing still keeps the rear cut (the rut)");
+    CHECK(contact_rolling_factor(&m, &mem, 0.0) == 0.0, "rolled wheel at standstill: normal force not tilted");
+    CHECK(fabs(contact_rolling_factor(&m, &mem, 0.5 * m.slip_v_eps) - 0.5) < 1e-12,
+          "rolled wheel at half the regularisation speed: half the tilt");
+    CHECK(contact_rolling_factor(&m, &mem, v) == 1.0 && v >= m.slip_v_eps,
+          "rolling at %.2f m/s: the paper's tilt, unchanged", v);
+    CHECK(contact_rolling_factor(&m, &mem, -v) == -1.0,
+          "rolled forward but now moving backwards: the tilt reverses and still resists the motion");
+
     /* a shallower sinkage while rolling: zmax relaxes towards it */
     ContactMemory relax = mem;
     contact_memory_update(&m, &relax, 0.5 * s, 0.0, dt);

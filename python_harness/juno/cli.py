@@ -1,0 +1,328 @@
+"""The ``juno`` command (interfaces.md section 2)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import __version__
+from .atomic import atomic_write_text
+from .errors import InputError
+from .simulator import SimulationError
+
+EPILOG = "Every subcommand has --help. Results go to --json FILE as well as to the screen."
+
+
+def _progress(quiet: bool):
+    start = time.perf_counter()
+
+    def say(message: str) -> None:
+        if not quiet:
+            print(f"[{time.perf_counter() - start:7.1f} s] {message}", file=sys.stderr, flush=True)
+    return say
+
+
+def _to_jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _to_jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if hasattr(obj, "__dataclass_fields__"):
+        return _to_jsonable({k: getattr(obj, k) for k in obj.__dataclass_fields__})
+    return obj
+
+
+def _write_json(path: str | None, payload: Any) -> None:
+    if path:
+        atomic_write_text(path, json.dumps(_to_jsonable(payload), indent=2) + "\n")
+
+
+def _parse_params(items: Sequence[str]) -> dict[str, object]:
+    params: dict[str, object] = {}
+    for item in items or ():
+        if "=" not in item:
+            raise InputError(f"--param expects NAME=VALUE, got '{item}'")
+        name, value = item.split("=", 1)
+        try:
+            params[name.strip()] = int(value) if value.strip().lstrip("-").isdigit() else float(value)
+        except ValueError:
+            params[name.strip()] = value
+    return params
+
+
+# ------------------------------------------------------------ subcommands
+
+SCENARIOS = {
+    "drawbar": ("a 30 s drawbar pull test at 45 % throttle against 400 N", 30.0,
+                {"drive.mode": 2}, {"drawbarForce": 400.0, "throttleLeft": 0.45, "throttleRight": 0.45}),
+    "straight": ("20 s straight run at 45 % throttle, no drawbar", 20.0,
+                 {"drive.mode": 2}, {"drawbarForce": 0.0, "throttleLeft": 0.45, "throttleRight": 0.45}),
+    "turn": ("20 s skid-steer turn: 20 % left, 60 % right throttle", 20.0,
+             {"drive.mode": 2}, {"drawbarForce": 0.0, "throttleLeft": 0.2, "throttleRight": 0.6}),
+    "rest": ("10 s at rest on flat ground", 10.0,
+             {"drive.mode": 0}, {"drawbarForce": 0.0, "torqueLeft": 0.0, "torqueRight": 0.0}),
+}
+
+
+def cmd_simulate(args) -> int:
+    from .campaign import format_run_csv, load_campaign
+    from .simulator import DEFAULT_OUTPUTS, InputSignals, JunoFMU
+    say = _progress(args.quiet)
+    params = _parse_params(args.param)
+    with JunoFMU(args.fmu) as fmu:
+        if args.campaign:
+            from .identify import prepare_run
+            from .validate import grid_terrain
+            campaign = load_campaign(args.campaign)
+            run = campaign.run(args.run) if args.run else campaign.runs[0]
+            with tempfile.TemporaryDirectory() as tmp:
+                grid = str(grid_terrain(campaign, run, tmp)[0]) if run.kind == "terrain" else None
+                prep = prepare_run(campaign, run, terrain_file=grid)
+                say(f"simulating measured run {run.id} ({prep.duration:.1f} s, following the measured wheel spins)")
+                result = fmu.simulate({**prep.params, **params}, prep.inputs, prep.duration,
+                                      args.output_interval, outputs=DEFAULT_OUTPUTS)
+            label = f"run {run.id} of {campaign.name}"
+        else:
+            text, stop, scen_params, inputs = SCENARIOS[args.scenario]
+            stop = args.stop_time or stop
+            say(f"simulating scenario '{args.scenario}': {text}")
+            result = fmu.simulate({**scen_params, **params}, InputSignals.constant(**inputs), stop,
+                                  args.output_interval, outputs=DEFAULT_OUTPUTS)
+            label = f"scenario {args.scenario}"
+    if args.out:
+        atomic_write_text(args.out, format_run_csv(result))
+        say(f"wrote {args.out}")
+    final = {k: float(v[-1]) for k, v in result.items()}
+    print(f"{label}: t = {final['time']:.2f} s, x = {final['x']:.3f} m, y = {final['y']:.3f} m, "
+          f"vx = {final['vx']:.4f} m/s, slip FL = {final['wheelFL.slip']:.4f}, "
+          f"sinkage FL/RL = {final['wheelFL.sinkage'] * 1000:.1f}/{final['wheelRL.sinkage'] * 1000:.1f} mm")
+    _write_json(args.json, {"label": label, "final": final})
+    return 0
+
+
+def cmd_identify(args) -> int:
+    from .campaign import load_campaign
+    from .identify import identify_joint, identify_paper
+    from .simulator import JunoFMU
+    say = _progress(args.quiet)
+    campaign = load_campaign(args.campaign)
+    out: dict[str, Any] = {"campaign": campaign.name}
+    with JunoFMU(args.fmu) as fmu:
+        if args.method in ("paper", "both"):
+            out["paper"] = []
+            for run in campaign.runs_of_kind("drawbar"):
+                say(f"paper-style Nelder-Mead on {run.id}")
+                p = identify_paper(fmu, campaign, run, progress=say)
+                out["paper"].append(p)
+                print(f"{run.id}: " + ", ".join(f"{k} = {v:.4g}" for k, v in p.final.items()) +
+                      f" (cost {p.cost:.3g}, {p.evaluations} evaluations, rank {p.jacobian_rank}/4)")
+        if args.method in ("joint", "both"):
+            grid = None
+            tmp = tempfile.TemporaryDirectory()
+            if args.with_terrain:
+                from .validate import grid_terrain
+                grid = str(grid_terrain(campaign, campaign.runs_of_kind("terrain")[0], tmp.name)[0])
+            say("joint identification over the whole time series")
+            j = identify_joint(fmu, campaign, include_terrain=args.with_terrain, terrain_file=grid,
+                               max_evaluations=args.max_evaluations, progress=say)
+            tmp.cleanup()
+            out["joint"] = j
+            for k, v in j.params.items():
+                print(f"joint: {k} = {v:.5g} +- {j.std[k]:.2g} ({j.identifiability[k]})")
+            print(f"joint: {j.evaluations} evaluations in {j.wall_time:.1f} s")
+    _write_json(args.json, out)
+    return 0
+
+
+def _load_soil(path: str) -> dict[str, float]:
+    data = json.loads(Path(path).read_text())
+    if "joint" in data and data["joint"]:
+        data = data["joint"]["params"]
+    elif "params" in data:
+        data = data["params"]
+    soil = {k: float(data[k]) for k in ("soil.kh", "soil.eta", "soil.gamma", "soil.Kvx")}
+    return soil
+
+
+def cmd_validate(args) -> int:
+    from .campaign import load_campaign
+    from .identify import identify_joint
+    from .simulator import JunoFMU
+    from .validate import validate_run
+    say = _progress(args.quiet)
+    campaign = load_campaign(args.campaign)
+    with JunoFMU(args.fmu) as fmu:
+        if args.params:
+            soil = _load_soil(args.params)
+        else:
+            say("no --params given: identifying first (joint fit)")
+            soil = identify_joint(fmu, campaign, progress=say).params
+        results = {}
+        with tempfile.TemporaryDirectory() as tmp:
+            for run in campaign.runs_of_kind("terrain"):
+                say(f"validating on terrain run {run.id}")
+                v = validate_run(fmu, campaign, run, soil, tmp, cell=args.cell)
+                results[run.id] = v.rms
+                print(f"{run.id}: RMS " + ", ".join(f"{k} {x:.4g}" for k, x in v.rms.items()))
+    _write_json(args.json, {"soil": soil, "rms": results})
+    return 0
+
+
+def cmd_synthesize(args) -> int:
+    from .synthesize import synthesize
+    say = _progress(args.quiet)
+    path = synthesize(args.out, effect=args.effect, strength=args.strength, seed=args.seed, noise=args.noise,
+                      time_scale=args.time_scale, overwrite=args.overwrite, progress=say)
+    print(f"wrote campaign {path} (effect hidden: see {path}/truth.json only)")
+    _write_json(args.json, {"campaign": str(path)})
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .campaign import load_campaign
+    from .identify import identify_joint, identify_paper
+    from .report import write_report
+    from .simulator import JunoFMU
+    from .validate import validate_run
+    say = _progress(args.quiet)
+    campaign = load_campaign(args.campaign)
+    timings: dict[str, float] = {}
+    with JunoFMU(args.fmu) as fmu:
+        t = time.perf_counter()
+        paper = []
+        for run in campaign.runs_of_kind("drawbar"):
+            say(f"paper-style identification on {run.id}")
+            paper.append(identify_paper(fmu, campaign, run, progress=say))
+        timings["paper-style identification (all runs)"] = time.perf_counter() - t
+        t = time.perf_counter()
+        say("joint identification")
+        joint = identify_joint(fmu, campaign, progress=say)
+        timings["joint identification"] = time.perf_counter() - t
+        t = time.perf_counter()
+        validations = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for run in campaign.runs_of_kind("terrain"):
+                say(f"validating on {run.id}")
+                v = validate_run(fmu, campaign, run, joint.params, tmp)
+                validations.append(("joint fit", v))
+                best_paper = min(paper, key=lambda p: p.cost) if paper else None
+                if best_paper:
+                    validations.append((f"paper-style {best_paper.run_id}",
+                                        validate_run(fmu, campaign, run, best_paper.final, tmp, grid_file=v.grid_file)))
+        timings["validation"] = time.perf_counter() - t
+        diagnosis = None
+        if args.diagnose:
+            from .diagnose import diagnose
+            t = time.perf_counter()
+            say("diagnosing what the model gets wrong")
+            diagnosis = diagnose(campaign, fmu=fmu, progress=say)
+            timings["diagnosis"] = time.perf_counter() - t
+    truth_path = Path(campaign.root) / "truth.json"
+    truth = json.loads(truth_path.read_text()) if truth_path.is_file() else None
+    path = write_report(args.out, campaign, paper, joint, validations, diagnosis, truth=truth, timings=timings)
+    print(f"wrote report {path}")
+    _write_json(args.json, {"report": str(path), "joint": joint.params, "timings": timings})
+    return 0
+
+
+# ------------------------------------------------------------------ main
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="juno", description="JunoRover volumetric wheel/soil model: simulate, "
+                                     "identify, validate, synthesize, diagnose, report.", epilog=EPILOG)
+    parser.add_argument("--version", action="version", version=f"juno {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def common(p):
+        p.add_argument("--json", metavar="FILE", help="write the machine-readable result to FILE")
+        p.add_argument("--fmu", metavar="FMU", help="the FMU (default: build/JunoRover.fmu or $JUNO_FMU)")
+        p.add_argument("--quiet", action="store_true", help="no progress messages")
+
+    p = sub.add_parser("simulate", help="run a scenario or a measured run through the FMU")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--scenario", choices=sorted(SCENARIOS), default="drawbar",
+                     help="; ".join(f"{k}: {v[0]}" for k, v in SCENARIOS.items()))
+    src.add_argument("--campaign", metavar="DIR", help="simulate a measured run of this campaign")
+    p.add_argument("--run", help="run id (with --campaign; default: the first run)")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE", help="set an FMU parameter (repeatable)")
+    p.add_argument("--stop-time", type=float, help="seconds (scenarios)")
+    p.add_argument("--output-interval", type=float, default=0.05, help="seconds (default 0.05)")
+    p.add_argument("--out", metavar="CSV", help="write all outputs to CSV")
+    common(p)
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("identify", help="Nelder-Mead identification of the soil parameters")
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--method", choices=("paper", "joint", "both"), default="both",
+                   help="paper: per drawbar run from steady-window averages; joint: all runs, whole time series")
+    p.add_argument("--with-terrain", action="store_true", help="include the terrain run in the joint fit")
+    p.add_argument("--max-evaluations", type=int, default=400, help="Nelder-Mead budget of the joint fit")
+    common(p)
+    p.set_defaults(func=cmd_identify)
+
+    p = sub.add_parser("validate", help="simulate the terrain runs with identified parameters and compare")
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--params", metavar="JSON", help="identified parameters (the --json of identify)")
+    p.add_argument("--cell", type=float, default=0.05, help="terrain grid resolution in m (default 0.05)")
+    common(p)
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("synthesize", help="write a synthetic measured campaign with a hidden effect")
+    p.add_argument("out", metavar="OUT")
+    p.add_argument("--effect", default="none", help="effect id to hide (none = nothing)")
+    p.add_argument("--strength", type=float, default=1.0, help="effect strength, 0 to 1 (default 1)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--noise", type=float, default=1.0, help="sensor noise scale (0 = exact)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="shorten runs (< 1) for quick tests")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    common(p)
+    p.set_defaults(func=cmd_synthesize)
+
+    p = sub.add_parser("report", help="identify, validate (and diagnose) and write a Markdown report")
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--out", metavar="DIR", required=True, help="report folder (replaced whole)")
+    p.add_argument("--diagnose", action="store_true", help="include the discrepancy diagnosis")
+    common(p)
+    p.set_defaults(func=cmd_report)
+    _add_diagnose(sub, common)
+    return parser
+
+
+def _add_diagnose(sub, common) -> None:
+    try:
+        from .diagnose import add_arguments
+    except ImportError:
+        return
+    p = sub.add_parser("diagnose", help="find what the simulation gets wrong, name the cause, measure the gain")
+    add_arguments(p)
+    common(p)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (InputError, SimulationError, FileNotFoundError, FileExistsError, KeyError, ValueError) as exc:
+        print(f"juno {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("juno: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

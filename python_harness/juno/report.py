@@ -1,0 +1,236 @@
+"""A self-contained Markdown report with PNG figures.
+
+Sections: the campaign, the paper's per-run identification (Tables 1-3 and
+Figures 4-9), the joint identification with uncertainty, the traction
+ratio against slip (Figure 10), the 3-D terrain validation (Figures 12-14)
+and, when given, the discrepancy diagnosis.  The report folder is written
+whole or not at all.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .atomic import atomic_directory  # noqa: E402
+from .campaign import Campaign, forward_speed, read_run  # noqa: E402
+from .identify import WHEEL_RADIUS, JointResult, PaperResult  # noqa: E402
+from .simulator import SOIL_PARAMETERS  # noqa: E402
+from .validate import ValidationResult  # noqa: E402
+
+LABELS = {"soil.kh": "Foundation stiffness k_h [N/m^(2+eta)]", "soil.eta": "Nonlinearity exponent eta",
+          "soil.gamma": "Foundation rebound gamma [-]", "soil.Kvx": "Traction modulus K_vx"}
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.4g}"
+
+
+def _save(fig, path: Path) -> str:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def figure_run(campaign: Campaign, run_id: str, window, out: Path) -> str:
+    """Inputs (drawbar force, torques) and objectives (speed, spins) of a drawbar run (Figs 4-9)."""
+    data = read_run(campaign, campaign.run(run_id))
+    fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
+    t, f = data.samples("drawbar_force")
+    axes[0, 0].plot(t, f, lw=0.6)
+    axes[0, 0].set_ylabel("drawbar force [N]")
+    for side in ("left", "right"):
+        axes[0, 1].plot(*data.samples(f"torque_{side}"), lw=0.6, label=side)
+        axes[1, 1].plot(*data.samples(f"omega_{side}"), lw=0.6, label=side)
+    axes[0, 1].set_ylabel("drive torque [N m]")
+    axes[1, 1].set_ylabel("wheel spin [rad/s]")
+    ts = np.linspace(data.time[0], data.time[-1], 400)
+    axes[1, 0].plot(ts, forward_speed(data, ts), lw=0.8)
+    axes[1, 0].set_ylabel("forward speed [m/s]")
+    for ax in axes.flat:
+        if window:
+            ax.axvspan(window[0], window[1], color="0.9")
+        ax.grid(alpha=0.3)
+    axes[0, 1].legend()
+    axes[1, 0].set_xlabel("time [s]")
+    axes[1, 1].set_xlabel("time [s]")
+    fig.suptitle(f"Drawbar run {run_id}: inputs (top) and objectives (bottom); steady window shaded")
+    return _save(fig, out / f"run_{run_id}.png")
+
+
+def traction_ratio(soil: dict[str, float], slip: np.ndarray, load: float, cohesion: float = 1000.0,
+                   phi: float = 0.5236, area: float = 0.049) -> np.ndarray:
+    """F_t / F_n of Eqn 5 at normal load ``load`` (N) and patch ``area`` (m^2) against slip."""
+    return (area * cohesion / load + np.tan(phi)) * np.tanh(slip / soil["soil.Kvx"])
+
+
+def figure_traction(paper: Sequence[PaperResult], joint: JointResult | None, points, out: Path) -> str:
+    """Figure 10: traction ratio against slip for every identified parameter set, with measured points."""
+    s = np.linspace(0, 1, 200)
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for p in paper:
+        ax.plot(s, traction_ratio(p.final, s, 779.0), lw=1, label=f"paper-style, {p.run_id}")
+    if joint is not None:
+        ax.plot(s, traction_ratio(joint.params, s, 779.0), "k", lw=2, label="joint fit")
+    if points:
+        ax.plot([q[0] for q in points], [q[1] for q in points], "ro", label="measured steady states")
+    ax.set_xlabel("longitudinal slip [-]")
+    ax.set_ylabel("traction ratio F_t / F_n [-]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, out / "fig10_traction_ratio.png")
+
+
+def measured_traction_points(paper: Sequence[PaperResult], mass: float = 317.7) -> list[tuple[float, float]]:
+    """(slip, traction ratio) of each run's steady state: total wheel force / weight."""
+    pts = []
+    for p in paper:
+        a = p.averages
+        w = 0.5 * (a.omega_left + a.omega_right)
+        if w * WHEEL_RADIUS <= 0:
+            continue
+        slip = 1 - a.speed / (w * WHEEL_RADIUS)
+        ratio = (a.torque_left + a.torque_right) / WHEEL_RADIUS / (mass * 9.81)
+        pts.append((slip, ratio))
+    return pts
+
+
+def figure_validation(v: ValidationResult, out: Path) -> str:
+    """Figures 12-14: position and speed, wheel spins, drive torques, measured against simulated."""
+    fig, axes = plt.subplots(3, 2, figsize=(10, 9))
+    pairs = [("pos_x", "x position [m]"), ("speed", "forward speed [m/s]"),
+             ("omega_left", "left wheel spin [rad/s]"), ("omega_right", "right wheel spin [rad/s]"),
+             ("torque_left", "left drive torque [N m]"), ("torque_right", "right drive torque [N m]")]
+    for ax, (name, label) in zip(axes.flat, pairs):
+        ax.plot(v.time, v.measured[name], lw=0.8, label="measured")
+        ax.plot(v.time, v.simulated[name], lw=0.8, label="simulated")
+        ax.set_ylabel(label)
+        ax.set_title(f"RMS error {v.rms[name]:.3g}", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend()
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle(f"3-D terrain run {v.run_id}: measured against simulated")
+    return _save(fig, out / f"validation_{v.run_id}.png")
+
+
+def figure_path(v: ValidationResult, out: Path) -> str:
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot(v.measured["pos_x"], v.measured["pos_y"], label="measured")
+    ax.plot(v.simulated["pos_x"], v.simulated["pos_y"], label="simulated")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return _save(fig, out / f"path_{v.run_id}.png")
+
+
+def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperResult],
+                 joint: JointResult | None, validations: Sequence[tuple[str, ValidationResult]],
+                 diagnosis: dict[str, Any] | None = None, figures_extra: Sequence[str] = (),
+                 overwrite: bool = True, truth: dict[str, Any] | None = None,
+                 timings: dict[str, float] | None = None) -> Path:
+    """Writes ``out_dir/report.md`` and its figures; returns the report path.
+
+    ``validations``: (label, result) pairs, e.g. joint-fit and paper-style parameters.
+    ``truth``: a synthetic campaign's truth, shown in its own clearly marked section.
+    """
+    out_dir = Path(out_dir)
+    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+        tmp = Path(tmp)
+        lines = [f"# Juno rover soil identification and validation: {campaign.name}", ""]
+        lines += ["Volumetric wheel/soil model of Petersen and McPhee (2013) in the JunoRover FMU.",
+                  f"Campaign folder: `{campaign.root}`; runs: " +
+                  ", ".join(f"{r.id} ({r.kind})" for r in campaign.runs) + ".", ""]
+        if paper:
+            lines += ["## 1. Identification the paper's way (Tables 1-3)", "",
+                      "Per drawbar run: steady-window averages of drawbar force and drive torques are the "
+                      "inputs, averages of forward speed and wheel spins the objectives; cost of Eqns 10-13 with "
+                      "the paper's weights; unconstrained Nelder-Mead from the paper's initial guess.", ""]
+            for p in paper:
+                a = p.averages
+                lines += [f"### Run {p.run_id} (steady window {a.window[0]:g}-{a.window[1]:g} s)", "",
+                          f"Averages: drawbar {a.drawbar:.1f} N, torque L/R {a.torque_left:.1f}/{a.torque_right:.1f} "
+                          f"N m, speed {a.speed:.4f} m/s, spin L/R {a.omega_left:.4f}/{a.omega_right:.4f} rad/s.", "",
+                          "| Model parameter | Initial value | Final value |", "|---|---|---|"]
+                for k in SOIL_PARAMETERS:
+                    lines.append(f"| {LABELS[k]} | {_fmt(p.initial[k])} | {_fmt(p.final[k])} |")
+                lines += ["", f"Cost {p.cost:.3g} after {p.evaluations} evaluations "
+                          f"({'converged' if p.converged else 'stopped at the evaluation limit'}); "
+                          f"the three averaged objectives see {p.jacobian_rank} of the 4 parameter directions, "
+                          "so this fit cannot pin all four parameters.", "",
+                          f"![run {p.run_id}]({figure_run(campaign, p.run_id, a.window, tmp)})", ""]
+            lines += ["### Spread between runs", "", "| Parameter | " + " | ".join(p.run_id for p in paper) +
+                      " | spread (max/min - 1) |", "|---|" + "---|" * (len(paper) + 1)]
+            for k in SOIL_PARAMETERS:
+                vals = [p.final[k] for p in paper]
+                spread = max(vals) / min(vals) - 1 if min(vals) > 0 else float("nan")
+                lines.append(f"| {k} | " + " | ".join(_fmt(v) for v in vals) + f" | {spread:.1%} |")
+            lines.append("")
+        if joint is not None:
+            lines += ["## 2. Joint identification (beyond the paper)", "",
+                      f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
+                      "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
+                      "pitch; parameters searched as log/logit; Nelder-Mead then a Gauss-Newton polish; 1-sigma "
+                      "uncertainty from the Jacobian scaled by the residual variance.", "",
+                      "| Parameter | Estimate | 1 sigma | relative | identifiability |", "|---|---|---|---|---|"]
+            for k in SOIL_PARAMETERS:
+                lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
+                             f"{joint.relative_std[k]:.2%} | {joint.identifiability[k]} |")
+            corr = np.asarray(joint.correlation)
+            lines += ["", f"Mean squared scaled residual {joint.cost:.4g}; {joint.evaluations} model evaluations; "
+                      f"{joint.wall_time:.1f} s.", "", "Correlation of the estimates:", "",
+                      "| | " + " | ".join(SOIL_PARAMETERS) + " |", "|---|" + "---|" * 4]
+            for i, k in enumerate(SOIL_PARAMETERS):
+                lines.append(f"| {k} | " + " | ".join(f"{corr[i, j]:+.2f}" for j in range(4)) + " |")
+            lines.append("")
+        if paper or joint is not None:
+            name = figure_traction(paper, joint, measured_traction_points(paper), tmp)
+            lines += ["## 3. Traction ratio against slip (Figure 10)", "", f"![traction]({name})", ""]
+        if validations:
+            lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
+                      "The LIDAR scan is gridded and the rover simulated on it, a PID on torque following the "
+                      "measured wheel spins.", "",
+                      "| Parameters | grid | x [m] | y [m] | z [m] | speed [m/s] | spin L/R [rad/s] | torque L/R [N m] |",
+                      "|---|---|---|---|---|---|---|---|"]
+            for label, v in validations:
+                r = v.rms
+                lines.append(f"| {label} | {v.grid_cell * 100:.0f} cm | {r['pos_x']:.3f} | {r['pos_y']:.3f} | "
+                             f"{r['pos_z']:.3f} | {r['speed']:.3f} | {r['omega_left']:.3f}/{r['omega_right']:.3f} | "
+                             f"{r['torque_left']:.1f}/{r['torque_right']:.1f} |")
+            lines.append("")
+            label, v = validations[0]
+            lines += [f"RMS errors over the run. Figures for: {label}.", "",
+                      f"![validation]({figure_validation(v, tmp)})", "", f"![path]({figure_path(v, tmp)})", ""]
+        if diagnosis is not None:
+            from .diagnose import report_section
+            lines += report_section(diagnosis, tmp)
+        if truth is not None:
+            lines += ["## Synthetic truth (for checking only)", "",
+                      "This campaign is synthetic; its `truth.json` is read here, by the report, and never by "
+                      "identification or diagnosis.", "", "| Parameter | truth | joint fit | error |", "|---|---|---|---|"]
+            for k in SOIL_PARAMETERS:
+                tv = truth["soil"][k]
+                jv = joint.params[k] if joint else float("nan")
+                lines.append(f"| {k} | {_fmt(tv)} | {_fmt(jv)} | {jv / tv - 1:+.1%} |")
+            lines += ["", f"Hidden effect: `{truth.get('effect')}` (strength {truth.get('strength')}).", ""]
+        if timings:
+            lines += ["## Timings", "", "| step | wall time [s] |", "|---|---|"]
+            lines += [f"| {k} | {v:.1f} |" for k, v in timings.items()]
+            lines.append("")
+        (tmp / "report.md").write_text("\n".join(lines), encoding="utf-8")
+        summary = {"campaign": campaign.name,
+                   "paper": [{"run": p.run_id, "final": p.final, "cost": p.cost} for p in paper],
+                   "joint": None if joint is None else {"params": joint.params, "std": joint.std},
+                   "validation": {label: v.rms for label, v in validations}}
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    return out_dir / "report.md"
