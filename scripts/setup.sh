@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Sets up a fresh machine: build tools (Debian packages, if missing), the
+# Python venv at .venv with the pinned PyPI packages and the juno command,
+# and the FMU at build/JunoRover.fmu.  Safe to run again: it only does
+# what is missing or out of date.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+command -v cmake >/dev/null || need_apt+=(cmake)
+command -v cc >/dev/null || need_apt+=(gcc)
+command -v ninja >/dev/null || need_apt+=(ninja-build)
+python3 -c 'import venv, ensurepip' 2>/dev/null || need_apt+=(python3-venv)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${need_apt[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}"
+fi
+
+stamp=.venv/.juno-requirements
+if [ ! -x .venv/bin/python ] || ! cmp -s python_harness/requirements.txt "$stamp" 2>/dev/null; then
+  echo "setup: creating .venv with the pinned Python packages"
+  python3 -m venv .venv
+  .venv/bin/python -m pip install -q --upgrade pip
+  .venv/bin/python -m pip install -q -r python_harness/requirements.txt
+  cp python_harness/requirements.txt "$stamp"
+fi
+.venv/bin/python -m pip install -q --no-deps -e python_harness
+
+echo "setup: building the FMU"
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build
+test -f build/JunoRover.fmu
+echo "setup: done (build/JunoRover.fmu, .venv/bin/juno)"
