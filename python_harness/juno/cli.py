@@ -137,7 +137,7 @@ def cmd_identify(args) -> int:
                 grid = str(grid_terrain(campaign, campaign.runs_of_kind("terrain")[0], tmp.name)[0])
             say("joint identification over the whole time series")
             j = identify_joint(fmu, campaign, include_terrain=args.with_terrain, terrain_file=grid,
-                               max_evaluations=args.max_evaluations, progress=say)
+                               max_evaluations=args.max_evaluations, optimizer=args.optimizer, progress=say)
             tmp.cleanup()
             out["joint"] = j
             for k, v in j.params.items():
@@ -269,6 +269,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=("paper", "joint", "both"), default="both",
                    help="paper: per drawbar run from steady-window averages; joint: all runs, whole time series")
     p.add_argument("--with-terrain", action="store_true", help="include the terrain run in the joint fit")
+    p.add_argument("--optimizer", choices=("least-squares", "nelder-mead"), default="least-squares",
+                   help="joint fit: trust-region Gauss-Newton (default) or Nelder-Mead then a polish")
     p.add_argument("--max-evaluations", type=int, default=400, help="Nelder-Mead budget of the joint fit")
     common(p)
     p.set_defaults(func=cmd_identify)

@@ -180,8 +180,9 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
             lines += ["## 2. Joint identification (beyond the paper)", "",
                       f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
                       "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
-                      "pitch; parameters searched as log/logit; Nelder-Mead then a Gauss-Newton polish; 1-sigma "
-                      "uncertainty from the Jacobian scaled by the residual variance.", "",
+                      "pitch; parameters searched as log/logit; trust-region Gauss-Newton on the scaled residuals; "
+                      "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
+                      "time-correlated residuals.", "",
                       "| Parameter | Estimate | 1 sigma | relative | identifiability |", "|---|---|---|---|---|"]
             for k in SOIL_PARAMETERS:
                 lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
