@@ -35,7 +35,18 @@ typedef struct {
     double init_x, init_y, init_yaw, init_vx;
     int contact_method;
     double contact_slipVelocityEps, solver_step;
+    /* extensions (model-notes section 7), off at their defaults */
+    double patch_x, patch_y, patch_radius, patch_khFactor, patch_strengthFactor;
+    double multipass_rutFraction, multipass_khFactor;
+    double slipSinkage_coefficient, grouser_thrustGain, drive_lossFraction;
+    double terrain_offsetX, terrain_offsetY, terrain_offsetZ, terrain_offsetYaw;
 } Params;
+
+/* Multi-pass: each side remembers the residual rut its front wheel leaves,
+ * sampled every RUT_SPACING m of the front wheel's forward travel, so the
+ * rear wheel (one wheelbase behind on the same track) rolls in it. */
+#define RUT_SAMPLES 256
+#define RUT_SPACING 0.01
 
 typedef struct {
     ContactModel contact;
@@ -62,6 +73,8 @@ typedef struct {
     double u[NU];                  /* generalised velocities, see U_* */
     ContactMemory memory[NUM_WHEELS];
     double pid_integral[2];        /* rad (integral of the spin error) */
+    double path[2];                /* forward travel of each side's front wheel, m */
+    double rut[2][RUT_SAMPLES];    /* residual rut depth along that travel (ring buffer), m */
     double torque_applied[2];      /* N m, last applied drive torque per side */
 } State;
 

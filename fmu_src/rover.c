@@ -160,6 +160,58 @@ static void add_outer(double Mx[NU][NU], const double a[NU], double s, const dou
     }
 }
 
+/* ------------------------------------------------------ terrain, soil */
+
+/* Terrain at world (x, y), with the registration extension: the grid is
+ * moved by (terrain.offsetX, offsetY, offsetZ) and turned by offsetYaw
+ * about the world z axis, so a grid feature at grid coordinates q appears
+ * at world o + Rz(yaw) q.  All zero: the grid as given. */
+static double terrain_query(const Model *m, double x, double y, double n[3])
+{
+    const Params *p = &m->p;
+    if (p->terrain_offsetX == 0 && p->terrain_offsetY == 0 && p->terrain_offsetYaw == 0) {
+        if (n) terrain_normal(&m->terrain, x, y, n);
+        return terrain_height(&m->terrain, x, y) + p->terrain_offsetZ;
+    }
+    const double c = cos(p->terrain_offsetYaw), sn = sin(p->terrain_offsetYaw);
+    const double dx = x - p->terrain_offsetX, dy = y - p->terrain_offsetY;
+    const double qx = c * dx + sn * dy, qy = -sn * dx + c * dy;
+    if (n) {
+        double ng[3];
+        terrain_normal(&m->terrain, qx, qy, ng);
+        n[0] = c * ng[0] - sn * ng[1];
+        n[1] = sn * ng[0] + c * ng[1];
+        n[2] = ng[2];
+    }
+    return terrain_height(&m->terrain, qx, qy) + p->terrain_offsetZ;
+}
+
+/* Soil-patch extension: relative stiffness and strength at (x, y), a
+ * Gaussian bump of the factors towards soilPatch.* (1 everywhere when off). */
+static void soil_factors(const Params *p, double x, double y, double *kh_factor, double *strength_factor)
+{
+    *kh_factor = 1.0;
+    *strength_factor = 1.0;
+    if (p->patch_khFactor == 1.0 && p->patch_strengthFactor == 1.0) return;
+    const double dx = x - p->patch_x, dy = y - p->patch_y;
+    const double g = exp(-(dx * dx + dy * dy) / (2 * p->patch_radius * p->patch_radius));
+    *kh_factor = 1.0 + (p->patch_khFactor - 1.0) * g;
+    *strength_factor = 1.0 + (p->patch_strengthFactor - 1.0) * g;
+}
+
+/* Multi-pass extension: residual rut depth that side's front wheel left at
+ * forward travel `pos` (m); 0 before the start or beyond the memory.
+ * Assumption: the rear wheel follows the front wheel's track one
+ * wheelbase behind (straight running; on a turn it strays from the rut). */
+static double rut_depth_at(const State *s, int side, double pos)
+{
+    if (pos < 0 || pos < s->path[side] - (RUT_SAMPLES - 2) * RUT_SPACING || pos > s->path[side]) return 0.0;
+    const double u = pos / RUT_SPACING;
+    const long i = (long)floor(u);
+    const double f = u - (double)i;
+    return (1 - f) * s->rut[side][i % RUT_SAMPLES] + f * s->rut[side][(i + 1) % RUT_SAMPLES];
+}
+
 /* ---------------------------------------------------------- drive */
 
 static void drive_torques(const Model *m, double torque[2], double dtorque_domega[2])
@@ -205,9 +257,8 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     WheelContact *wc = &ev->wheel[w];
     memset(wc, 0, sizeof *wc);
 
-    const double zt = terrain_height(&m->terrain, H[0], H[1]);
     double n[3];
-    terrain_normal(&m->terrain, H[0], H[1], n);
+    const double zt = terrain_query(m, H[0], H[1], n);
     /* Assumption: the soil is locally a plane through the terrain point
      * below the hub; the contact is solved in the wheel's mid-plane. */
     const double hub_height = (H[2] - zt) * n[2];
@@ -217,7 +268,17 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     const double in_plane = v3_norm(np);
     if (in_plane < 1e-6) return;                        /* wheel lying on its side */
     v3_scale(np, np, 1.0 / in_plane);
-    const double sinkage = R - hub_height / in_plane;
+    double sinkage = R - hub_height / in_plane;
+    const Params *p = &m->p;
+    double kh_factor, strength_factor;
+    soil_factors(p, H[0], H[1], &kh_factor, &strength_factor);
+    if (w % 2 == 1 && p->multipass_rutFraction > 0) {
+        /* A rear wheel rolls in its front wheel's rut, on compacted soil. */
+        const double rut = p->multipass_rutFraction *
+                           rut_depth_at(&m->s, side_of(w), m->s.path[side_of(w)] - p->rover_wheelbase);
+        sinkage -= rut;
+        kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + 0.002);
+    }
     wc->sinkage = sinkage;
     double f[3], l[3];
     v3_cross(f, ev->e, np);                            /* heading in the contact plane */
@@ -229,10 +290,20 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     if (sinkage <= 0) return;
     wc->in_contact = 1;
 
+    double wheel_omega[3];
+    for (int i = 0; i < 3; ++i) wheel_omega[i] = row_dot(Jw[i], u);
+    const double omega_r = R * v3_dot(wheel_omega, ev->e);
+    const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
+    wc->slip = (omega_r - wc->v_long) / den;
+    if (p->slipSinkage_coefficient > 0)       /* the soil under a slipping wheel yields: it digs in */
+        kh_factor /= 1.0 + p->slipSinkage_coefficient * fmin(fabs(wc->slip), 1.0);
+    const double shear_factor = strength_factor * (1.0 + p->grouser_thrustGain);
+
     double cut_front, cut_rear;
     contact_cuts(cm, &m->s.memory[w], sinkage, &cut_front, &cut_rear);
     ContactPatch patch;
     contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
+    patch.Fn *= kh_factor;
     patch.alpha *= contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
     const double sa = sin(patch.alpha), ca = cos(patch.alpha);
     double nvec[3], t[3], r_rim[3];
@@ -247,18 +318,17 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     double Jp[3][NU];
     memcpy(Jp, Jh, sizeof Jp);
     add_wheel_offset(Jp, Jw, r_rim);
-    double wheel_omega[3], v_rim[3];
-    for (int i = 0; i < 3; ++i) {
-        wheel_omega[i] = row_dot(Jw[i], u);
-        v_rim[i] = row_dot(Jp[i], u);
-    }
-    const double omega_r = R * v3_dot(wheel_omega, ev->e);
+    double v_rim[3];
+    for (int i = 0; i < 3; ++i) v_rim[i] = row_dot(Jp[i], u);
     const double v_lat = v3_dot(l, v_rim);
     double F_long, F_lat, jac[6];
     contact_shear(cm, patch.Fn, patch.area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
-
-    const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
-    wc->slip = (omega_r - wc->v_long) / den;
+    if (shear_factor != 1.0) {           /* soil patch strength, grouser thrust: F_taumax scales */
+        F_long *= shear_factor;
+        F_lat *= shear_factor;
+        if (matrices)
+            for (int i = 0; i < 6; ++i) jac[i] *= shear_factor;
+    }
     wc->Fn = patch.Fn;
     wc->F_long = F_long;
     wc->F_lat = F_lat;
@@ -285,7 +355,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     ContactPatch deeper;
     const double dz = 1e-6;
     contact_patch(cm, sinkage + dz, cut_front, cut_rear, &deeper);
-    const double kn = (deeper.Fn - patch.Fn) / dz;
+    const double kn = (kh_factor * deeper.Fn - patch.Fn) / dz;
     double a_n[NU];
     vec_times_jac(a_n, nvec, Jh);
     add_outer(K, a_n, kn, a_n);
@@ -423,9 +493,12 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
     if (!matrices) return;
 
     /* Drive: the motor on each rocker turns its side's wheels relative to it. */
+    /* The drive torque is on the motor side (what the current measures);
+     * the wheels get (1 - drive.lossFraction) of it. */
+    const double transmitted = 1.0 - p->drive_lossFraction;
     for (int k = 0; k < 2; ++k) {
-        ev->Q[U_SPIN_L + k] += ev->torque[k];
-        ev->D[U_SPIN_L + k][U_SPIN_L + k] -= slope[k];
+        ev->Q[U_SPIN_L + k] += transmitted * ev->torque[k];
+        ev->D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
     }
     /* Rocker differential friction. */
     ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
@@ -523,6 +596,20 @@ static int substep(Model *m, double h, char *err, size_t errlen)
     s->beta += h * s->u[U_BETA];
     for (int w = 0; w < NUM_WHEELS; ++w)
         contact_memory_update(&m->d.contact, &s->memory[w], ev.wheel[w].sinkage, ev.wheel[w].v_long, h);
+    if (m->p.multipass_rutFraction > 0) {
+        /* Record the residual rut each front wheel leaves along its forward travel. */
+        for (int side = 0; side < 2; ++side) {
+            const int front = 2 * side;
+            const double v = ev.wheel[front].v_long;
+            if (!(v > 0)) continue;
+            const double depth = ev.wheel[front].sinkage > 0
+                                     ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
+            const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
+            s->path[side] += v * h;
+            const long to = (long)floor(s->path[side] / RUT_SPACING);
+            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i) s->rut[side][i % RUT_SAMPLES] = depth;
+        }
+    }
     s->time += h;
     if (!state_is_sane(m, &ev, err, errlen)) return -1;
     return 0;
@@ -670,7 +757,7 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double lx = (w % 2 == 0 ? 0.5 : -0.5) * p->rover_wheelbase;
         double ly = (side_of(w) == SIDE_LEFT ? 0.5 : -0.5) * p->rover_track;
-        ground[w] = terrain_height(&m->terrain, p->init_x + cy * lx - sy * ly, p->init_y + sy * lx + cy * ly);
+        ground[w] = terrain_query(m, p->init_x + cy * lx - sy * ly, p->init_y + sy * lx + cy * ly, NULL);
     }
     const double pitch_left = -atan((ground[WHEEL_FL] - ground[WHEEL_RL]) / p->rover_wheelbase);
     const double pitch_right = -atan((ground[WHEEL_FR] - ground[WHEEL_RR]) / p->rover_wheelbase);

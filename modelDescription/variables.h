@@ -59,7 +59,7 @@
     REAL(151, "drive.Kp",          PARAM, "N.m.s/rad", 200.0, 0, NOLIM, p.drive_Kp, "PID proportional gain (drive.mode 1)") \
     REAL(152, "drive.Ki",          PARAM, "N.m/rad",   400.0, 0, NOLIM, p.drive_Ki, "PID integral gain (drive.mode 1)") \
     REAL(153, "drive.Kd",          PARAM, "N.m.s2/rad", 0.0,  0, NOLIM, p.drive_Kd, "PID derivative gain on the measured spin (drive.mode 1)") \
-    REAL(154, "drive.torqueMax",   PARAM, "N.m",       400.0, 0, NOLIM, p.drive_torqueMax, "Limit of the drive torque per side (all modes)") \
+    REAL(154, "drive.torqueMax",   PARAM, "N.m",       400.0, 0, NOLIM, p.drive_torqueMax, "Limit of the drive torque per side (drive.mode 1 and 2)") \
     REAL(155, "motor.voltage",     PARAM, "V",   24.0,   0, NOLIM, p.motor_voltage,    "Supply voltage at full throttle (assumed)") \
     REAL(156, "motor.kt",          PARAM, "N.m/A", 0.0465, 0, NOLIM, p.motor_kt,       "Torque and back-EMF constant (assumed)") \
     REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    0, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
@@ -74,6 +74,21 @@
     INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
     REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 0, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor: below this speed the shear law is viscous") \
     REAL(182, "solver.step",       PARAM, "s",   1e-3, 0, 0.1, p.solver_step, "Largest internal integration step") \
+    /* ---- model extensions (model-notes section 7); each is off at its default ---- */ \
+    REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \
+    REAL(191, "soilPatch.y",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_y,      "Soil patch centre, world y") \
+    REAL(192, "soilPatch.radius",   PARAM, "m",   1.0, 0.01, NOLIM, p.patch_radius,   "Soil patch radius (Gaussian sigma)") \
+    REAL(193, "soilPatch.khFactor", PARAM, "1",   1.0, 0.05, 20,    p.patch_khFactor, "k_h at the patch centre relative to soil.kh (1 = homogeneous soil)") \
+    REAL(194, "soilPatch.strengthFactor", PARAM, "1", 1.0, 0.05, 20, p.patch_strengthFactor, "Shear strength (C, tan phi) at the patch centre relative to elsewhere (1 = homogeneous)") \
+    REAL(195, "multipass.rutFraction", PARAM, "1", 0.0, 0, 1, p.multipass_rutFraction, "Fraction of the front wheel's residual rut (1-gamma) z_max that the rear wheel on the same side rolls in (0 = off)") \
+    REAL(196, "multipass.khFactor", PARAM, "1",  1.0, 0.05, 20, p.multipass_khFactor, "k_h of soil compacted by the front wheel, relative to virgin soil (1 = off)") \
+    REAL(197, "slipSinkage.coefficient", PARAM, "1", 0.0, 0, 50, p.slipSinkage_coefficient, "Slip-sinkage: k_h / (1 + c |slip|) (0 = off)") \
+    REAL(198, "grouser.thrustGain", PARAM, "1", 0.0, 0, 5, p.grouser_thrustGain, "Grouser/lug thrust beyond Mohr-Coulomb: F_taumax (1 + g) (0 = off)") \
+    REAL(199, "drive.lossFraction", PARAM, "1", 0.0, 0, 0.9, p.drive_lossFraction, "Fraction of the drive torque (motor side, as measured from the current) lost in gears and chain") \
+    REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
+    REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
+    REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this") \
+    REAL(188, "terrain.offsetYaw", PARAM, "rad", 0.0, -3.15, 3.15,   p.terrain_offsetYaw, "Registration: the terrain grid is rotated by this about z (about the world origin)") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
     REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \
