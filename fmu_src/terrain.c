@@ -550,14 +550,74 @@ void terrain_free(Terrain *t)
     terrain_init_flat(t);
 }
 
-/* *t is overwritten, not freed: it may be uninitialised on entry. */
-int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
+/* Reads a grid from an open stream; see terrain_read in terrain.h. */
+static int read_grid(Terrain *t, FILE *f, const char *name, char *err, size_t errlen)
 {
     Terrain g;
     Header h;
     Lexer lx;
     int r;
     long nnodata;
+
+    memset(&lx, 0, sizeof lx);
+    lx.f = f;
+    lx.line = 1;
+    lx.at_file_start = 1;
+
+    terrain_init_flat(&g);
+    memset(&h, 0, sizeof h);
+    r = read_header(&lx, &h, name, err, errlen);
+    if (r < 0 || check_header(&h, &g, name, err, errlen) < 0)
+        goto fail;
+
+    g.z = malloc((size_t)g.ncols * (size_t)g.nrows * sizeof *g.z);
+    if (g.z == NULL) {
+        set_err(err, errlen, "%s: out of memory for a %d x %d grid", name, g.ncols, g.nrows);
+        goto fail;
+    }
+    nnodata = read_values(&lx, r == 1, &h, &g, name, err, errlen);
+    if (nnodata < 0)
+        goto fail;
+    if (nnodata == (long)g.ncols * (long)g.nrows) {
+        set_err(err, errlen, "%s: all %ld cells are NODATA (%.17g); no elevation to use",
+                name, nnodata, h.val[K_NODATA]);
+        goto fail;
+    }
+    if (nnodata > 0 && fill_nodata(&g, nnodata) < 0) {
+        set_err(err, errlen, "%s: out of memory while filling NODATA cells", name);
+        goto fail;
+    }
+    *t = g;
+    return 0;
+
+fail:
+    free(g.z);
+    terrain_init_flat(t);
+    return -1;
+}
+
+int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen)
+{
+    set_err(err, errlen, "%s", "");
+    if (t == NULL) {
+        set_err(err, errlen, "terrain_read: no Terrain given");
+        return -1;
+    }
+    terrain_init_flat(t);
+    if (name == NULL)
+        name = "(stream)";
+    if (f == NULL) {
+        set_err(err, errlen, "%s: no stream given", name);
+        return -1;
+    }
+    return read_grid(t, f, name, err, errlen);
+}
+
+/* *t is overwritten, not freed: it may be uninitialised on entry. */
+int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
+{
+    FILE *f;
+    int r;
 
     set_err(err, errlen, "%s", "");
     if (t == NULL) {
@@ -569,51 +629,16 @@ int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
         set_err(err, errlen, "terrain_load: no file path given");
         return -1;
     }
-
-    memset(&lx, 0, sizeof lx);
-    lx.line = 1;
-    lx.at_file_start = 1;
     errno = 0;
-    lx.f = fopen(path, "rb"); /* binary: line ends are handled by lex_next */
-    if (lx.f == NULL) {
+    f = fopen(path, "rb"); /* binary: line ends are handled by lex_next */
+    if (f == NULL) {
         set_err(err, errlen, "%s: cannot open: %s", path,
                 errno != 0 ? strerror(errno) : "unknown error");
         return -1;
     }
-
-    terrain_init_flat(&g);
-    memset(&h, 0, sizeof h);
-    r = read_header(&lx, &h, path, err, errlen);
-    if (r < 0 || check_header(&h, &g, path, err, errlen) < 0)
-        goto fail;
-
-    g.z = malloc((size_t)g.ncols * (size_t)g.nrows * sizeof *g.z);
-    if (g.z == NULL) {
-        set_err(err, errlen, "%s: out of memory for a %d x %d grid", path, g.ncols, g.nrows);
-        goto fail;
-    }
-    nnodata = read_values(&lx, r == 1, &h, &g, path, err, errlen);
-    if (nnodata < 0)
-        goto fail;
-    if (nnodata == (long)g.ncols * (long)g.nrows) {
-        set_err(err, errlen, "%s: all %ld cells are NODATA (%.17g); no elevation to use",
-                path, nnodata, h.val[K_NODATA]);
-        goto fail;
-    }
-    if (nnodata > 0 && fill_nodata(&g, nnodata) < 0) {
-        set_err(err, errlen, "%s: out of memory while filling NODATA cells", path);
-        goto fail;
-    }
-
-    fclose(lx.f);
-    *t = g;
-    return 0;
-
-fail:
-    fclose(lx.f);
-    free(g.z);
-    terrain_init_flat(t);
-    return -1;
+    r = read_grid(t, f, path, err, errlen);
+    fclose(f);
+    return r;
 }
 
 /* Maps a coordinate to the grid interval [k, k+1] holding it and the

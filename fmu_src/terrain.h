@@ -7,6 +7,7 @@
 #define JUNO_TERRAIN_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 typedef struct {
     int ncols, nrows;       /* 0 for flat ground */
@@ -28,6 +29,12 @@ void terrain_init_flat(Terrain *t);
  * *t is overwritten, not freed (it may be uninitialised): call
  * terrain_free first if it holds a grid.  On error *t is flat ground. */
 int terrain_load(Terrain *t, const char *path, char *err, size_t errlen);
+
+/* The same from a stream open for reading (in binary mode), read from its
+ * current position to its end and not closed; name stands for the file in
+ * messages (NULL: "(stream)").  For grids held in memory (fmemopen) and
+ * the fuzz target. */
+int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen);
 
 void terrain_free(Terrain *t);
 
