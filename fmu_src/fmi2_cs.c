@@ -550,6 +550,62 @@ static uint64_t fnv1a(const unsigned char *bytes, size_t n)
 
 #define SERIAL_SIZE (sizeof(Snapshot) + sizeof(uint64_t))
 
+/* A deserialized state passed its checksum, but its bytes may still come
+ * from elsewhere (a tool's storage, a crafted file): it must hold values
+ * the FMU itself could have had.  Parameters and inputs are checked
+ * against the variable table as fmi2SetReal/fmi2SetInteger would, and a
+ * state that can be stepped (StepComplete) must have a finite, bounded
+ * integrator state.  Returns NULL, or what is wrong in why. */
+#define KIND_PARAM_ 'P'
+#define KIND_CALC_ 'C'
+#define KIND_INPUT_ 'I'
+#define KIND_OUTPUT_ 'O'
+static const char *snapshot_invalid(const Snapshot *snap, char *why, size_t n)
+{
+    Model tmp;
+    const Model *m = &tmp;
+    memset(&tmp, 0, sizeof tmp);
+    tmp.p = snap->p;
+    tmp.in = snap->in;
+#define PARAM KIND_PARAM_
+#define CALC KIND_CALC_
+#define INPUT KIND_INPUT_
+#define OUTPUT KIND_OUTPUT_
+#define REAL(vr_, name, kind, unit, start, lo, hi, field, desc)                                                  \
+    if ((kind == PARAM || kind == INPUT) && !(isfinite(m->field) && m->field >= (lo) && m->field <= (hi))) {    \
+        snprintf(why, n, "'%s' = %g is outside its range [%g, %g]", name, m->field, (double)(lo), (double)(hi)); \
+        return why;                                                                                            \
+    }
+#define INT(vr_, name, kind, start, lo, hi, field, desc)                                               \
+    if (kind == PARAM && !(m->field >= (lo) && m->field <= (hi))) {                                    \
+        snprintf(why, n, "'%s' = %d is outside its range [%d, %d]", name, m->field, (int)(lo), (int)(hi)); \
+        return why;                                                                                    \
+    }
+#define STR(vr_, name, kind, start, field, desc)
+#include "variables.h"
+    JUNO_VARIABLES
+#undef REAL
+#undef INT
+#undef STR
+#undef PARAM
+#undef CALC
+#undef INPUT
+#undef OUTPUT
+    if (snap->fmi_state == ST_STEP_COMPLETE) {
+        /* State is plain data made of doubles (model.h); none may be NaN, infinite or absurd */
+        const unsigned char *bytes = (const unsigned char *)&snap->s;
+        for (size_t i = 0; i + sizeof(double) <= sizeof snap->s; i += sizeof(double)) {
+            double v;
+            memcpy(&v, bytes + i, sizeof v);
+            if (!(fabs(v) <= 1e15)) {
+                snprintf(why, n, "the integrator state holds %g at byte %zu", v, i);
+                return why;
+            }
+        }
+    }
+    return NULL;
+}
+
 FMI2_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     CHECK(c, "fmi2SerializedFMUstateSize", ST_ANY_ALIVE);
@@ -593,6 +649,9 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte s
     if (tmp.fmi_state != ST_INSTANTIATED && tmp.fmi_state != ST_INIT_MODE && tmp.fmi_state != ST_STEP_COMPLETE &&
         tmp.fmi_state != ST_TERMINATED && tmp.fmi_state != ST_ERROR)
         return refuse(inst, "fmi2DeSerializeFMUstate", "the serialized state has an invalid FMI state");
+    char why[256];
+    if (snapshot_invalid(&tmp, why, sizeof why))
+        return refuse(inst, "fmi2DeSerializeFMUstate", "the serialized state is not valid: %s", why);
     Snapshot *snap = (Snapshot *)*FMUstate;
     if (!snap) {
         snap = (Snapshot *)malloc(sizeof *snap);
@@ -644,6 +703,11 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunication
     if (communicationStepSize > 1e4)
         return refuse(inst, "fmi2DoStep", "communicationStepSize = %g s is larger than 1e4 s",
                       communicationStepSize);
+    /* the model takes ceil(h / solver.step) internal steps: keep that an affordable int */
+    if (!(communicationStepSize / m->p.solver_step <= 1e7))
+        return refuse(inst, "fmi2DoStep",
+                      "communicationStepSize = %g s needs %.3g internal steps of solver.step = %g s (at most 1e7)",
+                      communicationStepSize, communicationStepSize / m->p.solver_step, m->p.solver_step);
     double tol = 1e-9 * fmax(1.0, fabs(currentCommunicationPoint)) + 1e-6 * communicationStepSize;
     if (!isfinite(currentCommunicationPoint) || fabs(currentCommunicationPoint - m->s.time) > tol)
         return refuse(inst, "fmi2DoStep", "currentCommunicationPoint = %.17g differs from the FMU's time %.17g",

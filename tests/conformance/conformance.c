@@ -649,6 +649,74 @@ static void test_log_categories(void)
 
 /* ---------------------------------------------------- FMU state bytes */
 
+/* The serialized layout ends with a 64-bit FNV-1a checksum of the bytes
+ * before it (fmu_src/fmi2_cs.c); a crafted state recomputes it. */
+static void fix_checksum(char *buf, size_t n)
+{
+    uint64_t h = 1469598103934665603ull;
+    for (size_t i = 0; i + 8 < n; ++i) {
+        h ^= (unsigned char)buf[i];
+        h *= 1099511628211ull;
+    }
+    memcpy(buf + n - 8, &h, 8);
+}
+
+/* Replaces the first 8-byte occurrence of the double `from` by `to`. */
+static int patch_double(char *buf, size_t n, double from, double to)
+{
+    for (size_t i = 0; i + 16 <= n; ++i)
+        if (!memcmp(buf + i, &from, 8)) {
+            memcpy(buf + i, &to, 8);
+            return 1;
+        }
+    return 0;
+}
+
+/* States with a valid checksum but impossible contents are refused too:
+ * a parameter outside its range, a non-finite integrator state. */
+static void test_crafted_states(void)
+{
+    const double kh = 123456.789012, start = 12.3456789;
+    fmi2Component c = make("crafted", resources_uri);
+    fmi->SetupExperiment(c, 0, 0, start, 0, 0);
+    fmi->EnterInitializationMode(c);
+    fmi->SetReal(c, &vr_kh, 1, &kh);
+    fmi->ExitInitializationMode(c);
+    fmi->DoStep(c, start, 0.01, 1);
+    fmi2FMUstate s = NULL, t = NULL;
+    size_t size = 0;
+    fmi->GetFMUstate(c, &s);
+    fmi->SerializedFMUstateSize(c, s, &size);
+    char *buf = (char *)malloc(size), *bad = (char *)malloc(size);
+    fmi->SerializeFMUstate(c, s, buf, size);
+    const struct {
+        double from, to;
+        const char *what, *expect;
+    } cases[] = {{kh, -1.0, "soil.kh = -1", "soil.kh"},
+                 {kh, NAN, "soil.kh = NaN", "soil.kh"},
+                 {start + 0.01, NAN, "time = NaN", "integrator state"},
+                 {start + 0.01, 1e300, "time = 1e300", "integrator state"}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        memcpy(bad, buf, size);
+        int found = patch_double(bad, size, cases[k].from, cases[k].to);
+        check(found, "crafted state %s: value not found in the serialized bytes", cases[k].what);
+        fix_checksum(bad, size);
+        log_clear();
+        check(fmi->DeSerializeFMUstate(c, bad, size, &t) == fmi2Error && t == NULL,
+              "a crafted state with %s was accepted", cases[k].what);
+        check(strstr(last_error, cases[k].expect) != NULL, "crafted state with %s: message '%s' does not name %s",
+              cases[k].what, last_error, cases[k].expect);
+    }
+    memcpy(bad, buf, size);
+    fix_checksum(bad, size);
+    check(fmi->DeSerializeFMUstate(c, bad, size, &t) == fmi2OK, "recomputing the checksum alone breaks nothing");
+    fmi->FreeFMUstate(c, &t);
+    fmi->FreeFMUstate(c, &s);
+    free(buf);
+    free(bad);
+    fmi->FreeInstance(c);
+}
+
 static void test_serialization(void)
 {
     fmi2Component c = make("serial", resources_uri);
@@ -760,6 +828,7 @@ static void test_serialization(void)
     free(copy);
     fmi->FreeInstance(c);
     fmi->FreeInstance(d);
+    test_crafted_states();
 }
 
 /* ---------------------------------------------------------- stepping */
@@ -817,6 +886,20 @@ static void test_steps(void)
     fmi2Boolean terminated = 1;
     check(fmi->GetBooleanStatus(c, fmi2Terminated, &terminated) == fmi2OK && terminated == 0, "fmi2Terminated");
     fmi->Terminate(c);
+    fmi->FreeInstance(c);
+
+    /* a solver.step inside its declared range (0, 0.1] but so small that a step
+     * would need more internal steps than an int holds: refused, not UB */
+    c = make("solverstep", resources_uri);
+    reach(c, S_INIT);
+    const unsigned vr_solver = fmu_var(&F, "solver.step")->vr;
+    const fmi2Real tiny = 1e-300;
+    check(fmi->SetReal(c, &vr_solver, 1, &tiny) == fmi2OK, "solver.step = 1e-300 is in its declared range");
+    fmi->ExitInitializationMode(c);
+    log_clear();
+    check(fmi->DoStep(c, 0.0, 0.01, 1) == fmi2Error && strstr(last_error, "solver.step"),
+          "a step needing 1e298 internal steps: '%s'", last_error);
+    check(fmi->DoStep(c, 0.0, 1e-297, 1) == fmi2OK, "a step of 1000 internal steps of 1e-300 s: %s", last_error);
     fmi->FreeInstance(c);
 
     /* a start time other than 0 */

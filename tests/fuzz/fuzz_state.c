@@ -1,0 +1,159 @@
+/*
+ * libFuzzer target: the FMU state deserializer.  Each input becomes a
+ * serialized FMU state that goes through fmi2DeSerializeFMUstate, then
+ * (if accepted) fmi2SetFMUstate, an fmi2DoStep and fmi2GetReal of every
+ * output.  Nothing may crash, hang or trip the sanitizers; a refused state
+ * must be explained in the log.
+ *
+ * The first input byte selects how the rest is used:
+ *   0  the bytes themselves are the serialized state (size, magic, version
+ *      and checksum checks);
+ *   1  the bytes are XORed into a valid serialized state at an offset given
+ *      by the next two bytes, and the checksum is recomputed, so that the
+ *      payload itself is fuzzed (what a tool or a bit flip in memory could
+ *      hand back);
+ *   2  like 1, but whole doubles at 8-byte aligned offsets are replaced by
+ *      special values (NaN, +-Inf, 0, -1, +-1e300, tiny).
+ *
+ *   fuzz_state tests/fuzz/corpus_state -max_total_time=20
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2.h"
+#include "juno_guid.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static fmi2Component inst;
+static fmi2FMUstate good;          /* the valid state, restored before every input */
+static char *valid;                /* its serialized bytes */
+static size_t valid_size;
+static int errors_logged;
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...)
+{
+    (void)env;
+    (void)name;
+    (void)category;
+    (void)message;
+    if (status >= fmi2Error) errors_logged++;
+    if (getenv("JUNO_FUZZ_VERBOSE")) {
+        va_list ap;
+        va_start(ap, message);
+        vfprintf(stderr, message, ap);
+        va_end(ap);
+        fputc('\n', stderr);
+    }
+}
+
+static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+static const unsigned outputs[] = {300, 301, 302, 303, 304, 305, 306, 307, 308, 309, 310};
+
+/* The checksum of the serialized layout (fmu_src/fmi2_cs.c): 64-bit FNV-1a
+ * of everything before the last 8 bytes, stored in them. */
+static void fix_checksum(char *buf, size_t n)
+{
+    uint64_t h = 1469598103934665603ull;
+    for (size_t i = 0; i + 8 < n; ++i) {
+        h ^= (unsigned char)buf[i];
+        h *= 1099511628211ull;
+    }
+    memcpy(buf + n - 8, &h, 8);
+}
+
+static void setup(void)
+{
+    inst = fmi2Instantiate("fuzz", fmi2CoSimulation, JUNO_GUID, NULL, &callbacks, fmi2False, fmi2False);
+    const unsigned vr_mode = 150, vr_in[3] = {200, 203, 204};
+    const fmi2Integer mode = 1;   /* PID drive: integral state in use */
+    const fmi2Real in[3] = {150.0, 1.0, 1.2};
+    if (!inst || fmi2SetupExperiment(inst, fmi2False, 0, 0.0, fmi2False, 0) != fmi2OK ||
+        fmi2EnterInitializationMode(inst) != fmi2OK || fmi2SetInteger(inst, &vr_mode, 1, &mode) != fmi2OK ||
+        fmi2SetReal(inst, vr_in, 3, in) != fmi2OK || fmi2ExitInitializationMode(inst) != fmi2OK)
+        abort();
+    for (int k = 0; k < 50; ++k)
+        if (fmi2DoStep(inst, k * 0.01, 0.01, fmi2True) != fmi2OK) abort();
+    if (fmi2GetFMUstate(inst, &good) != fmi2OK || fmi2SerializedFMUstateSize(inst, good, &valid_size) != fmi2OK)
+        abort();
+    valid = (char *)malloc(valid_size);
+    if (!valid || fmi2SerializeFMUstate(inst, good, valid, valid_size) != fmi2OK) abort();
+    /* JUNO_FUZZ_SEED=file writes a mode-0 seed: this build's valid state */
+    const char *seed = getenv("JUNO_FUZZ_SEED");
+    FILE *f = seed ? fopen(seed, "wb") : NULL;
+    if (f) {
+        fputc(0, f);
+        fwrite(valid, 1, valid_size, f);
+        fclose(f);
+    }
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    if (!inst) setup();
+    if (size < 1) return 0;
+    if (fmi2SetFMUstate(inst, good) != fmi2OK) abort();
+    const int mode = data[0] % 3;
+    char *buf;
+    size_t n;
+    if (mode == 0) {
+        n = size - 1;
+        buf = (char *)malloc(n ? n : 1);
+        if (!buf) return 0;
+        if (n) memcpy(buf, data + 1, n);
+    } else {
+        if (size < 3) return 0;
+        n = valid_size;
+        buf = (char *)malloc(n);
+        if (!buf) return 0;
+        memcpy(buf, valid, n);
+        size_t at = ((size_t)data[1] | (size_t)data[2] << 8) % (n - 8);
+        if (mode == 1) {
+            for (size_t i = 3; i < size && at < n - 8; ++i, ++at) buf[at] ^= (char)data[i];
+        } else {
+            static const double special[] = {NAN, INFINITY, -INFINITY, 0.0, -1.0, 1e300, -1e300, 1e-300, 1e9};
+            at &= ~(size_t)7;
+            for (size_t i = 3; i < size && at + 8 <= n - 8; ++i, at += 8) {
+                if (data[i] % 2) continue;   /* keep this double */
+                double v = special[(data[i] / 2) % (sizeof special / sizeof special[0])];
+                memcpy(buf + at, &v, 8);
+            }
+        }
+        fix_checksum(buf, n);
+    }
+    fmi2FMUstate st = NULL;
+    int before = errors_logged;
+    fmi2Status s = fmi2DeSerializeFMUstate(inst, buf, n, &st);
+    if (s != fmi2OK) {
+        if (st != NULL || errors_logged == before) abort();   /* refused: nothing allocated, explained */
+    } else {
+        if (!st) abort();
+        before = errors_logged;
+        s = fmi2SetFMUstate(inst, st);
+        if (s != fmi2OK && errors_logged == before) abort();
+        if (s == fmi2OK) {
+            fmi2Real t = 0, y[sizeof outputs / sizeof outputs[0]];
+            fmi2GetReal(inst, outputs, sizeof outputs / sizeof outputs[0], y);
+            if (fmi2GetRealStatus(inst, fmi2LastSuccessfulTime, &t) == fmi2OK) {
+                /* at most 1e4 internal steps, so that every input costs little: a
+                 * state may carry any solver.step in its declared range (0, 0.1] */
+                const unsigned vr_solver_step = 182;
+                fmi2Real h = 0.01, solver_step = 1e-3;
+                if (fmi2GetReal(inst, &vr_solver_step, 1, &solver_step) == fmi2OK && h > 1e4 * solver_step)
+                    h = 1e4 * solver_step;
+                before = errors_logged;
+                s = fmi2DoStep(inst, t, h, fmi2False);
+                if (s != fmi2OK && errors_logged == before) abort();
+                fmi2GetReal(inst, outputs, sizeof outputs / sizeof outputs[0], y);
+            }
+        }
+        fmi2FreeFMUstate(inst, &st);
+    }
+    free(buf);
+    return 0;
+}
