@@ -30,7 +30,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#if defined(_WIN32)
+#include <direct.h>
+#include <process.h>
+#else
 #include <unistd.h>
+#endif
 
 #include "fmu_loader.h"
 
@@ -1025,6 +1030,16 @@ static void test_resources(void)
 
 static void make_scratch(const char *base)
 {
+#if defined(_WIN32)
+    /* Windows (also under wine): an absolute path with a drive letter */
+    char full[1024];
+    if (!_fullpath(full, base, sizeof full)) snprintf(full, sizeof full, "%s", base);
+    snprintf(scratch, sizeof scratch, "%s\\juno conformance %d", full, (int)_getpid());
+    if (_mkdir(scratch) != 0) {
+        perror(scratch);
+        exit(2);
+    }
+#else
     char cwd[1024] = "";
     if (base[0] != '/' && !getcwd(cwd, sizeof cwd)) cwd[0] = '\0';
     snprintf(scratch, sizeof scratch, "%s%s%s/juno conformance XXXXXX", cwd, cwd[0] ? "/" : "", base);
@@ -1032,9 +1047,14 @@ static void make_scratch(const char *base)
         perror("mkdtemp");
         exit(2);
     }
+#endif
     char path[4096];
     snprintf(path, sizeof path, "%s/resources", scratch);
+#if defined(_WIN32)
+    _mkdir(path);
+#else
     mkdir(path, 0755);
+#endif
     path_to_uri(path, resources_uri, sizeof resources_uri);
     snprintf(path, sizeof path, "%s/resources/raised.asc", scratch);
     if (write_text(path, raised_grid) != 0) {
@@ -1049,8 +1069,13 @@ static void remove_scratch(void)
     snprintf(path, sizeof path, "%s/resources/raised.asc", scratch);
     remove(path);
     snprintf(path, sizeof path, "%s/resources", scratch);
+#if defined(_WIN32)
+    _rmdir(path);
+    _rmdir(scratch);
+#else
     rmdir(path);
     rmdir(scratch);
+#endif
 }
 
 int main(int argc, char **argv)

@@ -1,0 +1,144 @@
+#!/usr/bin/env bash
+# FMI compliance and robustness checks beyond ctest/pytest (README "Checks"),
+# run by scripts/test.sh after scripts/setup.sh:
+#   1. an AddressSanitizer + UndefinedBehaviorSanitizer build (clang) in
+#      build-asan/, running every ctest there (C unit tests, the conformance
+#      and parallel drivers);
+#   2. valgrind memcheck (no leaks, no invalid access) of the conformance
+#      driver and of the parallel driver over the Release FMU, and helgrind
+#      (data races) of the parallel driver;
+#   3. short time-bounded libFuzzer runs of the terrain reader and the FMU
+#      state deserializer from their committed corpora;
+#   4. the win64 binary cross-compiled with mingw-w64 into
+#      build-win64/dist/JunoRover.fmu (linux64 + win64), its export table
+#      checked against the FMI functions of fmu_src/fmi2.h, and the
+#      conformance and parallel drivers run under wine;
+#   5. libcosimpy installed into .venv for tests/python/test_importers.py.
+# Debian packages are installed only if missing.  Environment:
+#   JUNO_FUZZ_SECONDS (default 20) per fuzz target,
+#   JUNO_CHECKS_WINE=0 to skip wine (the cross build and export check stay).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+t_start=$SECONDS
+fuzz_seconds=${JUNO_FUZZ_SECONDS:-20}
+summary=()
+note() { summary+=("$1"); echo "checks: $1"; }
+
+# ---------------------------------------------------------------- tools
+need_apt=()
+command -v valgrind >/dev/null || need_apt+=(valgrind)
+command -v clang >/dev/null || need_apt+=(clang)
+command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64 binutils-mingw-w64-x86-64)
+[ "${JUNO_CHECKS_WINE:-1}" = 0 ] || [ -x /usr/lib/wine/wine64 ] || command -v wine64 >/dev/null || need_apt+=(wine64)
+SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+apt_install() {
+  echo "checks: installing Debian packages: $*"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+[ ${#need_apt[@]} -eq 0 ] || apt_install "${need_apt[@]}"
+# libFuzzer and the sanitizer runtimes of Debian's clang are a separate package
+probe=$(mktemp -d)
+printf 'int LLVMFuzzerTestOneInput(const unsigned char *d, unsigned long n) { (void)d; (void)n; return 0; }\n' >"$probe/f.c"
+if ! clang -fsanitize=fuzzer,address,undefined "$probe/f.c" -o "$probe/f" 2>/dev/null; then
+  ver=$(clang -dumpversion | cut -d. -f1)
+  apt_install "libclang-rt-$ver-dev"
+fi
+rm -rf "$probe"
+wine=""
+if [ "${JUNO_CHECKS_WINE:-1}" != 0 ]; then
+  if [ -x /usr/lib/wine/wine64 ]; then wine=/usr/lib/wine/wine64; else wine=$(command -v wine64 || true); fi
+fi
+if ! .venv/bin/python -c 'import libcosimpy' 2>/dev/null; then
+  echo "checks: installing libcosimpy into .venv"
+  .venv/bin/python -m pip install -q libcosimpy==0.0.6
+fi
+
+# ------------------------------------------- 1. sanitizers (ASan + UBSan)
+t0=$SECONDS
+echo "== checks: AddressSanitizer + UndefinedBehaviorSanitizer build (build-asan)"
+CC=clang cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DJUNO_SANITIZE=ON -DJUNO_FUZZ=ON >/dev/null
+cmake --build build-asan
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+(cd build-asan && ctest --output-on-failure)
+note "ASan+UBSan: $(cd build-asan && ctest -N | tail -1 | sed 's/Total Tests: //') ctest programs clean ($((SECONDS - t0)) s)"
+
+# --------------------------------------------------------- 2. valgrind
+t0=$SECONDS
+echo "== checks: valgrind memcheck and helgrind (Release FMU, build/)"
+cmake --build build --target conformance parallel
+vg=(valgrind -q --error-exitcode=97 --leak-check=full --show-leak-kinds=definite,indirect,possible
+    --errors-for-leak-kinds=definite,indirect,possible --track-origins=yes)
+"${vg[@]}" build/conformance build/fmu build | tail -1
+"${vg[@]}" build/parallel build/fmu build 4 30 | tail -1
+valgrind -q --tool=helgrind --error-exitcode=98 --suppressions=tests/conformance/helgrind.supp \
+  build/parallel build/fmu build 4 30 | tail -1
+note "valgrind: memcheck of conformance and parallel, helgrind of parallel: no errors, no leaks ($((SECONDS - t0)) s)"
+
+# ------------------------------------------------------------ 3. fuzzing
+t0=$SECONDS
+echo "== checks: libFuzzer, ${fuzz_seconds} s per target"
+fuzz_dir=$(mktemp -d)
+trap 'rm -rf "$fuzz_dir"' EXIT
+pids=()
+for target in terrain state; do
+  mkdir -p "$fuzz_dir/$target"
+  (cd "$fuzz_dir" && "$OLDPWD/build-asan/fuzz_$target" "$fuzz_dir/$target" "$OLDPWD/tests/fuzz/corpus_$target" \
+      -max_total_time="$fuzz_seconds" -timeout=30 -rss_limit_mb=4096 -seed=1 -print_final_stats=1 \
+      >"$fuzz_dir/$target.log" 2>&1) &
+  pids+=($!)
+done
+fuzz_failed=0
+for i in 0 1; do wait "${pids[$i]}" || fuzz_failed=1; done
+for target in terrain state; do
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$fuzz_dir/$target.log")
+  echo "fuzz_$target: ${runs:-?} executions"
+  summary+=("fuzz_$target: ${runs:-?} executions in ${fuzz_seconds} s")
+done
+if [ "$fuzz_failed" != 0 ]; then
+  for target in terrain state; do tail -40 "$fuzz_dir/$target.log"; done
+  ls "$fuzz_dir"/crash-* "$fuzz_dir"/timeout-* "$fuzz_dir"/leak-* 2>/dev/null || true
+  echo "checks: a fuzz target failed: reproduce with build-asan/fuzz_TARGET FILE" >&2
+  exit 1
+fi
+note "fuzzing: no crash, leak or timeout ($((SECONDS - t0)) s)"
+
+# ------------------------------------------------------------ 4. Windows
+t0=$SECONDS
+echo "== checks: win64 cross build with mingw-w64 (build-win64)"
+cmake -S . -B build-win64 -G Ninja -DCMAKE_TOOLCHAIN_FILE=cmake/mingw-w64-x86_64.cmake \
+  -DCMAKE_BUILD_TYPE=Release -DJUNO_HOST_FMU_DIR="$PWD/build/fmu" >/dev/null
+cmake --build build-win64 --target JunoRover conformance parallel fmu_win64
+expected=$(sed -n 's/^FMI2_EXPORT [^(]*[ *]\(fmi2[A-Za-z]*\)(.*/\1/p' fmu_src/fmi2.h | sort)
+exported=$(x86_64-w64-mingw32-objdump -p build-win64/JunoRover.dll |
+  sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/s/^\s*\[ *[0-9]*\] \(.*\)$/\1/p' | sort)
+if [ "$expected" != "$exported" ]; then
+  echo "checks: JunoRover.dll exports differ from fmu_src/fmi2.h:" >&2
+  diff <(echo "$expected") <(echo "$exported") >&2 || true
+  exit 1
+fi
+imports=$(x86_64-w64-mingw32-objdump -p build-win64/JunoRover.dll | sed -n 's/^\s*DLL Name: //p' | tr '\n' ' ')
+note "win64: JunoRover.dll exports exactly the $(echo "$expected" | wc -l) fmi2 functions of fmi2.h; imports: $imports"
+.venv/bin/python - <<'EOF'
+from fmpy.validation import validate_fmu
+from fmpy import read_model_description
+import zipfile
+fmu = "build-win64/dist/JunoRover.fmu"
+problems = validate_fmu(fmu)
+assert not problems, problems
+names = zipfile.ZipFile(fmu).namelist()
+assert "binaries/win64/JunoRover.dll" in names and "binaries/linux64/JunoRover.so" in names, names
+print("checks: fmpy validate", fmu, "(linux64 + win64): no problems")
+EOF
+if [ -n "$wine" ]; then
+  export WINEPREFIX="$PWD/build-win64/wineprefix" WINEDEBUG=-all
+  "$wine" build-win64/conformance.exe build-win64/fmu-all build-win64 | tail -1
+  "$wine" build-win64/parallel.exe build-win64/fmu-all build-win64 | tail -1
+  note "win64 under wine: conformance and parallel drivers passed ($((SECONDS - t0)) s)"
+else
+  note "win64: wine skipped (JUNO_CHECKS_WINE=0) ($((SECONDS - t0)) s)"
+fi
+
+echo "== checks: summary ($((SECONDS - t_start)) s)"
+printf '  %s\n' "${summary[@]}"
