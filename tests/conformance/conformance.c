@@ -34,6 +34,7 @@
 #include <direct.h>
 #include <process.h>
 #else
+#include <sys/wait.h>
 #include <unistd.h>
 #endif
 
@@ -984,6 +985,50 @@ static double initial_z(const char *uri, const char *file, char *err, size_t err
     return z;
 }
 
+/* A terrain file without read permission.  Root reads it anyway, so as
+ * root the check runs in a child process that drops to uid/gid 65534. */
+static void test_unreadable_terrain(void)
+{
+#if defined(_WIN32)
+    check(1, "unreadable terrain file: not checked on Windows");
+#else
+    char path[4096], err[2048];
+    snprintf(path, sizeof path, "%s/resources/locked.asc", scratch);
+    if (write_text(path, raised_grid) != 0 || chmod(path, 0) != 0) {
+        check(0, "cannot make %s", path);
+        return;
+    }
+    if (geteuid() != 0) {
+        double z = initial_z(NULL, path, err, sizeof err);
+        check(isnan(z) && strstr(err, path) && strstr(err, "Permission denied"),
+              "unreadable terrain file: z %g, message '%s'", z, err);
+    } else {
+        chmod(scratch, 0755);   /* let the unprivileged child reach the file */
+        char res[4096];
+        snprintf(res, sizeof res, "%s/resources", scratch);
+        chmod(res, 0755);
+        fflush(stdout);
+        pid_t pid = fork();
+        if (pid == 0) {
+            if (setgid(65534) != 0 || setuid(65534) != 0) _exit(3);
+            double z = initial_z(NULL, path, err, sizeof err);
+            int ok = isnan(z) && strstr(err, path) && strstr(err, "Permission denied");
+            if (!ok) printf("  child (uid 65534): z %g, message '%s'\n", z, err);
+            fflush(stdout);
+            _exit(ok ? 0 : 1);
+        }
+        int status = -1;
+        if (pid > 0) waitpid(pid, &status, 0);
+        check(pid > 0 && WIFEXITED(status) && WEXITSTATUS(status) != 3,
+              "unreadable terrain file: could not drop privileges to check it as root");
+        check(pid > 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0,
+              "unreadable terrain file (checked as uid 65534) was not refused with 'Permission denied'");
+    }
+    chmod(path, 0600);
+    remove(path);
+#endif
+}
+
 static void test_resources(void)
 {
     char err[2048], path[4096], uri[4400];
@@ -1024,6 +1069,7 @@ static void test_resources(void)
     check(z == z_flat, "an empty resource URI: %s", err);
     z = initial_z("file:///%zz%2", "raised.asc", err, sizeof err);
     check(isnan(z), "a malformed percent escape in the resource URI");
+    test_unreadable_terrain();
 }
 
 /* ------------------------------------------------------------------ */
