@@ -17,7 +17,6 @@
 
 #include <ctype.h>
 #include <errno.h>
-#include <locale.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -89,6 +88,7 @@ typedef struct {
     int has_nul;        /* contained a NUL byte (never a number) */
     long tok_line;      /* line on which it started */
     long tok_index;     /* 1-based position among the tokens of that line */
+    char dp;            /* the locale's decimal point, for strtod */
 } Lexer;
 
 static int is_blank(int c)
@@ -167,26 +167,38 @@ static int lex_next(Lexer *lx)
     }
 }
 
+/* The C library's decimal point in the current locale, or '.' if it is not
+ * a single character.  Found by formatting a number rather than with
+ * localeconv(), which is not thread-safe (glibc fills a static struct on
+ * every call: a data race when two FMU instances load terrain at once). */
+static char locale_decimal_point(void)
+{
+    char buf[16];
+    if (snprintf(buf, sizeof buf, "%.1f", 1.5) == 3 && buf[0] == '1' && buf[2] == '5')
+        return buf[1];
+    return '.';
+}
+
 /* Parses the current token as a complete number (finite or not).  strtod
  * honours the C library locale's decimal point, which a host application
  * may have changed (e.g. to ','); the file format always uses '.', so the
- * token is translated to the locale's convention first. */
+ * token is translated to the locale's convention (lx->dp) first. */
 static int lex_number(const Lexer *lx, double *v)
 {
     char buf[TOK_MAX];
-    const char *dp = localeconv()->decimal_point;
+    const char dp = lx->dp;
     char *end;
     size_t i;
 
     if (lx->has_nul || lx->truncated || lx->tok[0] == '\0')
         return 0;
     memcpy(buf, lx->tok, strlen(lx->tok) + 1);
-    if (dp != NULL && dp[0] != '\0' && dp[0] != '.' && dp[1] == '\0') {
+    if (dp != '\0' && dp != '.') {
         for (i = 0; buf[i] != '\0'; i++) {
-            if (buf[i] == dp[0])
+            if (buf[i] == dp)
                 return 0; /* e.g. "1,5" is not a number in this format */
             if (buf[i] == '.')
-                buf[i] = dp[0];
+                buf[i] = dp;
         }
     }
     errno = 0;
@@ -563,6 +575,7 @@ static int read_grid(Terrain *t, FILE *f, const char *name, char *err, size_t er
     lx.f = f;
     lx.line = 1;
     lx.at_file_start = 1;
+    lx.dp = locale_decimal_point();
 
     terrain_init_flat(&g);
     memset(&h, 0, sizeof h);
