@@ -475,14 +475,31 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
         add_generalised(ev->Q, Jv, F);
         add_generalised(ev->Q, Jw, T);
-        for (int i = 0; i < NU; ++i)
-            for (int j = 0; j < NU; ++j) {
-                double acc = mass * (Jv[0][i] * Jv[0][j] + Jv[1][i] * Jv[1][j] + Jv[2][i] * Jv[2][j]);
-                for (int a = 0; a < 3; ++a)
-                    for (int b = 0; b < 3; ++b) acc += Jw[a][i] * I[3 * a + b] * Jw[b][j];
-                ev->M[i][j] += acc;
+        /* M += m Jv^T Jv + Jw^T I Jw over the body's non-zero columns (upper
+         * triangle; mirrored below): the chassis moves only the first 6
+         * velocities, a rocker 7, a wheel 7 and its side's spin. */
+        int cols[NU], nc = 0;
+        for (int k = 0; k < U_BETA; ++k) cols[nc++] = k;
+        if (body != BODY_CHASSIS) cols[nc++] = U_BETA;
+        if (body >= BODY_WHEEL0) cols[nc++] = U_SPIN_L + side;
+        double IJw[3][NU];
+        for (int a = 0; a < 3; ++a)
+            for (int c = 0; c < nc; ++c) {
+                const int k = cols[c];
+                IJw[a][k] = I[3 * a] * Jw[0][k] + I[3 * a + 1] * Jw[1][k] + I[3 * a + 2] * Jw[2][k];
             }
+        for (int ci = 0; ci < nc; ++ci) {
+            const int i = cols[ci];
+            for (int cj = ci; cj < nc; ++cj) {
+                const int j = cols[cj];
+                ev->M[i][j] += mass * (Jv[0][i] * Jv[0][j] + Jv[1][i] * Jv[1][j] + Jv[2][i] * Jv[2][j]) +
+                               Jw[0][i] * IJw[0][j] + Jw[1][i] * IJw[1][j] + Jw[2][i] * IJw[2][j];
+            }
+        }
     }
+    if (matrices)
+        for (int i = 0; i < NU; ++i)
+            for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
 
     /* Contacts: the hub Jacobian is the wheel body's CG Jacobian. */
     for (int wh = 0; wh < NUM_WHEELS; ++wh)
