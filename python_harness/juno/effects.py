@@ -1,10 +1,27 @@
 """Hidden effects for synthetic campaigns (model-notes section 7).
 
-Each effect changes the synthetic truth in one physical way.  An effect
-acts through FMU extension parameters of the truth simulation
-(``Truth.extension``), through the sensors (``Truth.measurement``), or
-through the LIDAR scan; ``--strength`` (0 to 1, 1 = the top of the
-documented range) scales it.
+Each effect changes the synthetic truth in one physical way.  ``--strength``
+S in (0, 1] scales it linearly; S = 1 is the top of the documented range.
+
+================  =========================================================  =======================
+effect            what the truth does at strength S                           range (S = 0.5 .. 1)
+================  =========================================================  =======================
+soil_patch        a patch of weaker soil (radius 0.9-1.4 m, centre drawn on   k_h x 0.7 .. 0.4,
+                  the test track): k_h x (1 - 0.6 S), strength x (1 - 0.4 S)   strength x 0.8 .. 0.6
+multipass         rear wheels roll in the front wheels' rut on compacted      k_h x 1.75 .. 2.5
+                  soil: k_h x (1 + 1.5 S)
+slip_sinkage      the soil yields under a slipping wheel: k_h / (1 + 1.5 S s)  c = 0.75 .. 1.5
+grouser           lugs add thrust beyond Mohr-Coulomb: F_taumax x (1 + 0.35 S) gain 0.18 .. 0.35
+drivetrain_loss   the motor-current torque over-reads the wheel torque:       loss 12.5 .. 25 %
+                  the wheels get (1 - 0.25 S) of it
+terrain_offset    the LIDAR scan is misregistered by 0.25 S m in a random     0.12 .. 0.25 m,
+                  direction, 3 S deg in yaw and 3 S cm in height               1.5 .. 3 deg, 1.5 .. 3 cm
+================  =========================================================  =======================
+
+An effect acts through the truth simulation's FMU parameters
+(``Truth.sim``), through the LIDAR scan (``scan_transform``), or both;
+``Truth.extension`` holds the FMU parameters with which the extended
+model reproduces the truth (what ``diagnose`` should find).
 """
 
 from __future__ import annotations
@@ -15,20 +32,65 @@ import numpy as np
 
 EFFECTS: dict[str, str] = {
     "none": "nothing hidden: the paper's model is the truth",
+    "soil_patch": "soil stiffness and strength vary over the test area (a weaker patch)",
+    "multipass": "rear wheels roll in the front wheels' rut, on compacted soil",
+    "slip_sinkage": "sinkage grows with slip as the wheel digs in",
+    "grouser": "lugged tyres gain thrust beyond the Mohr-Coulomb limit of a smooth rim",
+    "drivetrain_loss": "the torque from the motor current is larger than the torque at the wheels",
+    "terrain_offset": "the scanned terrain is shifted and rotated relative to the real one",
 }
 
 
 def apply_effect_to_truth(truth, rng: np.random.Generator) -> None:
-    """Fills ``truth.extension`` / ``truth.measurement`` for ``truth.effect``."""
+    """Fills ``truth.sim`` (truth-simulation parameters) and ``truth.extension``."""
     if truth.effect not in EFFECTS:
-        raise ValueError(f"unknown effect '{truth.effect}'")
+        raise ValueError(f"unknown effect '{truth.effect}'; known: {', '.join(EFFECTS)}")
+    s = float(truth.strength)
+    if not (0.0 <= s <= 1.0):
+        raise ValueError(f"--strength {s} must lie in [0, 1]")
+    e = truth.effect
+    ext: dict[str, float] = {}
+    if e == "soil_patch":
+        ext = {"soilPatch.x": float(rng.uniform(1.5, 3.5)), "soilPatch.y": float(rng.uniform(-0.4, 0.4)),
+               "soilPatch.radius": float(rng.uniform(0.9, 1.4)),
+               "soilPatch.khFactor": 1 - 0.6 * s, "soilPatch.strengthFactor": 1 - 0.4 * s}
+    elif e == "multipass":
+        ext = {"multipass.rutFraction": 1.0, "multipass.khFactor": 1 + 1.5 * s}
+    elif e == "slip_sinkage":
+        ext = {"slipSinkage.coefficient": 1.5 * s}
+    elif e == "grouser":
+        ext = {"grouser.thrustGain": 0.35 * s}
+    elif e == "drivetrain_loss":
+        ext = {"drive.lossFraction": 0.25 * s}
+    elif e == "terrain_offset":
+        angle = float(rng.uniform(0, 2 * np.pi))
+        ext = {"terrain.offsetX": 0.25 * s * float(np.cos(angle)), "terrain.offsetY": 0.25 * s * float(np.sin(angle)),
+               "terrain.offsetZ": 0.03 * s * float(rng.choice([-1.0, 1.0])),
+               "terrain.offsetYaw": float(np.radians(3.0)) * s * float(rng.choice([-1.0, 1.0]))}
+    truth.extension = ext
+    # The scan carries the registration error; the world itself is not offset.
+    truth.sim = {} if e == "terrain_offset" else dict(ext)
 
 
 def measurement_transform(truth) -> dict:
-    """Keyword arguments of :func:`juno.synthesize.measure` for the effect."""
-    return {"torque_scale": float(truth.measurement.get("torque_scale", 1.0))}
+    """Keyword arguments of :func:`juno.synthesize.measure` for the effect (none act on sensors)."""
+    return {}
 
 
 def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
-    """How the LIDAR scan misplaces true points, or None."""
-    return None
+    """How the LIDAR scan misplaces true points, or None.
+
+    The extended model moves the grid by (offsetX, offsetY, offsetZ, offsetYaw)
+    (grid point q appears at o + Rz(yaw) q), so the scan reports a true point
+    p at Rz(-yaw) (p - o).
+    """
+    if truth.effect != "terrain_offset":
+        return None
+    ox, oy = truth.extension["terrain.offsetX"], truth.extension["terrain.offsetY"]
+    oz, yaw = truth.extension["terrain.offsetZ"], truth.extension["terrain.offsetYaw"]
+    c, s = np.cos(yaw), np.sin(yaw)
+
+    def transform(points: np.ndarray) -> np.ndarray:
+        dx, dy = points[:, 0] - ox, points[:, 1] - oy
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy, points[:, 2] - oz])
+    return transform

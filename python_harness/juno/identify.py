@@ -50,7 +50,7 @@ def to_search(params: dict[str, float]) -> np.ndarray:
 def from_search(x: Sequence[float]) -> dict[str, float]:
     """Inverse of :func:`to_search`."""
     return {"soil.kh": float(np.exp(x[0])), "soil.eta": float(np.exp(x[1])),
-            "soil.gamma": float(1 / (1 + np.exp(-x[2]))), "soil.Kvx": float(np.exp(x[3]))}
+            "soil.gamma": float(1 / (1 + np.exp(-np.clip(x[2], -500, 500)))), "soil.Kvx": float(np.exp(x[3]))}
 
 
 def _jacobian_of_transform(params: dict[str, float]) -> np.ndarray:

@@ -58,8 +58,8 @@ class Truth:
     strength: float
     seed: int
     soil: dict[str, float]
-    extension: dict[str, float] = field(default_factory=dict)   # FMU parameters of the effect
-    measurement: dict[str, float] = field(default_factory=dict) # sensor-side effect parameters
+    extension: dict[str, float] = field(default_factory=dict)   # FMU parameters the extended model needs
+    sim: dict[str, float] = field(default_factory=dict)         # FMU parameters of the truth simulation
 
 
 def _ou_process(rng: np.random.Generator, t: np.ndarray, tau: float) -> np.ndarray:
@@ -184,7 +184,7 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
     own_fmu = fmu is None
     fmu = fmu or JunoFMU()
     try:
-        base = {**truth.soil, **truth.extension, "drive.mode": 2, "solver.step": 1e-3}
+        base = {**truth.soil, **truth.sim, "drive.mode": 2, "solver.step": 1e-3}
         runs, manifest_runs = {}, []
         levels = rng.permutation([320.0, 520.0, 720.0]) + rng.uniform(-40, 40, 3)
         for (run_id, duration, window), level in zip(DRAWBAR_RUNS, levels):
@@ -216,8 +216,8 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
 
         manifest = {"name": f"juno-synthetic-{seed}", "runs": manifest_runs, "rover": {}}
         truth_json = json.dumps({"effect": truth.effect, "strength": truth.strength, "seed": truth.seed,
-                                 "noise": noise, "soil": truth.soil, "extension": truth.extension,
-                                 "measurement": truth.measurement}, indent=2)
+                                 "noise": noise, "soil": truth.soil, "extension": truth.extension},
+                                indent=2)
         say(f"writing {out}")
         write_campaign(out, manifest, runs, {"terrain/scan.xyz": scan},
                        extra_files={"truth.json": truth_json}, overwrite=overwrite)

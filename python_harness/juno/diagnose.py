@@ -1,0 +1,550 @@
+"""Model discovery: what the simulation gets wrong, why, and what fixing it gains.
+
+1. Fit the base model (the paper's four soil parameters) on the *training*
+   half of every run's samples: alternate 4 s blocks of every run are
+   training and held-out data (the model is simulated over the whole run,
+   driven by the measured inputs; only the comparison is split).
+2. Show the base model's residuals against time, position, slip and side.
+3. Fit each candidate extension of model-notes section 7 (its own
+   parameters together with the four soil parameters refitted), on the
+   training blocks.
+4. Compare candidates on the held-out blocks: the gain is the drop of the
+   mean squared scaled residual; it counts as significant only when a
+   paired test over held-out blocks (block means of the squared-residual
+   differences, so time correlation inside a block is respected) gives
+   z > Z_MIN and the relative gain exceeds GAIN_MIN.  The cause is the
+   significant candidate with the largest gain, or ``none``; candidates
+   whose gain is within TIE_RATIO of the best are reported as equally good.
+
+It never reads ``truth.json``.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .campaign import Campaign, load_campaign
+from .identify import PAPER_INITIAL, PreparedRun, from_search, prepare_run, to_search
+from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
+
+BLOCK = 4.0          # s, length of the alternating training / held-out blocks
+Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
+GAIN_MIN = 0.03      # and at least 3 % less held-out mean squared residual
+TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the data about as well
+OUTPUT_INTERVAL = 0.05
+#: Integration step of the diagnosis (s).  The base model and every candidate share it, so the
+#: integrator's slip error (0.5 % at 5 ms) cancels in the comparison; 2.5 times faster than 2 ms.
+DIAGNOSE_STEP = 5e-3
+#: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
+BASE_ITERATIONS = 12
+CANDIDATE_ITERATIONS = 12
+
+
+@dataclass(frozen=True)
+class ExtParam:
+    """One extension parameter: FMU name, start value, and how it is searched."""
+
+    name: str
+    start: float
+    kind: str = "log"    # log (positive), logit (0..1), linear, log1p (>= 0)
+
+    def to_search(self, v: float) -> float:
+        if self.kind == "log":
+            return float(np.log(v))
+        if self.kind == "logit":
+            v = min(max(v, 1e-6), 1 - 1e-6)
+            return float(np.log(v / (1 - v)))
+        if self.kind == "log1p":
+            return float(np.log(max(v, 0.0) + 0.05))
+        return float(v)
+
+    def from_search(self, x: float) -> float:
+        if self.kind == "log":
+            return float(np.exp(x))
+        if self.kind == "logit":
+            return float(1 / (1 + np.exp(-x)))
+        if self.kind == "log1p":
+            return float(max(np.exp(x) - 0.05, 0.0))
+        return float(x)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A model extension the analysis can propose, and the physical cause it stands for."""
+
+    name: str
+    cause: str
+    params: tuple[ExtParam, ...]
+    fixed: tuple[tuple[str, float], ...] = ()
+    needs_terrain: bool = False
+
+
+CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
+    # Starts are at or near each extension's neutral setting, so every fit begins at the base model.
+    Candidate("soil_patch", "soil stiffness and strength vary over the test area",
+              (ExtParam("soilPatch.x", 2.5, "linear"), ExtParam("soilPatch.y", 0.0, "linear"),
+               ExtParam("soilPatch.radius", 1.0), ExtParam("soilPatch.khFactor", 0.9),
+               ExtParam("soilPatch.strengthFactor", 0.95))),
+    Candidate("multipass", "rear wheels roll in the front wheels' rut on compacted soil",
+              (ExtParam("multipass.rutFraction", 0.05, "logit"), ExtParam("multipass.khFactor", 1.05))),
+    Candidate("slip_sinkage", "sinkage grows with slip as the wheel digs in",
+              (ExtParam("slipSinkage.coefficient", 0.0, "log1p"),)),
+    Candidate("grouser", "lugs add thrust beyond the Mohr-Coulomb limit",
+              (ExtParam("grouser.thrustGain", 0.0, "log1p"),)),
+    Candidate("drivetrain_loss", "part of the measured motor torque is lost before the wheels",
+              (ExtParam("drive.lossFraction", 0.02, "logit"),)),
+    Candidate("terrain_offset", "the scanned terrain is misregistered against the real one",
+              (ExtParam("terrain.offsetX", 0.0, "linear"), ExtParam("terrain.offsetY", 0.0, "linear"),
+               ExtParam("terrain.offsetZ", 0.0, "linear"), ExtParam("terrain.offsetYaw", 0.0, "linear")),
+              needs_terrain=True),
+)}
+
+
+# ------------------------------------------------------------ data set-up
+
+@dataclass
+class Problem:
+    """Everything a fit needs; picklable so worker processes can rebuild it."""
+
+    campaign_root: str
+    grid_file: str | None
+    fmu_path: str
+    prepared: list[PreparedRun] = field(default_factory=list)
+    train: np.ndarray | None = None      # boolean mask over the concatenated residuals
+    meta: dict[str, np.ndarray] = field(default_factory=dict)   # per residual: run, signal, time, block
+
+
+def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | None) -> Problem:
+    """Prepares every run and labels each residual with its run, signal, time and block."""
+    prepared = []
+    for run in campaign.runs:
+        if run.kind == "terrain" and grid_file is None:
+            continue
+        prepared.append(prepare_run(campaign, run, terrain_file=grid_file if run.kind == "terrain" else None))
+    runs, signals, times = [], [], []
+    for p in prepared:
+        for column, (ts, _vs, _out, _sigma, _lag) in p.targets.items():
+            runs += [p.run_id] * len(ts)
+            signals += [column] * len(ts)
+            times.append(ts)
+    for p in prepared:
+        p.params["solver.step"] = DIAGNOSE_STEP
+    t = np.concatenate(times) if times else np.zeros(0)
+    block = np.floor(t / BLOCK).astype(int)
+    problem = Problem(str(campaign.root), grid_file, fmu_path, prepared)
+    problem.train = (block % 2) == 0
+    problem.meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
+    return problem
+
+
+def residuals_for(fmu: JunoFMU, problem: Problem, params: dict[str, object],
+                  kinds: tuple[str, ...] = ("drawbar", "terrain")) -> np.ndarray | None:
+    """Scaled residuals of the runs of ``kinds`` for the FMU parameters ``params`` (in the
+    order of ``problem.prepared``); None if a run fails."""
+    from .identify import run_residuals
+    soil = {k: params[k] for k in SOIL_PARAMETERS}
+    extra = {k: v for k, v in params.items() if k not in SOIL_PARAMETERS}
+    parts = []
+    for p in problem.prepared:
+        if p.kind not in kinds:
+            continue
+        try:
+            parts.append(run_residuals(fmu, p, soil, extra, OUTPUT_INTERVAL))
+        except SimulationError:
+            return None
+    r = np.concatenate(parts)
+    return r if np.all(np.isfinite(r)) else None
+
+
+# ------------------------------------------------------------------ fits
+
+@dataclass
+class FitResult:
+    name: str
+    params: dict[str, float]
+    train_mse: float
+    test_mse: float
+    residuals: np.ndarray
+    evaluations: int
+    wall_time: float
+    error: str | None = None
+
+
+def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dict[str, float],
+                  max_nfev: int = 60, start_ext: dict[str, float] | None = None) -> FitResult:
+    """Least squares of the soil parameters (and the candidate's) on the training residuals."""
+    t0 = time.perf_counter()
+    fmu = JunoFMU(problem.fmu_path)
+    try:
+        ext = candidate.params if candidate else ()
+        fixed = dict(candidate.fixed) if candidate else {}
+        starts = {e.name: e.start for e in ext}
+        starts.update(start_ext or {})
+        x0 = np.concatenate([to_search(start_soil), [e.to_search(starts[e.name]) for e in ext]])
+        count = [0]
+        kind_of = {p.run_id: p.kind for p in problem.prepared}
+        run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
+
+        def unpack(x, frozen=None):
+            params = {**from_search(x[:4]), **fixed}
+            for e, xi in zip(ext, x[4:]):
+                params[e.name] = e.from_search(xi)
+            return params
+
+        def fit(x_start, kinds, free, iterations):
+            """Least squares over the free entries of x on the training residuals of ``kinds``."""
+            train = problem.train[np.isin(run_kind, kinds)]
+            n_train = int(np.sum(train))
+
+            def train_residuals(xf):
+                count[0] += 1
+                x = x_start.copy()
+                x[free] = xf
+                r = residuals_for(fmu, problem, unpack(x), kinds)
+                return np.full(n_train, 30.0) if r is None else r[train]
+            ls = least_squares(train_residuals, x_start[free], method="trf", diff_step=1e-3,
+                               max_nfev=iterations, xtol=1e-6, ftol=1e-8)
+            x = x_start.copy()
+            x[free] = ls.x
+            return x
+
+        # Stage 1: the drawbar runs pin the soil (and any extension they can see); from a poor
+        # start the terrain run's path wanders and makes the landscape rough.  Stage 2: all runs.
+        has_drawbar = any(p.kind == "drawbar" for p in problem.prepared)
+        terrain_only = [i for i, e in enumerate(ext) if e.name.startswith("terrain.")]
+        x = x0.copy()
+        if has_drawbar:
+            free1 = np.array([i for i in range(len(x0)) if i - 4 not in terrain_only])
+            x = fit(x, ("drawbar",), free1, max_nfev)
+        x = fit(x, ("drawbar", "terrain"), np.arange(len(x0)), max(3, max_nfev // 2))
+
+        class _Result:
+            pass
+        ls = _Result()
+        ls.x = x
+        params = unpack(ls.x)
+        r = residuals_for(fmu, problem, params)
+        if r is None:
+            raise SimulationError("the fitted model failed", [])
+        train = problem.train
+        return FitResult(candidate.name if candidate else "base", params, float(np.mean(r[train] ** 2)),
+                         float(np.mean(r[~train] ** 2)), r, count[0], time.perf_counter() - t0)
+    except Exception as exc:  # a candidate that cannot be fitted is reported, not fatal
+        return FitResult(candidate.name if candidate else "base", {}, np.inf, np.inf, np.zeros(0), 0,
+                         time.perf_counter() - t0, error=str(exc))
+    finally:
+        fmu.close()
+
+
+def _fit_job(args):
+    problem, name, start_soil, start_ext = args
+    return fit_candidate(problem, CANDIDATES[name], start_soil, max_nfev=CANDIDATE_ITERATIONS, start_ext=start_ext)
+
+
+def patch_start(campaign: Campaign, problem: Problem, r: np.ndarray) -> dict[str, float]:
+    """Where to start the soil-patch search: the place where the base model's drive-torque
+    residuals are largest (the centroid of their squares over the measured positions)."""
+    from .campaign import read_run
+    meta = problem.meta
+    xs, ys, ws = [], [], []
+    for run_id in np.unique(meta["run"]):
+        data = read_run(campaign, campaign.run(str(run_id)))
+        tx, px = data.samples("pos_x")
+        ty, py = data.samples("pos_y")
+        t0 = data.time[0]
+        for sig in ("torque_left", "torque_right"):
+            m = (meta["run"] == run_id) & (meta["signal"] == sig)
+            if not np.any(m):
+                continue
+            t = meta["time"][m] + t0
+            xs.append(np.interp(t, tx, px))
+            ys.append(np.interp(t, ty, py))
+            ws.append(r[m] ** 2)
+    if not ws:
+        return {}
+    x, y, w = np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
+    # Smooth the squared residuals along the path (0.5 m bins) and take the worst bin.
+    bins = np.floor(x / 0.5)
+    best, best_val = None, -1.0
+    for b in np.unique(bins):
+        sel = bins == b
+        if np.sum(sel) > 10 and np.mean(w[sel]) > best_val:
+            best, best_val = b, float(np.mean(w[sel]))
+    if best is None:
+        return {}
+    sel = bins == best
+    return {"soilPatch.x": float(np.mean(x[sel])), "soilPatch.y": float(np.mean(y[sel]))}
+
+
+def paired_z(problem: Problem, base: np.ndarray, ext: np.ndarray) -> float:
+    """z of the held-out improvement: block means of (base^2 - ext^2) over held-out blocks."""
+    test = ~problem.train
+    keys = np.char.add(problem.meta["run"][test], problem.meta["block"][test].astype(str))
+    d = base[test] ** 2 - ext[test] ** 2
+    _, inverse = np.unique(keys, return_inverse=True)
+    sums = np.bincount(inverse, weights=d)
+    counts = np.bincount(inverse)
+    means = sums / np.maximum(counts, 1)
+    if len(means) < 3:
+        return 0.0
+    se = np.std(means, ddof=1) / np.sqrt(len(means))
+    return float(np.mean(means) / se) if se > 0 else (np.inf if np.mean(means) > 0 else 0.0)
+
+
+def per_signal_rms(problem: Problem, r: np.ndarray, scale: bool = True) -> dict[str, float]:
+    """Held-out RMS of each signal, in the signal's own units (scaled residual x sigma)."""
+    test = ~problem.train
+    out = {}
+    sigmas = {}
+    for p in problem.prepared:
+        for column, (_t, _v, _o, sigma, _lag) in p.targets.items():
+            sigmas[column] = sigma
+    for sig in np.unique(problem.meta["signal"]):
+        mask = test & (problem.meta["signal"] == sig)
+        if np.any(mask):
+            out[str(sig)] = float(np.sqrt(np.mean(r[mask] ** 2)) * (sigmas[str(sig)] if scale else 1.0))
+    return out
+
+
+# --------------------------------------------------------------- analysis
+
+def residual_analysis(problem: Problem, r: np.ndarray) -> dict[str, Any]:
+    """Summaries of where the base model is wrong: by run and signal, by side, and trends."""
+    meta = problem.meta
+    by = {}
+    for run in np.unique(meta["run"]):
+        for sig in np.unique(meta["signal"]):
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if np.any(m):
+                by[f"{run}/{sig}"] = {"mean": float(np.mean(r[m])), "rms": float(np.sqrt(np.mean(r[m] ** 2)))}
+    return {"by_run_signal": by, "overall_mse": float(np.mean(r ** 2))}
+
+
+def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
+             candidates: Sequence[str] | None = None,
+             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Runs the whole analysis (module docstring) and returns the ``diagnose`` JSON as a dict."""
+    say = progress or (lambda m: None)
+    t_start = time.perf_counter()
+    campaign = load_campaign(campaign) if not isinstance(campaign, Campaign) else campaign
+    from .simulator import default_fmu_path
+    fmu_path = str(fmu.fmu_path) if fmu is not None else str(default_fmu_path())
+    names = list(candidates or CANDIDATES)
+    with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp:
+        grid_file = None
+        terrain_runs = campaign.runs_of_kind("terrain")
+        if terrain_runs:
+            from .validate import grid_terrain
+            grid_file = str(grid_terrain(campaign, terrain_runs[0], tmp)[0])
+        else:
+            names = [n for n in names if not CANDIDATES[n].needs_terrain]
+        problem = build_problem(campaign, fmu_path, grid_file)
+        say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
+        base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
+        if base.error:
+            raise SimulationError("the base model could not be fitted", [base.error])
+        say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
+        # Every model starts from the paper's initial guess with the same budget: a candidate
+        # started at the (possibly distorted) base optimum inherits its compensations.
+        start_soil = dict(PAPER_INITIAL)
+        jobs = [(problem, n, start_soil, patch_start(campaign, problem, base.residuals) if n == "soil_patch" else None)
+                for n in names]
+        n_workers = workers if workers is not None else min(len(jobs), os.cpu_count() or 1)
+        results: list[FitResult] = []
+        if n_workers > 1:
+            with ProcessPoolExecutor(max_workers=n_workers) as pool:
+                for res in pool.map(_fit_job, jobs):
+                    say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, "
+                        f"{res.wall_time:.0f} s)")
+                    results.append(res)
+        else:
+            for job in jobs:
+                res = _fit_job(job)
+                say(f"  {res.name}: held-out mse {res.test_mse:.4g}")
+                results.append(res)
+
+    cands = []
+    for res in results:
+        if res.error:
+            cands.append({"name": res.name, "cause": CANDIDATES[res.name].cause, "error": res.error,
+                          "significant": False, "gain": 0.0, "z": 0.0})
+            continue
+        gain = (base.test_mse - res.test_mse) / base.test_mse
+        z = paired_z(problem, base.residuals, res.residuals)
+        extension = {k: v for k, v in res.params.items() if k not in SOIL_PARAMETERS}
+        cands.append({"name": res.name, "cause": CANDIDATES[res.name].cause, "gain": float(gain), "z": float(z),
+                      "significant": bool(gain > GAIN_MIN and z > Z_MIN), "test_mse": res.test_mse,
+                      "train_mse": res.train_mse, "n_params": len(CANDIDATES[res.name].params),
+                      "soil": {k: res.params[k] for k in SOIL_PARAMETERS}, "extension": extension,
+                      "evaluations": res.evaluations, "wall_time": res.wall_time})
+    cands.sort(key=lambda c: -c["gain"])
+    significant = [c for c in cands if c["significant"]]
+    best = significant[0] if significant else None
+    equally_good = [c["name"] for c in significant[1:] if best and c["gain"] >= TIE_RATIO * best["gain"]]
+    baseline = {"soil": {k: base.params[k] for k in SOIL_PARAMETERS}, "test_mse": base.test_mse,
+                "train_mse": base.train_mse, "rms": per_signal_rms(problem, base.residuals)}
+    out: dict[str, Any] = {
+        "cause": best["name"] if best else "none",
+        "explanation": best["cause"] if best else "no extension explains the held-out data significantly better",
+        "equally_good": equally_good,
+        "candidates": cands,
+        "baseline": baseline,
+        "criteria": {"block_s": BLOCK, "z_min": Z_MIN, "gain_min": GAIN_MIN, "tie_ratio": TIE_RATIO},
+        "residual_analysis": residual_analysis(problem, base.residuals),
+    }
+    if best:
+        res = next(r for r in results if r.name == best["name"])
+        after = per_signal_rms(problem, res.residuals)
+        out["extended"] = {"name": best["name"], "soil": best["soil"], "extension": best["extension"],
+                           "test_mse": res.test_mse, "rms": after}
+        out["gain"] = {"held_out_mse_before": base.test_mse, "held_out_mse_after": res.test_mse,
+                       "relative": best["gain"], "z": best["z"],
+                       "per_signal": {k: {"before": baseline["rms"][k], "after": after.get(k, float("nan")),
+                                          "relative": 1 - after.get(k, np.nan) / baseline["rms"][k]
+                                          if baseline["rms"][k] > 0 else 0.0}
+                                      for k in baseline["rms"]}}
+    else:
+        out["extended"] = {"name": None}
+        out["gain"] = {"held_out_mse_before": base.test_mse, "held_out_mse_after": base.test_mse,
+                       "relative": 0.0, "best_candidate": cands[0]["name"] if cands else None,
+                       "best_candidate_gain": cands[0]["gain"] if cands else 0.0}
+    out["wall_time"] = time.perf_counter() - t_start
+    out["_plot_data"] = {"problem_meta": problem.meta, "train": problem.train, "base_residuals": base.residuals,
+                         "best_residuals": next((r.residuals for r in results if best and r.name == best["name"]), None)}
+    return out
+
+
+# ---------------------------------------------------------- CLI, report
+
+def add_arguments(p) -> None:
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--workers", type=int, default=None, help="processes for the candidate fits (default: cores)")
+    p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
+    p.add_argument("--plots", metavar="DIR", help="write residual plots to DIR")
+    p.set_defaults(func=cmd_diagnose)
+
+
+def public_json(result: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in result.items() if not k.startswith("_")}
+
+
+def cmd_diagnose(args) -> int:
+    import json
+    import sys
+
+    from .atomic import atomic_write_text
+    from .cli import _progress, _to_jsonable
+    say = _progress(args.quiet)
+    result = diagnose(args.campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
+                      candidates=args.candidates, progress=say)
+    if args.plots:
+        from .atomic import atomic_directory
+        with atomic_directory(args.plots, overwrite=True) as tmp:
+            residual_figures(result, Path(tmp))
+    payload = _to_jsonable(public_json(result))
+    if args.json:
+        atomic_write_text(args.json, json.dumps(payload, indent=2) + "\n")
+    print(f"cause: {result['cause']} ({result['explanation']})")
+    for c in result["candidates"]:
+        mark = "*" if c["significant"] else " "
+        print(f" {mark} {c['name']:16s} held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}")
+    if result["equally_good"]:
+        print("equally good: " + ", ".join(result["equally_good"]))
+    print(f"diagnosis took {result['wall_time']:.0f} s", file=sys.stderr)
+    return 0
+
+
+def residual_figures(result: dict[str, Any], out: Path) -> list[str]:
+    """Residuals of the base model (and the extended one) against time, position, slip and side."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    data = result["_plot_data"]
+    meta, base, best = data["problem_meta"], data["base_residuals"], data["best_residuals"]
+    names = []
+    runs = list(np.unique(meta["run"]))
+    signals = list(np.unique(meta["signal"]))
+    fig, axes = plt.subplots(len(signals), 1, figsize=(10, 2.0 * len(signals)), sharex=False)
+    axes = np.atleast_1d(axes)
+    for ax, sig in zip(axes, signals):
+        offset = 0.0
+        for run in runs:
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if not np.any(m):
+                continue
+            ax.plot(meta["time"][m] + offset, base[m], lw=0.5, color="C0", label="base" if offset == 0 else None)
+            if best is not None:
+                ax.plot(meta["time"][m] + offset, best[m], lw=0.5, color="C1",
+                        label=f"extended ({result['cause']})" if offset == 0 else None)
+            ax.axvline(offset, color="0.7", lw=0.5)
+            ax.text(offset, ax.get_ylim()[1] if False else 0, f" {run}", fontsize=7, va="bottom")
+            offset += float(meta["time"][m].max()) + 2.0
+        ax.set_ylabel(f"{sig}\n[sigma]", fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[-1].set_xlabel("time within each run, runs side by side [s]")
+    fig.suptitle("Scaled residuals (measured - simulated) / sigma")
+    fig.tight_layout()
+    fig.savefig(out / "residuals_time.png", dpi=100)
+    plt.close(fig)
+    names.append("residuals_time.png")
+
+    # Mean residual per run and signal, left against right: where and on which side.
+    fig, ax = plt.subplots(figsize=(10, 3.5))
+    labels, vals = [], []
+    for run in runs:
+        for sig in signals:
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if np.any(m):
+                labels.append(f"{run}\n{sig}")
+                vals.append(float(np.mean(base[m])))
+    ax.bar(range(len(vals)), vals, color=["C2" if "left" in lab else "C3" if "right" in lab else "C0" for lab in labels])
+    ax.set_xticks(range(len(vals)))
+    ax.set_xticklabels(labels, fontsize=6, rotation=90)
+    ax.set_ylabel("mean residual [sigma]")
+    ax.set_title("Base model bias by run and signal (green left, red right side)")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "residuals_bias.png", dpi=100)
+    plt.close(fig)
+    names.append("residuals_bias.png")
+    return names
+
+
+def report_section(result: dict[str, Any], out: Path) -> list[str]:
+    """Markdown lines of the diagnosis for the report (figures written into ``out``)."""
+    lines = ["## 5. What the model gets wrong: diagnosis", ""]
+    figs = residual_figures(result, out) if "_plot_data" in result else []
+    b = result["baseline"]
+    lines += [f"Base model fitted on alternate {result['criteria']['block_s']:g} s training blocks of every run; "
+              f"held-out mean squared scaled residual {b['test_mse']:.3g} (1 = sensor noise).", ""]
+    for f in figs:
+        lines += [f"![{f}]({f})", ""]
+    lines += ["| candidate extension | physical cause | held-out gain | z | significant |", "|---|---|---|---|---|"]
+    for c in result["candidates"]:
+        lines.append(f"| {c['name']} | {c['cause']} | {c['gain']:+.1%} | {c['z']:.1f} | "
+                     f"{'yes' if c['significant'] else 'no'} |")
+    lines.append("")
+    if result["cause"] == "none":
+        lines += ["**Cause: none.** No extension explains the held-out data significantly better than the "
+                  "paper's model.", ""]
+    else:
+        ext = result["extended"]
+        lines += [f"**Cause: {result['cause']}** - {result['explanation']}.", ""]
+        if result["equally_good"]:
+            lines += ["Explaining the data about as well: " + ", ".join(result["equally_good"]) + ".", ""]
+        lines += ["Fitted extension parameters: " + ", ".join(f"{k} = {v:.4g}" for k, v in ext["extension"].items())
+                  + ".", "", "| signal | held-out RMS before | after | gain |", "|---|---|---|---|"]
+        for k, g in result["gain"]["per_signal"].items():
+            lines.append(f"| {k} | {g['before']:.4g} | {g['after']:.4g} | {g['relative']:+.1%} |")
+        lines.append("")
+    return lines
