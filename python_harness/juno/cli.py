@@ -300,7 +300,18 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.set_defaults(func=cmd_report)
     _add_diagnose(sub, common)
+    _add_bench(sub, common)
     return parser
+
+
+def _add_bench(sub, common) -> None:
+    try:
+        from .bench import add_arguments
+    except ImportError:
+        return
+    p = sub.add_parser("bench", help="benchmark the contact laws, the FMU and the workflow; prints figures")
+    add_arguments(p)
+    common(p)
 
 
 def _add_diagnose(sub, common) -> None:
