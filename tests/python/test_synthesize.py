@@ -1,0 +1,250 @@
+"""``juno synthesize`` / juno.synthesize.synthesize: a synthetic measured campaign.
+
+Specification (README, interfaces.md sections 2 and 3):
+* the folder layout and manifest of interfaces.md section 3, readable by load_campaign and
+  read_run; runs as long as the paper's; the LIDAR scan as 25000 points over 20.8 m^2;
+* sensors sampled at different rates (empty cells);
+* the truth goes to truth.json only: no file name, column, manifest entry, row time or empty
+  cell depends on it (two seeds; "none" against every other supported effect);
+* the same seed gives byte-identical files;
+* an existing non-empty OUT is refused without --overwrite and left unchanged;
+* an unknown --effect is refused with a message.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness_fixtures import (NOISY_TIME_SCALE, PAPER_WINDOWS, RUN_LENGTHS, SMALL_TIME_SCALE, run_juno, say,
+                              tree_snapshot)
+from juno.campaign import REQUIRED_COLUMNS, load_campaign, read_run, read_terrain_points
+from juno.effects import EFFECTS
+from juno.simulator import SOIL_PARAMETERS
+from juno.synthesize import TERRAIN_X, TERRAIN_Y, synthesize
+
+pytest_plugins = ["harness_fixtures"]
+
+EXPECTED_FILES = {"campaign.json", "runs/dbp1.csv", "runs/dbp2.csv", "runs/dbp3.csv", "runs/t3d.csv",
+                  "terrain/scan.xyz", "truth.json"}
+SEED_A, SEED_B = 101, 202
+OTHER_EFFECTS = [e for e in EFFECTS if e != "none"]
+
+
+def files_of(root: Path) -> set[str]:
+    return {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file()}
+
+
+def structure(root: Path) -> dict:
+    """Everything about a campaign folder that must not depend on the truth: file names, the
+    manifest, each CSV's header, row times and empty-cell pattern, the scan's size and header."""
+    out: dict = {"files": sorted(files_of(root) - {"truth.json"})}
+    out["campaign.json"] = json.loads((root / "campaign.json").read_text())
+    for rel in out["files"]:
+        text = (root / rel).read_text()
+        lines = text.splitlines()
+        if rel.endswith(".csv"):
+            rows = [line.split(",") for line in lines[1:]]
+            out[rel] = {"header": lines[0], "rows": len(rows),
+                        "time": [r[0] for r in rows],
+                        "empty": [tuple(cell == "" for cell in r) for r in rows]}
+        elif rel.endswith(".xyz"):
+            out[rel] = {"comments": [ln for ln in lines if ln.startswith("#")],
+                        "points": sum(1 for ln in lines if ln.strip() and not ln.startswith("#"))}
+    return out
+
+
+def structure_differences(a: dict, b: dict) -> list[str]:
+    diffs = []
+    for key in sorted(set(a) | set(b)):
+        if a.get(key) == b.get(key):
+            continue
+        if isinstance(a.get(key), dict) and isinstance(b.get(key), dict):
+            sub = [k for k in set(a[key]) | set(b[key]) if a[key].get(k) != b[key].get(k)]
+            diffs.append(f"{key}: {sorted(map(str, sub))}")
+        else:
+            diffs.append(key)
+    return diffs
+
+
+def manifest_shape(obj):
+    """The manifest with every leaf value replaced by its type: its keys and nesting only."""
+    if isinstance(obj, dict):
+        return {k: manifest_shape(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [manifest_shape(v) for v in obj]
+    return type(obj).__name__
+
+
+def one_line_error(proc, *needles: str) -> str:
+    """Exit code 2 and exactly one stderr line (``--quiet``), no traceback, naming ``needles``."""
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2, f"exit code {proc.returncode}, stderr:\n{proc.stderr}"
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert len(lines) == 1, f"expected a one-line message, got:\n{proc.stderr}"
+    for needle in needles:
+        assert needle in lines[0], f"message does not name {needle!r}: {lines[0]}"
+    return lines[0]
+
+
+# ---------------------------------------------------------------------- layout and format
+
+def test_folder_layout_and_manifest(noisy_campaign):
+    root = noisy_campaign.path
+    assert files_of(root) == EXPECTED_FILES
+    manifest = json.loads((root / "campaign.json").read_text())
+    assert isinstance(manifest.get("name"), str) and manifest["name"].strip()
+    assert isinstance(manifest.get("rover", {}), dict)
+    entries = {e["id"]: e for e in manifest["runs"]}
+    assert list(entries) == ["dbp1", "dbp2", "dbp3", "t3d"]
+    for run_id, window in PAPER_WINDOWS.items():
+        e = entries[run_id]
+        assert e["kind"] == "drawbar" and e["file"] == f"runs/{run_id}.csv" and "terrain" not in e
+        assert e["steady_window"] == pytest.approx([w * NOISY_TIME_SCALE for w in window])
+    t3d = entries["t3d"]
+    assert t3d["kind"] == "terrain" and t3d["file"] == "runs/t3d.csv" and t3d["terrain"] == "terrain/scan.xyz"
+
+    truth = json.loads((root / "truth.json").read_text())
+    assert truth["effect"] == "none"
+    assert set(truth["soil"]) == set(SOIL_PARAMETERS)
+
+
+def test_runs_are_readable_and_as_long_as_the_papers(noisy_campaign):
+    c = load_campaign(noisy_campaign.path)
+    assert [(r.id, r.kind) for r in c.runs] == [("dbp1", "drawbar"), ("dbp2", "drawbar"), ("dbp3", "drawbar"),
+                                                  ("t3d", "terrain")]
+    for run in c.runs:
+        data = read_run(c, run)
+        for column in REQUIRED_COLUMNS[run.kind] + ("roll", "pitch", "yaw"):
+            assert data.has(column), f"{run.id}: no samples of {column}"
+        assert data.time[0] == pytest.approx(0.0, abs=0.05)
+        assert data.time[-1] == pytest.approx(RUN_LENGTHS[run.id] * NOISY_TIME_SCALE, abs=0.05)
+        if run.kind == "drawbar":
+            t, f = data.samples("drawbar_force")
+            assert np.median(f[t > t[-1] / 2]) > 100, f"{run.id}: no drawbar force held"
+        t, x = data.samples("pos_x")
+        assert x[-1] - x[0] > 0.5, f"{run.id}: the rover did not drive forwards ({x[-1] - x[0]:.3f} m)"
+
+
+def test_lidar_scan_covers_the_test_area(noisy_campaign):
+    c = noisy_campaign.campaign
+    points = read_terrain_points(c, c.runs_of_kind("terrain")[0])
+    assert points.shape == (25000, 3)
+    x, y, z = points.T
+    assert TERRAIN_X[0] <= x.min() and x.max() <= TERRAIN_X[1]
+    assert TERRAIN_Y[0] <= y.min() and y.max() <= TERRAIN_Y[1]
+    area = (x.max() - x.min()) * (y.max() - y.min())
+    assert area == pytest.approx(20.8, rel=0.02)
+    assert 0.4 < z.max() - np.median(z) < 0.6, "the scan should show the 0.5 m mound"
+
+
+def test_sensors_sample_at_different_rates(noisy_campaign):
+    c = noisy_campaign.campaign
+    for run in c.runs:
+        data = read_run(c, run)
+        names = [n for n in data.columns if n != "time"]
+        values = np.column_stack([data[n] for n in names])
+        assert not np.any(np.all(np.isnan(values), axis=1)), f"{run.id}: a row without any sample"
+        intervals = {}
+        for n in names:
+            t, _ = data.samples(n)
+            intervals[n] = float(np.median(np.diff(t)))
+            assert np.isnan(data[n]).any(), f"{run.id}: column {n} has no empty cell"
+        rates = {n: round(1 / dt, 1) for n, dt in intervals.items()}
+        say(f"{run.id}: sample rates (Hz) {rates}")
+        assert len(set(rates.values())) >= 3, f"{run.id}: {rates}"
+        # the total station is the slowest sensor; the motor signals are faster than it
+        assert max(intervals[n] for n in ("pos_x", "pos_y", "pos_z")) == max(intervals.values())
+        assert intervals["torque_left"] < intervals["pos_x"] and intervals["omega_left"] < intervals["pos_x"]
+
+
+# --------------------------------------------------------------- the truth stays hidden
+
+def test_truth_is_only_in_truth_json_two_seeds(small_campaign):
+    a, b = small_campaign(SEED_A), small_campaign(SEED_B)
+    assert a.truth["soil"] != b.truth["soil"], "the two seeds should draw different truths"
+    sa, sb = structure(a.path), structure(b.path)
+    manifest_a, manifest_b = sa.pop("campaign.json"), sb.pop("campaign.json")
+    assert manifest_shape(manifest_a) == manifest_shape(manifest_b), "manifest keys differ"
+    assert manifest_a["runs"] == manifest_b["runs"] and manifest_a.get("rover") == manifest_b.get("rover")
+    assert structure_differences(sa, sb) == []
+
+
+@pytest.mark.xfail(strict=True, reason="harness bug: synthesize() names the campaign f'juno-synthetic-{seed}'; "
+                   "the seed in campaign.json reproduces the soil truth (draw_truth draws it from the seed alone)")
+def test_manifest_does_not_reveal_the_seed(small_campaign):
+    a, b = small_campaign(SEED_A), small_campaign(SEED_B)
+    text_a = (a.path / "campaign.json").read_text()
+    text_b = (b.path / "campaign.json").read_text()
+    assert str(SEED_A) not in text_a
+    assert text_a == text_b
+
+
+@pytest.mark.parametrize("effect", OTHER_EFFECTS)
+def test_hidden_effect_leaves_no_trace_outside_truth_json(small_campaign, effect):
+    none, hidden = small_campaign(SEED_A), small_campaign(SEED_A, effect)
+    assert hidden.truth["effect"] == effect and none.truth["effect"] == "none"
+    assert (hidden.path / "campaign.json").read_bytes() == (none.path / "campaign.json").read_bytes()
+    assert structure_differences(structure(none.path), structure(hidden.path)) == []
+    # the effect did change the measurements (or the scan): it is hidden, not absent
+    changed = [rel for rel in sorted(files_of(none.path) - {"campaign.json", "truth.json"})
+               if (none.path / rel).read_bytes() != (hidden.path / rel).read_bytes()]
+    say(f"effect {effect}: files whose data differ from effect none: {changed}")
+    assert changed, f"effect {effect} changed no measured data"
+
+
+def test_same_seed_gives_identical_files(small_campaign):
+    first, second = small_campaign(SEED_A), small_campaign(SEED_A, copy=1)
+    a, b = tree_snapshot(first.path), tree_snapshot(second.path)
+    assert sorted(a) == sorted(b)
+    different = [rel for rel in a if a[rel] != b[rel]]
+    assert different == [], f"same seed, different files: {different}"
+
+
+# ------------------------------------------------------------------------- refusals
+
+def test_refuses_an_existing_nonempty_out_and_leaves_it_unchanged(tmp_path, harness_fmu):
+    out = tmp_path / "campaign"
+    out.mkdir()
+    (out / "notes.txt").write_text("field notes, not a campaign\n")
+    (out / "runs").mkdir()
+    (out / "runs" / "keep.csv").write_text("time\n0\n")
+    before = tree_snapshot(out)
+    with pytest.raises(FileExistsError):
+        synthesize(out, seed=SEED_A, fmu=harness_fmu, time_scale=SMALL_TIME_SCALE)
+    assert tree_snapshot(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["campaign"], "a temporary folder was left behind"
+
+
+def test_cli_refuses_an_existing_nonempty_out_unless_overwrite(tmp_path):
+    out = tmp_path / "campaign"
+    out.mkdir()
+    (out / "notes.txt").write_text("field notes\n")
+    before = tree_snapshot(out)
+    proc = run_juno("synthesize", out, "--seed", SEED_A, "--time-scale", SMALL_TIME_SCALE, "--quiet")
+    message = one_line_error(proc, str(out))
+    assert "overwrite" in message
+    assert tree_snapshot(out) == before
+
+    report = tmp_path / "synth.json"
+    proc = run_juno("synthesize", out, "--seed", SEED_A, "--time-scale", SMALL_TIME_SCALE, "--overwrite",
+                    "--quiet", "--json", report)
+    assert proc.returncode == 0, proc.stderr
+    assert files_of(out) == EXPECTED_FILES
+    assert Path(json.loads(report.read_text())["campaign"]).resolve() == out.resolve()
+    load_campaign(out)
+
+
+def test_bad_effect_is_refused_with_a_message(tmp_path, harness_fmu):
+    out = tmp_path / "campaign"
+    proc = run_juno("synthesize", out, "--effect", "no_such_effect", "--time-scale", SMALL_TIME_SCALE, "--quiet")
+    message = one_line_error(proc, "no_such_effect")
+    assert "none" in message, f"the message should list the known effects: {message}"
+    assert not out.exists()
+    with pytest.raises(ValueError, match="no_such_effect"):
+        synthesize(out, effect="no_such_effect", fmu=harness_fmu, time_scale=SMALL_TIME_SCALE)
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
