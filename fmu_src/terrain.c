@@ -730,8 +730,22 @@ void terrain_normal(const Terrain *t, double x, double y, double n[3])
     node_gradient(t, i + 1, j + 1, &gx11, &gy11);
     gx = (1.0 - fy) * ((1.0 - fx) * gx00 + fx * gx10) + fy * ((1.0 - fx) * gx01 + fx * gx11);
     gy = (1.0 - fy) * ((1.0 - fx) * gy00 + fx * gy10) + fy * ((1.0 - fx) * gy01 + fx * gy11);
-    s = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
-    n[0] = -gx * s;
-    n[1] = -gy * s;
-    n[2] = s;
+    if (fabs(gx) <= 1e150 && fabs(gy) <= 1e150) {
+        s = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
+        n[0] = -gx * s;
+        n[1] = -gy * s;
+        n[2] = s;
+    } else {
+        /* slopes whose squares overflow (elevations near the limits of a
+         * double, found by fuzzing): normalise (-gx, -gy, 1) scaled by its
+         * largest component, so the normal stays a unit vector pointing up.
+         * An infinite gradient (the difference of two elevations overflowed)
+         * leaves NaN, which the model reports as a diverged state. */
+        const double m = fmax(fabs(gx), fabs(gy));
+        const double a = gx / m, b = gy / m, c = 1.0 / m;
+        s = 1.0 / sqrt(a * a + b * b + c * c);
+        n[0] = -a * s;
+        n[1] = -b * s;
+        n[2] = c * s;
+    }
 }

@@ -49,10 +49,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             for (size_t j = 0; j < sizeof ys / sizeof ys[0]; ++j) {
                 double n[3], z = terrain_height(&t, xs[i], ys[j]);
                 terrain_normal(&t, xs[i], ys[j], n);
-                /* elevations are finite; a normal may overflow to NaN only for
-                 * gradients beyond 1e154 (cell sizes near the double limits) */
+                /* elevations are finite; the normal is a unit vector pointing up,
+                 * or NaN when a gradient overflowed to infinity (elevation
+                 * differences beyond the double range) */
                 if (!isfinite(z)) abort();
-                if (isfinite(n[0]) && isfinite(n[1]) && !(n[2] > 0)) abort();
+                if (!isnan(n[0]) || !isnan(n[1]) || !isnan(n[2])) {
+                    const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                    if (!(n[2] > 0) || !(fabs(len - 1.0) < 1e-12)) abort();
+                }
             }
         terrain_free(&t);
         if (t.ncols != 0 || t.z != NULL) abort();
