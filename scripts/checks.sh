@@ -27,7 +27,7 @@ note() { summary+=("$1"); echo "checks: $1"; }
 # ---------------------------------------------------------------- tools
 need_apt=()
 command -v valgrind >/dev/null || need_apt+=(valgrind)
-command -v clang >/dev/null || need_apt+=(clang)
+command -v clang >/dev/null || need_apt+=(clang libclang-rt-dev)   # libclang-rt: libFuzzer, sanitizer runtimes
 command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64 binutils-mingw-w64-x86-64)
 [ "${JUNO_CHECKS_WINE:-1}" = 0 ] || [ -x /usr/lib/wine/wine64 ] || command -v wine64 >/dev/null || need_apt+=(wine64)
 SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
