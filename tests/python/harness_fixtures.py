@@ -194,9 +194,13 @@ def _clean_environment() -> dict[str, str]:
     for name in list(env):
         if name.startswith("JUNO_") or name in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME", "PYTEST_ADDOPTS"):
             env.pop(name)
-    venv_bin = str(Path(sys.prefix) / "bin") if sys.prefix != sys.base_prefix else None
-    parts = [p for p in env.get("PATH", "").split(os.pathsep)
-             if p and not p.startswith(str(REPO)) and p != venv_bin]
+    venvs = [REPO / ".venv"] + ([Path(sys.prefix)] if sys.prefix != sys.base_prefix else [])
+
+    def in_a_venv(entry: str) -> bool:
+        path = Path(entry).resolve()
+        return any(path == v.resolve() or v.resolve() in path.parents for v in venvs)
+
+    parts = [p for p in env.get("PATH", "").split(os.pathsep) if p and not in_a_venv(p)]
     env["PATH"] = os.pathsep.join(parts)
     env["JUNO_TIME_SCALE"] = MAIN_JOB_TIME_SCALE
     env["MPLBACKEND"] = "Agg"
