@@ -185,11 +185,15 @@ static int fail(char *err, size_t errlen, const char *name,
     return -1;
 }
 
-/* I(a) = integral_0^1 (1 - u^2)^a du = (sqrt(pi)/2) Gamma(a+1)/Gamma(a+3/2);
- * lgamma keeps it finite for large a. */
+/* I(a) = integral_0^1 (1 - u^2)^a du = (sqrt(pi)/2) Gamma(a+1)/Gamma(a+3/2).
+ * Not via lgamma: it writes the global signgam, a data race when instances
+ * initialise in parallel threads.  tgamma is exact enough and finite for
+ * a < 160; beyond, the ratio's asymptotic series (error < 1e-9). */
 static double parabola_integral(double a)
 {
-    return 0.5 * sqrt(M_PI) * exp(lgamma(a + 1.0) - lgamma(a + 1.5));
+    if (a < 160.0) return 0.5 * sqrt(M_PI) * tgamma(a + 1.0) / tgamma(a + 1.5);
+    const double x = a + 1.0;   /* Gamma(x)/Gamma(x+1/2) ~ x^-1/2 (1 + 1/(8x) + 1/(128x^2)) */
+    return 0.5 * sqrt(M_PI) / sqrt(x) * (1.0 + 1.0 / (8.0 * x) + 1.0 / (128.0 * x * x));
 }
 
 /* Number of sinkages in the Eqn 3 fit. */

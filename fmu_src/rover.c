@@ -209,7 +209,7 @@ static double rut_depth_at(const State *s, int side, double pos)
     const double u = pos / RUT_SPACING;
     const long i = (long)floor(u);
     const double f = u - (double)i;
-    return (1 - f) * s->rut[side][i % RUT_SAMPLES] + f * s->rut[side][(i + 1) % RUT_SAMPLES];
+    return (1 - f) * s->rut[side][i % RUT_SAMPLES] + f * s->rut[side][(i + 1) % RUT_SAMPLES];  /* i >= 0 here */
 }
 
 /* ---------------------------------------------------------- drive */
@@ -624,7 +624,8 @@ static int substep(Model *m, double h, char *err, size_t errlen)
             const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
             s->path[side] += v * h;
             const long to = (long)floor(s->path[side] / RUT_SPACING);
-            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i) s->rut[side][i % RUT_SAMPLES] = depth;
+            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i)
+                s->rut[side][((i % RUT_SAMPLES) + RUT_SAMPLES) % RUT_SAMPLES] = depth;
         }
     }
     s->time += h;

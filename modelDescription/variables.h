@@ -27,31 +27,31 @@
 
 #define JUNO_VARIABLES \
     /* ---- soil: the four identified parameters (paper Table 2) ---- */ \
-    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, NOLIM, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
-    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, NOLIM, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
+    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, 1e12, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
+    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, 5, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
     REAL(102, "soil.gamma",     PARAM, "1",      0.0813, 0, 1,     p.soil_gamma,    "Soil rebound as a fraction of the maximum sinkage") \
-    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  0, NOLIM, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5") \
-    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    0, NOLIM, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (assumption: isotropic = 1)") \
-    REAL(105, "soil.cohesion",  PARAM, "Pa",     1000.0, 0, NOLIM, p.soil_cohesion, "Mohr-Coulomb cohesion C (assumed: dry sand)") \
+    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  0, 100, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5") \
+    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    0, 100, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (assumption: isotropic = 1)") \
+    REAL(105, "soil.cohesion",  PARAM, "Pa",     1000.0, 0, 1e7, p.soil_cohesion, "Mohr-Coulomb cohesion C (assumed: dry sand)") \
     REAL(106, "soil.phi",       PARAM, "rad",    0.5236, 0, 1.5707, p.soil_phi,     "Internal friction angle (assumed: 30 deg, dry sand)") \
     REAL(110, "soil.A1",        CALC,  "1",      0.6667, -NOLIM, NOLIM, d.contact.A1,   "Eqn 3 exponent factor, fitted at initialisation") \
     REAL(111, "soil.Vint",      CALC,  "m3",     1e-3,   -NOLIM, NOLIM, d.contact.Vint, "Eqn 3 reference volume, fitted at initialisation") \
     /* ---- wheel ---- */ \
-    REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0, NOLIM, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
-    REAL(121, "wheel.width",    PARAM, "m",      0.254,  0, NOLIM, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8)") \
-    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, NOLIM, p.wheel_mass,    "Mass of one wheel") \
-    REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   0, NOLIM, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
+    REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0, 5, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
+    REAL(121, "wheel.width",    PARAM, "m",      0.254,  0, 5, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8)") \
+    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, 1e4, p.wheel_mass,    "Mass of one wheel") \
+    REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   0, 1e4, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
     /* ---- rover ---- */ \
-    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, NOLIM, p.rover_mass,        "Total mass including wheels") \
-    REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0, NOLIM, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
-    REAL(132, "rover.track",       PARAM, "m",  1.35,  0, NOLIM, p.rover_track,       "Distance between left and right wheel centres (assumed)") \
-    REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, NOLIM, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \
-    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, NOLIM, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
-    REAL(135, "rover.cgHeight",    PARAM, "m",  0.25,  -NOLIM, NOLIM, p.rover_cgHeight, "Chassis centre of gravity above the axle line (assumed)") \
-    REAL(136, "rover.hitchX",      PARAM, "m",  -0.69, -NOLIM, NOLIM, p.rover_hitchX,  "Drawbar hitch, longitudinal position in the chassis frame (rear)") \
-    REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -NOLIM, NOLIM, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
+    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, 1e5, p.rover_mass,        "Total mass including wheels") \
+    REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0, 20, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
+    REAL(132, "rover.track",       PARAM, "m",  1.35,  0, 20, p.rover_track,       "Distance between left and right wheel centres (assumed)") \
+    REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, 10, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \
+    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, 1e4, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
+    REAL(135, "rover.cgHeight",    PARAM, "m",  0.25,  -10, 10, p.rover_cgHeight, "Chassis centre of gravity above the axle line (assumed)") \
+    REAL(136, "rover.hitchX",      PARAM, "m",  -0.69, -10, 10, p.rover_hitchX,  "Drawbar hitch, longitudinal position in the chassis frame (rear)") \
+    REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -10, 10, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
     REAL(138, "rover.rockerDamping", PARAM, "N.m.s/rad", 20.0, 0, NOLIM, p.rover_rockerDamping, "Viscous friction of the rocker differential (assumed)") \
-    REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0, NOLIM, p.env_gravity,     "Gravitational acceleration") \
+    REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0, 100, p.env_gravity,     "Gravitational acceleration") \
     /* ---- terrain ---- */ \
     STR(140, "terrain.file",       PARAM, "", terrain_file, "ESRI ASCII elevation grid (.asc); empty = flat ground at z = 0") \
     /* ---- drive ---- */ \
@@ -73,7 +73,7 @@
     /* ---- numerics ---- */ \
     INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
     REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 0, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor: below this speed the shear law is viscous") \
-    REAL(182, "solver.step",       PARAM, "s",   1e-3, 0, 0.1, p.solver_step, "Largest internal integration step") \
+    REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Largest internal integration step") \
     /* ---- model extensions (model-notes section 7); each is off at its default ---- */ \
     REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \
     REAL(191, "soilPatch.y",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_y,      "Soil patch centre, world y") \
@@ -85,9 +85,9 @@
     REAL(197, "slipSinkage.coefficient", PARAM, "1", 0.0, 0, 50, p.slipSinkage_coefficient, "Slip-sinkage: k_h / (1 + c |slip|) (0 = off)") \
     REAL(198, "grouser.thrustGain", PARAM, "1", 0.0, 0, 5, p.grouser_thrustGain, "Grouser/lug thrust beyond Mohr-Coulomb: F_taumax (1 + g) (0 = off)") \
     REAL(199, "drive.lossFraction", PARAM, "1", 0.0, 0, 0.9, p.drive_lossFraction, "Fraction of the drive torque (motor side, as measured from the current) lost in gears and chain") \
-    REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
-    REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
-    REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this") \
+    REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
+    REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
+    REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this") \
     REAL(188, "terrain.offsetYaw", PARAM, "rad", 0.0, -3.15, 3.15,   p.terrain_offsetYaw, "Registration: the terrain grid is rotated by this about z (about the world origin)") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
