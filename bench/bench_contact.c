@@ -1,0 +1,377 @@
+/*
+ * Benchmark (issue 6): nanoseconds per contact evaluation of
+ *   - the volumetric model, closed form (contact_patch with
+ *     CONTACT_CLOSED_FORM, then contact_shear with its Jacobian, as one
+ *     substep of the FMU calls them),
+ *   - the volumetric model, quadrature (CONTACT_QUADRATURE, same calls),
+ *   - the Wong-Reece/Ishigami model with 100 integration points
+ *     (wong_reece_forces),
+ * at the same wheel load, 779 N (317.7 kg * 9.81 / 4).  Each model's
+ * sinkage for that load is found first and printed, with whether the
+ * sinkages match within 5 %.  The wheel rolls steadily (the rear half cut
+ * by (1 - gamma) z, i.e. Wong-Reece lambda = gamma) at zero slip.
+ *
+ * The Wong-Reece soil: the published sets (dry sand, Toyoura sand) at
+ * lambda = gamma and 0 give other sinkages than the volumetric model at
+ * 779 N (their soils are not the paper's), so the comparison "at matching
+ * sinkage" uses dry sand with its Bekker moduli kc, kphi scaled by one
+ * factor chosen so that its sinkage equals the closed form's; the
+ * published sets are timed too.
+ *
+ * Timing: every evaluation gets a different sinkage (+-1 % around the
+ * matched one) and slip (0..0.3) from a table, results go to a volatile
+ * sink; a batch of calls is sized to take --min-time seconds, and the
+ * figure is the median (and minimum) over --repeats batches.
+ * Figures are printed, never asserted.  Not a test.
+ *
+ * usage: bench_contact [--repeats N] [--min-time S] [--json FILE]
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "contact.h"
+#include "model.h"
+#include "wong_reece.h"
+
+#define LOAD 779.0
+#define TABLE 256
+#define MAX_REPEATS 1000
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Wall and CPU time of every timed batch, for the CPU share (< 1: the
+ * machine was busy and the wall-clock figures are inflated). */
+static double total_wall, total_cpu;
+
+/* Peak resident memory of this program (kB): VmHWM of /proc/self/status, which
+ * belongs to the address space made by exec (getrusage's maxrss can include the
+ * parent's memory at fork time); -1 if unknown. */
+static long peak_rss_kb(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    long kb = -1;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "VmHWM:", 6)) kb = strtol(line + 6, NULL, 10);
+    fclose(f);
+    return kb;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static volatile double sink;
+
+/* ------------------------------------------------------------ the models */
+
+/* The FMU's contact model at its default parameters (modelDescription/variables.h). */
+static int volumetric_model(ContactModel *cm, int method)
+{
+    static Model m;   /* large; zero-initialised */
+    model_set_defaults(&m);
+    memset(cm, 0, sizeof *cm);
+    cm->kh = m.p.soil_kh;
+    cm->eta = m.p.soil_eta;
+    cm->gamma = m.p.soil_gamma;
+    cm->Kvx = m.p.soil_Kvx;
+    cm->Kvy_ratio = m.p.soil_KvyRatio;
+    cm->cohesion = m.p.soil_cohesion;
+    cm->phi = m.p.soil_phi;
+    cm->radius = m.p.wheel_radius;
+    cm->width = m.p.wheel_width;
+    cm->slip_v_eps = m.p.contact_slipVelocityEps;
+    cm->method = method;
+    char err[256];
+    if (contact_model_prepare(cm, err, sizeof err) != 0) {
+        fprintf(stderr, "bench_contact: %s\n", err);
+        return -1;
+    }
+    return 0;
+}
+
+/* Vertical load carried by the rolling wheel at sinkage s and zero slip:
+ * rear half cut by (1 - gamma) s, normal force tilted by alpha. */
+static double volumetric_load(const ContactModel *cm, double s)
+{
+    ContactPatch p;
+    contact_patch(cm, s, 0.0, (1.0 - cm->gamma) * s, &p);
+    return p.Fn * cos(p.alpha);
+}
+
+/* Sinkage carrying `load` (bisection; the load rises with sinkage). */
+static double volumetric_sinkage(const ContactModel *cm, double load)
+{
+    double lo = 0.0, hi = cm->radius;
+    for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (volumetric_load(cm, mid) < load) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/* Wong-Reece model of a published set scaled by `modulus` (kc, kphi), lambda, 100 points. */
+static int wr_model(WongReeceModel *wm, int toyoura, double lambda, double modulus,
+                    double radius, double width)
+{
+    *wm = toyoura ? wong_reece_toyoura_sand(radius, width) : wong_reece_dry_sand(radius, width);
+    wm->lambda = lambda;
+    wm->kc *= modulus;
+    wm->kphi *= modulus;
+    wm->points = WONG_REECE_DEFAULT_POINTS;
+    char err[256];
+    if (wong_reece_prepare(wm, err, sizeof err) != 0) {
+        fprintf(stderr, "bench_contact: %s\n", err);
+        return -1;
+    }
+    return 0;
+}
+
+/* Modulus factor that makes dry sand (lambda) sink `target` at LOAD, zero slip
+ * (bisection in log: a stiffer soil sinks less). */
+static double wr_matching_modulus(double lambda, double target, double radius, double width)
+{
+    double lo = log(1e-3), hi = log(1e3);
+    for (int it = 0; it < 100; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        WongReeceModel wm;
+        if (wr_model(&wm, 0, lambda, exp(mid), radius, width) != 0) return NAN;
+        if (wong_reece_sinkage_for_load(&wm, LOAD, 0.0) > target) lo = mid;
+        else hi = mid;
+    }
+    return exp(0.5 * (lo + hi));
+}
+
+/* ------------------------------------------------------------ timing */
+
+typedef struct {
+    const ContactModel *cm;
+    const WongReeceModel *wm;
+    double sinkage[TABLE], slip[TABLE];
+} Workload;
+
+static void run_volumetric(const Workload *w, long n)
+{
+    const ContactModel *cm = w->cm;
+    const double v = 0.15;                   /* hub speed, m/s */
+    double acc = 0.0;
+    for (long i = 0; i < n; ++i) {
+        const int k = (int)(i & (TABLE - 1));
+        const double s = w->sinkage[k];
+        ContactPatch p;
+        contact_patch(cm, s, 0.0, (1.0 - cm->gamma) * s, &p);
+        double F_long, F_lat, jac[6];
+        /* omega R such that the slip is w->slip[k]; a little lateral slip */
+        contact_shear(cm, p.Fn, p.area, v, 0.002, v / (1.0 - w->slip[k]), &F_long, &F_lat, jac);
+        acc += p.Fn * cos(p.alpha) + F_long + jac[0];
+    }
+    sink = acc;
+}
+
+static void run_wong_reece(const Workload *w, long n)
+{
+    double acc = 0.0;
+    for (long i = 0; i < n; ++i) {
+        const int k = (int)(i & (TABLE - 1));
+        WRForces f;
+        wong_reece_forces(w->wm, w->sinkage[k], w->slip[k], &f);
+        acc += f.Fz + f.Fx + f.T;
+    }
+    sink = acc;
+}
+
+typedef void (*Runner)(const Workload *, long);
+
+typedef struct {
+    double median_ns, min_ns;
+    long calls_per_batch;
+} Timing;
+
+static Timing time_it(Runner run, const Workload *w, int repeats, double min_time)
+{
+    long n = 16;
+    for (;;) {                                /* calibrate: a batch takes >= min_time */
+        const double t0 = now();
+        run(w, n);
+        const double dt = now() - t0;
+        if (dt >= min_time || n > (1L << 40)) break;
+        n = dt > 0 ? (long)(n * fmin(100.0, 1.2 * min_time / dt)) + 1 : n * 100;
+    }
+    double ns[MAX_REPEATS];
+    for (int r = 0; r < repeats; ++r) {
+        const double t0 = now(), c0 = cpu_now();
+        run(w, n);
+        const double wall = now() - t0;
+        total_wall += wall;
+        total_cpu += cpu_now() - c0;
+        ns[r] = wall / (double)n * 1e9;
+    }
+    Timing t;
+    t.calls_per_batch = n;
+    double lowest = ns[0];
+    for (int r = 1; r < repeats; ++r) lowest = fmin(lowest, ns[r]);
+    t.min_ns = lowest;
+    t.median_ns = median(ns, repeats);
+    return t;
+}
+
+static void fill_table(Workload *w, double sinkage)
+{
+    for (int k = 0; k < TABLE; ++k) {
+        /* deterministic scatter: +-1 % sinkage, slip 0..0.3 */
+        const double a = (double)((k * 37) % TABLE) / (TABLE - 1), b = (double)((k * 101) % TABLE) / (TABLE - 1);
+        w->sinkage[k] = sinkage * (0.99 + 0.02 * a);
+        w->slip[k] = 0.3 * b;
+    }
+}
+
+/* ------------------------------------------------------------ main */
+
+int main(int argc, char **argv)
+{
+    int repeats = 7;
+    double min_time = 0.05;
+    const char *json = NULL;
+    for (int i = 1; i < argc; ++i) {
+        if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--min-time") && i + 1 < argc) min_time = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
+        else {
+            fprintf(stderr, "usage: %s [--repeats N (>= 1, default 7)] [--min-time S (default 0.05)] [--json FILE]\n",
+                    argv[0]);
+            return 2;
+        }
+    }
+    if (repeats < 1 || repeats > MAX_REPEATS || !(min_time > 0)) {
+        fprintf(stderr, "bench_contact: --repeats must be 1..%d and --min-time > 0\n", MAX_REPEATS);
+        return 2;
+    }
+
+    ContactModel closed, quad;
+    if (volumetric_model(&closed, CONTACT_CLOSED_FORM) != 0 || volumetric_model(&quad, CONTACT_QUADRATURE) != 0)
+        return 1;
+    const double R = closed.radius, b = closed.width, gamma = closed.gamma;
+
+    /* 1. Sinkage of every model at 779 N. */
+    const double s_closed = volumetric_sinkage(&closed, LOAD);
+    const double s_quad = volumetric_sinkage(&quad, LOAD);
+    typedef struct {
+        const char *name;
+        int toyoura;
+        double lambda, modulus, sinkage;
+        WongReeceModel wm;
+    } WrCase;
+    static const char *const wr_names[5] = {
+        "Wong-Reece, dry sand, Bekker moduli scaled to match", "Wong-Reece, dry sand (published)",
+        "Wong-Reece, dry sand (published), lambda 0", "Wong-Reece, Toyoura sand (published)",
+        "Wong-Reece, Toyoura sand (published), lambda 0"};
+    WrCase wr[5];
+    memset(wr, 0, sizeof wr);
+    for (int i = 0; i < 5; ++i) {
+        wr[i].name = wr_names[i];
+        wr[i].toyoura = i >= 3;
+        wr[i].modulus = 1.0;
+    }
+    wr[0].lambda = wr[1].lambda = wr[3].lambda = gamma;
+    wr[0].modulus = wr_matching_modulus(gamma, s_closed, R, b);
+    for (int i = 0; i < 5; ++i) {
+        if (wr_model(&wr[i].wm, wr[i].toyoura, wr[i].lambda, wr[i].modulus, R, b) != 0) return 1;
+        wr[i].sinkage = wong_reece_sinkage_for_load(&wr[i].wm, LOAD, 0.0);
+    }
+
+    printf("contact evaluations at %.0f N (wheel R = %.4f m, b = %.3f m; rolling: rear half rebounded, "
+           "gamma = lambda = %.4f; zero slip)\n", LOAD, R, b, gamma);
+    printf("  sinkage for the load:\n");
+    printf("    %-56s %7.2f mm\n", "volumetric, closed form (Eqn 3)", s_closed * 1e3);
+    printf("    %-56s %7.2f mm  (%+.1f %% vs closed form)\n", "volumetric, quadrature", s_quad * 1e3,
+           100 * (s_quad / s_closed - 1));
+    for (int i = 0; i < 5; ++i) {
+        char label[128];
+        if (i == 0) snprintf(label, sizeof label, "%s (x %.3f)", wr[i].name, wr[i].modulus);
+        else snprintf(label, sizeof label, "%s", wr[i].name);
+        const double rel = wr[i].sinkage / s_closed - 1;
+        printf("    %-56s %7.2f mm  (%+.1f %% vs closed form: %s)\n", label, wr[i].sinkage * 1e3, 100 * rel,
+               fabs(rel) <= 0.05 ? "match within 5 %" : "NO match within 5 %");
+    }
+
+    /* 2. Timing. */
+    static Workload w_closed, w_quad, w_wr[5];
+    w_closed.cm = &closed;
+    w_quad.cm = &quad;
+    fill_table(&w_closed, s_closed);
+    fill_table(&w_quad, s_quad);
+    for (int i = 0; i < 5; ++i) {
+        w_wr[i].wm = &wr[i].wm;
+        fill_table(&w_wr[i], wr[i].sinkage);
+    }
+    const Timing t_closed = time_it(run_volumetric, &w_closed, repeats, min_time);
+    const Timing t_quad = time_it(run_volumetric, &w_quad, repeats, min_time);
+    Timing t_wr[5];
+    for (int i = 0; i < 5; ++i) t_wr[i] = time_it(run_wong_reece, &w_wr[i], repeats, min_time);
+
+    printf("  ns per evaluation (wall clock, median of %d batches of >= %.2f s; minimum; CPU share %.0f %%):\n",
+           repeats, min_time, 100 * total_cpu / total_wall);
+    printf("    %-56s %9.1f ns  (min %.1f)\n", "volumetric, closed form: contact_patch + contact_shear",
+           t_closed.median_ns, t_closed.min_ns);
+    printf("    %-56s %9.1f ns  (min %.1f)  %.1fx the closed form\n", "volumetric, quadrature (64-point Gauss)",
+           t_quad.median_ns, t_quad.min_ns, t_quad.median_ns / t_closed.median_ns);
+    for (int i = 0; i < 5; ++i)
+        printf("    %-56s %9.1f ns  (min %.1f)  %.1fx the closed form\n", wr[i].name, t_wr[i].median_ns,
+               t_wr[i].min_ns, t_wr[i].median_ns / t_closed.median_ns);
+    const double speedup = t_wr[0].median_ns / t_closed.median_ns;
+    const double mismatch = wr[0].sinkage / s_closed - 1;
+    printf("  closed form vs Wong-Reece (100 points) at matching sinkage (%+.2f %%): %.1fx faster "
+           "(target >= 30x: %s)\n", 100 * mismatch, speedup, speedup >= 30 && fabs(mismatch) <= 0.05 ? "met" : "MISSED");
+
+    if (json) {
+        FILE *f = fopen(json, "w");
+        if (!f) {
+            perror(json);
+            return 1;
+        }
+        fprintf(f, "{\n  \"load_N\": %.17g, \"repeats\": %d, \"min_time_s\": %.17g,\n", LOAD, repeats, min_time);
+        fprintf(f, "  \"gamma\": %.17g, \"cpu_share\": %.17g, \"peak_rss_kb\": %ld,\n", gamma,
+                total_cpu / total_wall, peak_rss_kb());
+        fprintf(f, "  \"models\": [\n");
+        fprintf(f, "    {\"name\": \"volumetric, closed form\", \"key\": \"closed_form\", \"sinkage_m\": %.17g, "
+                   "\"ns_median\": %.17g, \"ns_min\": %.17g},\n", s_closed, t_closed.median_ns, t_closed.min_ns);
+        fprintf(f, "    {\"name\": \"volumetric, quadrature\", \"key\": \"quadrature\", \"sinkage_m\": %.17g, "
+                   "\"ns_median\": %.17g, \"ns_min\": %.17g}", s_quad, t_quad.median_ns, t_quad.min_ns);
+        static const char *const keys[5] = {"wr_matched", "wr_dry", "wr_dry_lambda0", "wr_toyoura",
+                                            "wr_toyoura_lambda0"};
+        for (int i = 0; i < 5; ++i)
+            fprintf(f, ",\n    {\"name\": \"%s\", \"key\": \"%s\", \"lambda\": %.17g, \"modulus_factor\": %.17g, "
+                       "\"sinkage_m\": %.17g, \"ns_median\": %.17g, \"ns_min\": %.17g}",
+                    wr[i].name, keys[i], wr[i].lambda, wr[i].modulus, wr[i].sinkage, t_wr[i].median_ns,
+                    t_wr[i].min_ns);
+        fprintf(f, "\n  ],\n  \"speedup_matched\": %.17g, \"sinkage_mismatch_matched\": %.17g\n}\n", speedup,
+                mismatch);
+        fclose(f);
+    }
+    return 0;
+}

@@ -1,0 +1,408 @@
+/*
+ * Benchmark (issue 6): real-time factor (simulated time / wall time) of the
+ * JunoRover model called from C, two ways:
+ *   direct - model_set_defaults, model_initialize, model_do_step (the
+ *            juno_model library, no FMI layer);
+ *   fmi    - the staged FMU's shared library (build/fmu/binaries/...) opened
+ *            with dlopen as an importer does: fmi2Instantiate, parameters,
+ *            initialisation, then fmi2DoStep and fmi2GetReal of every Real
+ *            output after each step (what fmpy's loop does), fmi2Terminate,
+ *            fmi2FreeInstance;
+ * on two runs at the default parameters (drive.mode 2, solver.step 1 ms,
+ * communication step 10 ms, the default experiment's):
+ *   drawbar - 30 s on flat ground, default inputs (400 N drawbar, 45 % throttle);
+ *   terrain - 60 s on a synthetic mound grid (--terrain FILE, else one this
+ *            program writes: a 0.5 m Gaussian mound at (4, 0.35) m with 4 mm
+ *            undulations, 2 cm cells over x -1..9 m, y -2.3..2.3 m, like
+ *            juno.synthesize.truth_grid), from (0.8, 0), 45 % throttle, no
+ *            drawbar; the rover may leave the grid (heights are clamped).
+ * Each run is timed whole (instantiation, terrain reading, static
+ * equilibrium, every step) and its stepping alone; the figure is the median
+ * over --repeats runs.  Printed, never asserted.  Not a test.
+ *
+ * usage: bench_fmu [--fmu-dir DIR] [--terrain FILE] [--repeats N]
+ *                  [--solver-step S] [--only direct|fmi] [--json FILE]
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "fmu_loader.h"
+#include "model.h"
+
+#define MAX_REPEATS 100
+#define MAX_OUT 128
+#define COMM_STEP 0.01
+
+/* Value references from modelDescription/variables.h (the fmi path looks them up by name). */
+enum { VR_DRAWBAR = 200, VR_THROTTLE_L = 205, VR_THROTTLE_R = 206 };
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Peak resident memory of this program (kB): VmHWM of /proc/self/status, which
+ * belongs to the address space made by exec (getrusage's maxrss can include the
+ * parent's memory at fork time); -1 if unknown. */
+static long peak_rss_kb(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    long kb = -1;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "VmHWM:", 6)) kb = strtol(line + 6, NULL, 10);
+    fclose(f);
+    return kb;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(const double *v, int n)
+{
+    double s[MAX_REPEATS];
+    memcpy(s, v, (size_t)n * sizeof *v);
+    qsort(s, (size_t)n, sizeof *s, cmp_double);
+    return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+}
+
+typedef struct {
+    const char *name;
+    double duration;        /* s */
+    const char *terrain;    /* NULL: flat */
+    double init_x, drawbar, throttle;
+} Scenario;
+
+typedef struct {
+    double total, stepping;           /* wall s */
+    double cpu;                       /* CPU s of the whole run */
+    double x, y, z;                   /* final position */
+    int ok;
+    char error[1024];
+} RunResult;
+
+static double solver_step = 0.0;      /* 0: the FMU's default */
+
+/* ------------------------------------------------------------ direct */
+
+static RunResult run_direct(const Scenario *sc)
+{
+    RunResult r;
+    memset(&r, 0, sizeof r);
+    const double t0 = now(), c0 = cpu_now();
+    Model *m = (Model *)calloc(1, sizeof *m);
+    if (!m) return snprintf(r.error, sizeof r.error, "out of memory"), r;
+    model_set_defaults(m);
+    terrain_init_flat(&m->terrain);
+    if (solver_step > 0) m->p.solver_step = solver_step;
+    m->p.init_x = sc->init_x;
+    m->in.drawbarForce = sc->drawbar;
+    m->in.throttleLeft = m->in.throttleRight = sc->throttle;
+    if (sc->terrain) {
+        m->terrain_file = (char *)malloc(strlen(sc->terrain) + 1);
+        if (m->terrain_file) strcpy(m->terrain_file, sc->terrain);
+    }
+    char err[512];
+    if (model_initialize(m, err, sizeof err) != 0) {
+        snprintf(r.error, sizeof r.error, "model_initialize: %s", err);
+    } else {
+        const int n = (int)lround(sc->duration / COMM_STEP);
+        const double t1 = now();
+        int k = 0;
+        for (; k < n; ++k)
+            if (model_do_step(m, COMM_STEP, err, sizeof err) != 0) break;
+        r.stepping = now() - t1;
+        if (k < n) snprintf(r.error, sizeof r.error, "model_do_step at t = %.2f s: %s", k * COMM_STEP, err);
+        else r.ok = 1;
+        r.x = m->out.x;
+        r.y = m->out.y;
+        r.z = m->out.z;
+    }
+    model_free(m);
+    free(m->terrain_file);
+    free(m);
+    r.total = now() - t0;
+    r.cpu = cpu_now() - c0;
+    return r;
+}
+
+/* ------------------------------------------------------------ fmi */
+
+static Fmu F;
+static int fmu_loaded = 0;
+static unsigned out_vrs[MAX_OUT];
+static size_t n_out;
+static unsigned vr_x, vr_y, vr_z, vr_terrain, vr_init_x, vr_solver_step;
+
+typedef struct {
+    char last[512];
+} Env;
+
+static void fmi_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                       fmi2String message, ...)
+{
+    (void)instance;
+    (void)category;
+    Env *e = (Env *)env;
+    if (!e || status < fmi2Error) return;
+    va_list ap;
+    va_start(ap, message);
+    vsnprintf(e->last, sizeof e->last, message, ap);
+    va_end(ap);
+}
+
+static RunResult run_fmi(const Scenario *sc)
+{
+    RunResult r;
+    memset(&r, 0, sizeof r);
+    const Fmi *fmi = &F.fmi;
+    Env env;
+    memset(&env, 0, sizeof env);
+    const fmi2CallbackFunctions cb = {fmi_logger, calloc, free, NULL, &env};
+    double out[MAX_OUT];
+    const double t0 = now(), c0 = cpu_now();
+    fmi2Component c = fmi->Instantiate("bench", fmi2CoSimulation, F.guid, NULL, &cb, fmi2False, fmi2False);
+    if (!c) return snprintf(r.error, sizeof r.error, "fmi2Instantiate failed: %s", env.last), r;
+    const unsigned in_vrs[3] = {VR_DRAWBAR, VR_THROTTLE_L, VR_THROTTLE_R};
+    const fmi2Real in[3] = {sc->drawbar, sc->throttle, sc->throttle};
+    int ok = fmi->SetupExperiment(c, fmi2False, 0, 0.0, fmi2True, sc->duration) == fmi2OK &&
+             fmi->EnterInitializationMode(c) == fmi2OK && fmi->SetReal(c, &vr_init_x, 1, &sc->init_x) == fmi2OK &&
+             fmi->SetReal(c, in_vrs, 3, in) == fmi2OK;
+    if (ok && solver_step > 0) ok = fmi->SetReal(c, &vr_solver_step, 1, &solver_step) == fmi2OK;
+    if (ok && sc->terrain) {
+        const fmi2String file = sc->terrain;
+        ok = fmi->SetString(c, &vr_terrain, 1, &file) == fmi2OK;
+    }
+    ok = ok && fmi->ExitInitializationMode(c) == fmi2OK;
+    if (!ok) {
+        snprintf(r.error, sizeof r.error, "set-up: %s", env.last);
+    } else {
+        const int n = (int)lround(sc->duration / COMM_STEP);
+        const double t1 = now();
+        int k = 0;
+        for (; k < n; ++k) {
+            if (fmi->DoStep(c, k * COMM_STEP, COMM_STEP, fmi2True) != fmi2OK) break;
+            if (fmi->GetReal(c, out_vrs, n_out, out) != fmi2OK) break;
+        }
+        r.stepping = now() - t1;
+        if (k < n) snprintf(r.error, sizeof r.error, "fmi2DoStep at t = %.2f s: %s", k * COMM_STEP, env.last);
+        else r.ok = 1;
+        const unsigned pos_vrs[3] = {vr_x, vr_y, vr_z};
+        double pos[3] = {NAN, NAN, NAN};
+        fmi->GetReal(c, pos_vrs, 3, pos);
+        r.x = pos[0];
+        r.y = pos[1];
+        r.z = pos[2];
+        fmi->Terminate(c);
+    }
+    fmi->FreeInstance(c);
+    r.total = now() - t0;
+    r.cpu = cpu_now() - c0;
+    return r;
+}
+
+/* ------------------------------------------------------------ terrain */
+
+/* The synthetic mound grid (see the header); returns 0 or -1. */
+static int write_mound_grid(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    const double cell = 0.02, x0 = -1.0, y0 = -2.3;
+    const int ncols = 501, nrows = 231;
+    static const double k[4][3] = {{1.3, 2.1, 0.4}, {2.7, 1.2, 2.2}, {1.9, 2.8, 4.1}, {1.1, 1.6, 5.3}};
+    fprintf(f, "ncols %d\nnrows %d\nxllcenter %.17g\nyllcenter %.17g\ncellsize %.17g\nNODATA_value -9999\n", ncols,
+            nrows, x0, y0, cell);
+    for (int row = nrows - 1; row >= 0; --row) {          /* north to south */
+        const double y = y0 + row * cell;
+        for (int col = 0; col < ncols; ++col) {
+            const double x = x0 + col * cell;
+            double z = 0.5 * exp(-((x - 4.0) * (x - 4.0) / (2 * 0.81) + (y - 0.35) * (y - 0.35) / (2 * 0.49)));
+            for (int i = 0; i < 4; ++i) z += 0.004 * sin(k[i][0] * x + k[i][1] * y + k[i][2]);
+            fprintf(f, col ? " %.6f" : "%.6f", z);
+        }
+        fputc('\n', f);
+    }
+    return fclose(f) == 0 ? 0 : -1;
+}
+
+/* ------------------------------------------------------------ main */
+
+typedef struct {
+    double total[MAX_REPEATS], stepping[MAX_REPEATS], cpu, wall;
+    RunResult last;
+    int n;
+} Series;
+
+int main(int argc, char **argv)
+{
+    const char *fmu_dir = NULL, *terrain = NULL, *json = NULL, *only = NULL;
+    int repeats = 5;
+    for (int i = 1; i < argc; ++i) {
+        if (!strcmp(argv[i], "--fmu-dir") && i + 1 < argc) fmu_dir = argv[++i];
+        else if (!strcmp(argv[i], "--terrain") && i + 1 < argc) terrain = argv[++i];
+        else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--solver-step") && i + 1 < argc) solver_step = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
+        else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
+        else {
+            fprintf(stderr,
+                    "usage: %s [--fmu-dir DIR (default: build/fmu beside this program)] [--terrain FILE.asc] "
+                    "[--repeats N (default 5)] [--solver-step S] [--only direct|fmi] [--json FILE]\n",
+                    argv[0]);
+            return 2;
+        }
+    }
+    if (repeats < 1 || repeats > MAX_REPEATS) {
+        fprintf(stderr, "bench_fmu: --repeats must be 1..%d\n", MAX_REPEATS);
+        return 2;
+    }
+    if (only && strcmp(only, "direct") && strcmp(only, "fmi")) {
+        fprintf(stderr, "bench_fmu: --only takes direct or fmi\n");
+        return 2;
+    }
+    const int do_direct = !only || !strcmp(only, "direct"), do_fmi = !only || !strcmp(only, "fmi");
+
+    /* The staged FMU: --fmu-dir, else "fmu" beside this executable (build/fmu). */
+    char *dir = NULL;
+    if (fmu_dir) {
+        dir = (char *)malloc(strlen(fmu_dir) + 1);
+        if (dir) strcpy(dir, fmu_dir);
+    } else {
+        char self[4096];
+        ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+        if (len <= 0) return fprintf(stderr, "bench_fmu: give --fmu-dir\n"), 2;
+        self[len] = '\0';
+        char *slash = strrchr(self, '/');
+        if (slash) *slash = '\0';
+        dir = (char *)malloc(strlen(self) + 5);
+        if (dir) sprintf(dir, "%s/fmu", self);
+    }
+    if (!dir) return fprintf(stderr, "bench_fmu: out of memory\n"), 1;
+    if (do_fmi) {
+        if (fmu_load(&F, dir) != 0) return 1;
+        fmu_loaded = 1;
+        for (int i = 0; i < F.nvars && n_out < MAX_OUT; ++i)
+            if (F.vars[i].causality == 'o' && F.vars[i].type == 'r') out_vrs[n_out++] = F.vars[i].vr;
+        vr_x = fmu_var(&F, "x")->vr;
+        vr_y = fmu_var(&F, "y")->vr;
+        vr_z = fmu_var(&F, "z")->vr;
+        vr_terrain = fmu_var(&F, "terrain.file")->vr;
+        vr_init_x = fmu_var(&F, "init.x")->vr;
+        vr_solver_step = fmu_var(&F, "solver.step")->vr;
+    }
+
+    char tmp_grid[] = "/tmp/bench_fmu_mound_XXXXXX";
+    int own_grid = 0;
+    if (!terrain) {
+        const int fd = mkstemp(tmp_grid);
+        if (fd < 0 || close(fd) != 0 || write_mound_grid(tmp_grid) != 0) {
+            fprintf(stderr, "bench_fmu: cannot write a terrain grid to %s\n", tmp_grid);
+            return 1;
+        }
+        terrain = tmp_grid;
+        own_grid = 1;
+    }
+
+    Model probe;
+    memset(&probe, 0, sizeof probe);
+    model_set_defaults(&probe);
+    const double h_solver = solver_step > 0 ? solver_step : probe.p.solver_step;
+    const Scenario scenarios[2] = {
+        {"drawbar", 30.0, NULL, probe.p.init_x, probe.in.drawbarForce, probe.in.throttleLeft},
+        {"terrain", 60.0, terrain, 0.8, 0.0, 0.45},
+    };
+    const char *const paths[2] = {"direct", "fmi"};
+    Series series[2][2];
+    memset(series, 0, sizeof series);
+
+    printf("real-time factor from C (solver.step %g s, communication step %g s, median of %d runs)\n", h_solver,
+           COMM_STEP, repeats);
+    printf("  drawbar: 30 s, flat, drive.mode 2, drawbar %g N, throttle %g; terrain: 60 s on %s from x = 0.8 m, "
+           "throttle 0.45\n", probe.in.drawbarForce, probe.in.throttleLeft, terrain);
+    int failures = 0;
+    for (int s = 0; s < 2; ++s) {
+        for (int p = 0; p < 2; ++p) {
+            if ((p == 0 && !do_direct) || (p == 1 && !do_fmi)) continue;
+            Series *se = &series[s][p];
+            for (int r = 0; r < repeats; ++r) {
+                se->last = p == 0 ? run_direct(&scenarios[s]) : run_fmi(&scenarios[s]);
+                if (!se->last.ok) break;
+                se->total[se->n] = se->last.total;
+                se->stepping[se->n] = se->last.stepping;
+                se->cpu += se->last.cpu;
+                se->wall += se->last.total;
+                se->n++;
+            }
+            const double dur = scenarios[s].duration;
+            if (!se->last.ok) {
+                printf("  %-8s %-7s FAILED: %s\n", scenarios[s].name, paths[p], se->last.error);
+                failures++;
+                continue;
+            }
+            const double tot = median(se->total, se->n), stp = median(se->stepping, se->n);
+            printf("  %-8s %-7s %8.1fx real time whole run (%.3f s), %8.1fx stepping only; %.2f us per "
+                   "internal step; CPU share %.0f %%; final x %.2f y %.2f m\n",
+                   scenarios[s].name, paths[p], dur / tot, tot, dur / stp, stp / (dur / h_solver) * 1e6,
+                   100 * se->cpu / se->wall, se->last.x, se->last.y);
+        }
+    }
+
+    if (json) {
+        FILE *f = fopen(json, "w");
+        if (!f) {
+            perror(json);
+            return 1;
+        }
+        fprintf(f, "{\n  \"solver_step\": %.17g, \"comm_step\": %.17g, \"repeats\": %d, \"terrain\": \"%s\",\n  "
+                   "\"peak_rss_kb\": %ld,\n  \"runs\": [", h_solver, COMM_STEP, repeats,
+                own_grid ? "(generated)" : "(given)", peak_rss_kb());
+        int first = 1;
+        for (int s = 0; s < 2; ++s)
+            for (int p = 0; p < 2; ++p) {
+                const Series *se = &series[s][p];
+                if ((p == 0 && !do_direct) || (p == 1 && !do_fmi)) continue;
+                fprintf(f, "%s\n    {\"scenario\": \"%s\", \"path\": \"%s\", \"duration\": %.17g, \"ok\": %s",
+                        first ? "" : ",", scenarios[s].name, paths[p], scenarios[s].duration,
+                        se->last.ok ? "true" : "false");
+                first = 0;
+                if (se->last.ok)
+                    fprintf(f, ", \"total_s\": %.17g, \"stepping_s\": %.17g, \"final_x\": %.17g, \"final_y\": %.17g, "
+                               "\"final_z\": %.17g, \"n\": %d, \"cpu_share\": %.17g}",
+                            median(se->total, se->n), median(se->stepping, se->n), se->last.x, se->last.y,
+                            se->last.z, se->n, se->cpu / se->wall);
+                else {
+                    fputs(", \"error\": \"", f);
+                    for (const char *c = se->last.error; *c; ++c) {
+                        if (*c == '"' || *c == '\\') fputc('\\', f);
+                        fputc((unsigned char)*c < 0x20 ? ' ' : *c, f);
+                    }
+                    fputs("\"}", f);
+                }
+            }
+        fprintf(f, "\n  ]\n}\n");
+        fclose(f);
+    }
+    if (own_grid) remove(tmp_grid);
+    if (fmu_loaded) fmu_unload(&F);
+    free(dir);
+    return failures ? 1 : 0;
+}
