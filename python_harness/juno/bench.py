@@ -1,0 +1,520 @@
+"""``juno bench``: the benchmark of issue 6.  Prints figures; asserts nothing.
+
+Sections (each figure is a median of repeated runs, printed next to the
+issue's target, with the load average of the machine when it was taken and
+the CPU share of the measuring process: a share well below 100 % means other
+processes took the CPU and the wall-clock figure is inflated):
+
+* ``contact``  - ns per contact evaluation at 779 N (``bench_contact``, C):
+  volumetric closed form, volumetric quadrature, Wong-Reece with 100 points;
+  each model's sinkage for the load and whether they match within 5 %.
+* ``fmu-c``    - real-time factor of the FMU from C (``bench_fmu``): a 30 s
+  drawbar run (defaults) and a 60 s run on a synthetic mound grid, both
+  through ``model_do_step`` and through the FMI functions of the shared
+  library.
+* ``fmpy``     - the same two runs through fmpy (:meth:`JunoFMU.simulate`).
+* ``cost``     - cost-function evaluations per second: the joint fit's
+  residuals (:func:`juno.identify.run_residuals` over the three drawbar runs
+  of a synthetic campaign).
+* ``joint``    - wall time of :func:`juno.identify.identify_joint` on that
+  campaign (noise 1).
+* ``diagnose`` - wall time of :func:`juno.diagnose.diagnose` (minutes; only
+  with ``--with-diagnose``).
+
+Finally the peak resident memory (``getrusage`` maxrss) of this process and
+of its largest child.  The C programs are built on demand in the build
+directory (``cmake --build build --target fmu bench_contact bench_fmu``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import platform
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+#: The targets of issue 6.
+TARGETS = {
+    "contact_speedup": 30.0,       # closed form >= 30x faster than Wong-Reece at matching sinkage
+    "sinkage_match": 0.05,         # ... matching within 5 %
+    "rtf_c_terrain": 5000.0,       # FMU >= 5000x real time on a terrain grid from C
+    "rtf_fmpy": 1000.0,            # >= 1000x through fmpy
+    "joint_s": 10.0,               # joint identification of three drawbar runs < 10 s
+    "diagnose_s": 120.0,           # diagnose < 2 min
+}
+SECTIONS = ("contact", "fmu-c", "fmpy", "cost", "joint")
+COMM_STEP = 0.01                   # s, the default experiment's step size (as bench_fmu)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``juno bench`` (cli.py adds --json, --fmu and --quiet)."""
+    parser.description = ("Benchmark the contact laws, the FMU (from C and through fmpy) and the identification "
+                          "workflow. Prints medians of repeated runs next to the targets of issue 6; asserts "
+                          "nothing.")
+    parser.add_argument("--quick", action="store_true",
+                        help="5 repeats of the micro-benchmarks, 1 of the long ones (about a minute less)")
+    parser.add_argument("--repeats", type=int, default=None, metavar="N",
+                        help="repeats of the micro-benchmarks (contact, FMU runs, cost function); >= 5, "
+                             "default 7 (5 with --quick)")
+    parser.add_argument("--long-repeats", type=int, default=None, metavar="N",
+                        help="repeats of the joint identification, default 3 (1 with --quick)")
+    parser.add_argument("--with-diagnose", action="store_true",
+                        help="also time juno diagnose on the synthetic campaign (takes minutes; one run)")
+    parser.add_argument("--only", action="append", choices=SECTIONS, metavar="SECTION",
+                        help="run only these sections (repeatable): " + ", ".join(SECTIONS))
+    parser.add_argument("--build-dir", metavar="DIR",
+                        help="CMake build directory holding the FMU and the bench programs (default: build/ of "
+                             "this checkout)")
+    parser.add_argument("--no-build", action="store_true",
+                        help="do not run cmake --build for the bench programs (use them as they are)")
+    parser.set_defaults(func=cmd_bench)
+
+
+# ------------------------------------------------------------------ helpers
+
+def _checkout() -> Path:
+    return Path(__file__).resolve().parents[2]
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU model, cores, memory, OS, Python, and the C compiler of the build."""
+    info: dict[str, Any] = {"cpu": platform.processor() or platform.machine(), "logical_cores": os.cpu_count()}
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        models = re.findall(r"^model name\s*:\s*(.+)$", text, re.M)
+        if models:
+            info["cpu"] = models[0].strip()
+        cores = set()
+        for block in text.split("\n\n"):
+            phys = re.search(r"^physical id\s*:\s*(\d+)", block, re.M)
+            core = re.search(r"^core id\s*:\s*(\d+)", block, re.M)
+            if phys and core:
+                cores.add((phys.group(1), core.group(1)))
+        if cores:
+            info["physical_cores"] = len(cores)
+        mhz = re.findall(r"^cpu MHz\s*:\s*([\d.]+)", text, re.M)
+        if mhz:
+            info["mhz"] = float(mhz[0])
+        flags = re.search(r"^flags\s*:\s*(.+)$", text, re.M)
+        if flags:
+            info["hypervisor"] = "hypervisor" in flags.group(1).split()
+    except OSError:
+        pass
+    try:
+        mem = re.search(r"^MemTotal:\s*(\d+) kB", Path("/proc/meminfo").read_text(), re.M)
+        if mem:
+            info["memory_gb"] = int(mem.group(1)) / 1024**2
+    except OSError:
+        pass
+    info["os"] = f"{platform.system()} {platform.release()}"
+    info["python"] = platform.python_version()
+    try:
+        import fmpy
+        info["fmpy"] = fmpy.__version__
+    except Exception:
+        pass
+    return info
+
+
+def _compiler(build_dir: Path) -> str:
+    """The C compiler and build type of the CMake build directory (from its CMakeCache.txt)."""
+    cache = build_dir / "CMakeCache.txt"
+    try:
+        text = cache.read_text()
+    except OSError:
+        return "unknown"
+    cc = re.search(r"^CMAKE_C_COMPILER:\w+=(.+)$", text, re.M)
+    bt = re.search(r"^CMAKE_BUILD_TYPE:\w+=(.+)$", text, re.M)
+    name = cc.group(1).strip() if cc else "cc"
+    try:
+        version = subprocess.run([name, "--version"], capture_output=True, text=True, timeout=10).stdout.splitlines()[0]
+    except (OSError, IndexError, subprocess.SubprocessError):
+        version = name
+    # CMakeLists.txt makes Release (-O3) the default when the cache leaves the type empty
+    return f"{version}, {bt.group(1).strip() if bt else 'Release'} build"
+
+
+def loadavg() -> tuple[float, float, float]:
+    try:
+        return os.getloadavg()
+    except OSError:
+        return (float("nan"),) * 3
+
+
+def _fmt_load(load: tuple[float, float, float]) -> str:
+    return "load average {:.2f} {:.2f} {:.2f}".format(*load)
+
+
+def timed(fn: Callable[[], Any], repeats: int) -> tuple[list[float], float, Any]:
+    """Runs ``fn`` ``repeats`` times; returns the wall times (s), the CPU share of this
+    process over all runs, and the last result."""
+    walls, cpu, result = [], 0.0, None
+    for _ in range(repeats):
+        c0, t0 = time.process_time(), time.perf_counter()
+        result = fn()
+        walls.append(time.perf_counter() - t0)
+        cpu += time.process_time() - c0
+    return walls, cpu / max(sum(walls), 1e-12), result
+
+
+class Report:
+    """Collects figures and prints them as a table: figure, median, target, verdict."""
+
+    def __init__(self, say: Callable[[str], None]):
+        self.say = say
+        self.figures: list[dict[str, Any]] = []
+        self.sections: list[dict[str, Any]] = []
+
+    def section(self, title: str) -> None:
+        load = loadavg()
+        self.sections.append({"title": title, "load": load})
+        print(f"\n{title}  [{_fmt_load(load)}]", flush=True)
+
+    def figure(self, key: str, label: str, value: float, unit: str, target: str = "", met: bool | None = None,
+               note: str = "", **extra: Any) -> None:
+        verdict = "" if met is None else ("met" if met else "MISSED")
+        shown = _num(value)
+        tgt = f"{target} {verdict}".strip()
+        print(f"  {label:<50} {shown:>10} {unit:<8} {tgt:<22} {note}".rstrip(), flush=True)
+        self.figures.append({"key": key, "label": label, "value": value, "unit": unit, "target": target,
+                             "met": met, "note": note, "section": self.sections[-1]["title"] if self.sections else "",
+                             **extra})
+
+    def line(self, text: str) -> None:
+        print(f"  {text}", flush=True)
+
+
+def _num(v: float) -> str:
+    if v is None or not np.isfinite(v):
+        return "n/a"
+    a = abs(v)
+    if a >= 1000:
+        return f"{v:,.0f}"
+    if a >= 100:
+        return f"{v:.0f}"
+    if a >= 10:
+        return f"{v:.1f}"
+    return f"{v:.2f}"
+
+
+def _build(build_dir: Path, say: Callable[[str], None]) -> None:
+    cmake = shutil.which("cmake")
+    if cmake is None:
+        raise FileNotFoundError("cmake not found: build the bench programs first or give --no-build")
+    if not (build_dir / "CMakeCache.txt").is_file():
+        raise FileNotFoundError(f"{build_dir} is not a CMake build directory "
+                                f"(cmake -S . -B {build_dir} -G Ninja first, or --build-dir)")
+    say(f"building fmu, bench_contact, bench_fmu in {build_dir}")
+    proc = subprocess.run([cmake, "--build", str(build_dir), "--target", "fmu", "bench_contact", "bench_fmu"],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"building the bench programs failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
+
+
+def _run_c(cmd: list[str], say: Callable[[str], None]) -> dict[str, Any]:
+    """Runs a bench program with --json into a temporary file; returns its JSON, with the
+    program's own peak memory as ``maxrss_mb`` (its VmHWM; wait4's maxrss counts the memory
+    this Python process had when it forked the program)."""
+    with tempfile.TemporaryDirectory(prefix="juno-bench-") as tmp:
+        out, log, err = Path(tmp) / "result.json", Path(tmp) / "stdout", Path(tmp) / "stderr"
+        say("running " + " ".join(Path(c).name if i == 0 else c for i, c in enumerate(cmd)))
+        with open(log, "w") as fo, open(err, "w") as fe:
+            proc = subprocess.Popen(cmd + ["--json", str(out)], stdout=fo, stderr=fe)
+            proc.wait()
+        if not out.is_file():
+            raise RuntimeError(f"{Path(cmd[0]).name} failed (exit {proc.returncode}): "
+                               f"{err.read_text().strip()[-2000:]}")
+        data = json.loads(out.read_text())
+        data["exit_code"] = proc.returncode
+        kb = data.get("peak_rss_kb", -1)
+        data["maxrss_mb"] = kb / 1024.0 if kb and kb > 0 else float("nan")
+        data["stdout"] = log.read_text()
+        return data
+
+
+def _jsonable(obj: Any) -> Any:
+    """JSON-safe copy: tuples as lists, numpy scalars as numbers, NaN/inf as null."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    return obj
+
+
+def _children_maxrss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+
+
+def _self_maxrss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+# ------------------------------------------------------------------ sections
+
+def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) -> float:
+    rep.section("Contact evaluations at 779 N (C, bench_contact)")
+    d = _run_c([str(exe), "--repeats", str(repeats), "--min-time", str(min_time)], say)
+    m = {x["key"]: x for x in d["models"]}
+    cf, q, wr = m["closed_form"], m["quadrature"], m["wr_matched"]
+    s0 = cf["sinkage_m"]
+    rep.line(f"sinkage for 779 N (rolling, rear half rebounded, gamma = lambda = {d['gamma']:.4f}, zero slip):")
+    for x in d["models"]:
+        rel = x["sinkage_m"] / s0 - 1
+        name = x["name"] + (f" (x {x['modulus_factor']:.3f})" if x["key"] == "wr_matched" else "")
+        match = "" if x["key"] == "closed_form" else (
+            f"{rel:+.1%} vs closed form: " + ("matches within 5 %" if abs(rel) <= TARGETS["sinkage_match"]
+                                              else "does NOT match within 5 %"))
+        rep.line(f"  {name:<62} {x['sinkage_m'] * 1e3:6.2f} mm  {match}")
+    share = d.get("cpu_share", float("nan"))
+    rep.line(f"ns per evaluation: wall clock, median of {repeats} batches of >= {min_time:g} s each "
+             f"(CPU share {share:.0%}):")
+    rep.figure("contact_closed_form_ns", "volumetric closed form (patch + shear)", cf["ns_median"], "ns",
+               note=f"min {cf['ns_min']:.0f}")
+    rep.figure("contact_quadrature_ns", "volumetric quadrature (64-point Gauss)", q["ns_median"], "ns",
+               note=f"min {q['ns_min']:.0f}; {q['ns_median'] / cf['ns_median']:.1f}x the closed form")
+    for key in ("wr_matched", "wr_dry", "wr_dry_lambda0", "wr_toyoura", "wr_toyoura_lambda0"):
+        x = m[key]
+        label = "Wong-Reece 100 pts, " + x["name"].split(", ", 1)[1].replace(", Bekker moduli scaled to match",
+                                                                            " scaled to match")
+        rep.figure(f"contact_{key}_ns", label, x["ns_median"], "ns",
+                   note=f"min {x['ns_min']:.0f}; {x['ns_median'] / cf['ns_median']:.1f}x the closed form; "
+                        f"sinkage {x['sinkage_m'] / s0 - 1:+.1%}")
+    speed = wr["ns_median"] / cf["ns_median"]
+    mismatch = wr["sinkage_m"] / s0 - 1
+    rep.figure("contact_speedup", "speed-up, closed form vs Wong-Reece (matched)", speed, "x",
+               target=">= 30x", met=bool(speed >= TARGETS["contact_speedup"] and abs(mismatch) <= 0.05),
+               note=f"sinkage {mismatch:+.2%} (within 5 %: {'yes' if abs(mismatch) <= 0.05 else 'no'})")
+    published = [m[k] for k in ("wr_dry", "wr_toyoura")]
+    best = min(published, key=lambda x: abs(x["sinkage_m"] / s0 - 1))
+    rep.figure("contact_speedup_published", "speed-up vs nearest published set", best["ns_median"] / cf["ns_median"],
+               "x", note=f"{best['name'].split(', ', 1)[1]}, sinkage {best['sinkage_m'] / s0 - 1:+.1%}")
+    return d["maxrss_mb"]
+
+
+def bench_fmu_c(rep: Report, exe: Path, fmu_dir: Path, grid: Path, repeats: int, say) -> float:
+    rep.section("FMU from C (bench_fmu): real-time factor = simulated / wall time")
+    d = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(repeats)], say)
+    rep.line(f"solver.step {d['solver_step']:g} s, communication step {d['comm_step']:g} s; "
+             f"median of {repeats} runs; whole run = instantiate + initialise (terrain, equilibrium) + steps")
+    for r in d["runs"]:
+        label = f"{r['scenario']} {r['duration']:.0f} s, {'model_do_step' if r['path'] == 'direct' else 'FMI functions'}"
+        key = f"rtf_c_{r['scenario']}_{r['path']}"
+        if not r["ok"]:
+            rep.figure(key, label, float("nan"), "x", note="FAILED: " + r.get("error", ""))
+            continue
+        rtf = r["duration"] / r["total_s"]
+        target, met = ("", None)
+        if r["scenario"] == "terrain":
+            target, met = ">= 5000x", bool(rtf >= TARGETS["rtf_c_terrain"])
+        steps = r["duration"] / d["solver_step"]
+        rep.figure(key, label, rtf, "x RT", target=target, met=met,
+                   note=f"{r['total_s']:.3f} s; stepping only {r['duration'] / r['stepping_s']:.0f}x, "
+                        f"{r['stepping_s'] / steps * 1e6:.1f} us/substep; CPU {r['cpu_share']:.0%}; "
+                        f"end x {r['final_x']:.1f} m", wall_s=r["total_s"], stepping_s=r["stepping_s"])
+    return d["maxrss_mb"]
+
+
+def terrain_run(grid: Path) -> tuple[dict[str, object], Any]:
+    from .simulator import InputSignals
+    return ({"drive.mode": 2, "terrain.file": str(grid), "init.x": 0.8, "init.y": 0.0},
+            InputSignals.constant(drawbarForce=0.0, throttleLeft=0.45, throttleRight=0.45))
+
+
+def bench_fmpy(rep: Report, fmu, grid: Path, repeats: int, say) -> None:
+    from .simulator import DEFAULT_OUTPUTS
+    rep.section("FMU through fmpy (juno.simulator.JunoFMU.simulate): real-time factor")
+    rep.line(f"communication step {COMM_STEP:g} s, {len(DEFAULT_OUTPUTS)} outputs read per step; median of "
+             f"{repeats} runs; each run = reset + set-up + initialise + steps")
+    params, inputs = terrain_run(grid)
+    runs = (("drawbar", 30.0, {"drive.mode": 2}, None), ("terrain", 60.0, params, inputs))
+    for name, duration, p, u in runs:
+        say(f"fmpy: {name} run x {repeats}")
+        walls, share, res = timed(lambda: fmu.simulate(p, u, duration, COMM_STEP), repeats)
+        wall = float(np.median(walls))
+        c_fmi = next((f for f in rep.figures if f["key"] == f"rtf_c_{name}_fmi" and "wall_s" in f), None)
+        overhead = ""
+        if c_fmi is not None:
+            per_step = (wall - c_fmi["wall_s"]) / round(duration / COMM_STEP) * 1e6
+            overhead = f"; fmpy adds {per_step:.0f} us per communication step over C"
+        rep.figure(f"rtf_fmpy_{name}", f"{name} {duration:.0f} s through fmpy", duration / wall, "x RT",
+                   target=">= 1000x", met=bool(duration / wall >= TARGETS["rtf_fmpy"]),
+                   note=f"{wall:.3f} s; CPU {share:.0%}; end x {float(res['x'][-1]):.1f} m{overhead}", wall_s=wall,
+                   walls=walls)
+
+
+def _campaign(tmp: Path, fmu, say) -> tuple[Any, float]:
+    from .campaign import load_campaign
+    from .synthesize import synthesize
+    say("synthesizing a campaign (effect none, seed 0, noise 1)")
+    t0 = time.perf_counter()
+    path = synthesize(tmp / "campaign", effect="none", strength=1.0, seed=0, noise=1.0, fmu=fmu)
+    return load_campaign(path), time.perf_counter() - t0
+
+
+def bench_cost(rep: Report, fmu, campaign, repeats: int, say) -> None:
+    from .identify import PAPER_INITIAL, prepare_run, run_residuals
+    rep.section("Cost function (juno.identify.run_residuals, joint fit's residuals)")
+    runs = campaign.runs_of_kind("drawbar")
+    prepared = [prepare_run(campaign, r) for r in runs]
+    soil = dict(PAPER_INITIAL)
+    simulated = sum(p.duration for p in prepared)
+    rep.line(f"one evaluation = residuals of the {len(prepared)} drawbar runs ({simulated:.0f} s simulated at "
+             f"solver.step {prepared[0].params['solver.step']:g} s, PID following the measured spins); "
+             f"median of {repeats}")
+
+    def evaluate():
+        return np.concatenate([run_residuals(fmu, p, soil) for p in prepared])
+    say(f"cost function x {repeats}")
+    walls, share, r = timed(evaluate, repeats)
+    wall = float(np.median(walls))
+    rep.figure("cost_evals_per_s", "cost-function evaluations per second", 1.0 / wall, "1/s",
+               note=f"{wall:.3f} s each, {len(r)} residuals, {simulated / wall:.0f}x real time; CPU {share:.0%}",
+               wall_s=wall)
+    walls1, share1, _ = timed(lambda: run_residuals(fmu, prepared[0], soil), repeats)
+    w1 = float(np.median(walls1))
+    rep.figure("run_residuals_per_s", f"run_residuals per second (run {prepared[0].run_id}, "
+               f"{prepared[0].duration:.0f} s)", 1.0 / w1, "1/s", note=f"CPU {share1:.0%}", wall_s=w1)
+
+
+def bench_joint(rep: Report, fmu, campaign, repeats: int, say) -> None:
+    from .identify import identify_joint
+    rep.section("Joint identification (juno.identify.identify_joint, 3 drawbar runs, noise 1)")
+    say(f"identify_joint x {repeats}")
+    walls, share, j = timed(lambda: identify_joint(fmu, campaign, progress=say), repeats)
+    wall = float(np.median(walls))
+    truth_path = Path(campaign.root) / "truth.json"
+    err = ""
+    if truth_path.is_file():
+        truth = json.loads(truth_path.read_text())["soil"]
+        err = "; vs truth " + ", ".join(f"{k.split('.')[1]} {j.params[k] / truth[k] - 1:+.1%}" for k in truth)
+    rep.figure("joint_s", "joint identification wall time", wall, "s", target="< 10 s",
+               met=bool(wall < TARGETS["joint_s"]),
+               note=f"{j.evaluations} model evaluations ({wall / max(j.evaluations, 1):.2f} s each); "
+                    f"CPU {share:.0%}{err}", walls=walls, evaluations=j.evaluations)
+
+
+def bench_diagnose(rep: Report, fmu, campaign, say) -> float | None:
+    from .diagnose import diagnose
+    rep.section("Diagnose (juno.diagnose.diagnose, every candidate, one run)")
+    before = _children_maxrss_mb()
+    t0 = time.perf_counter()
+    result = diagnose(campaign, fmu=fmu, progress=say)
+    wall = time.perf_counter() - t0
+    rep.figure("diagnose_s", "diagnose wall time", wall, "s", target="< 2 min", met=bool(wall < TARGETS["diagnose_s"]),
+               note=f"{len(result['candidates'])} candidates on {os.cpu_count()} workers; cause "
+                    f"'{result['cause']}'")
+    after = _children_maxrss_mb()
+    return after if after > before else None
+
+
+# ------------------------------------------------------------------ command
+
+def cmd_bench(args) -> int:
+    say_start = time.perf_counter()
+
+    def say(message: str) -> None:
+        if not args.quiet:
+            print(f"[{time.perf_counter() - say_start:7.1f} s] {message}", file=sys.stderr, flush=True)
+
+    repeats = args.repeats if args.repeats is not None else (5 if args.quick else 7)
+    if repeats < 5:
+        raise ValueError("--repeats must be at least 5 (the micro-benchmarks' medians need them)")
+    long_repeats = args.long_repeats if args.long_repeats is not None else (1 if args.quick else 3)
+    if long_repeats < 1:
+        raise ValueError("--long-repeats must be at least 1")
+    sections = set(args.only or SECTIONS)
+    min_time = 0.02 if args.quick else 0.05
+
+    from .simulator import JunoFMU, default_fmu_path
+    build_dir = Path(args.build_dir) if args.build_dir else _checkout() / "build"
+    fmu_path = Path(args.fmu) if args.fmu else default_fmu_path()
+    need_c = bool(sections & {"contact", "fmu-c"})
+    if need_c and not args.no_build:
+        _build(build_dir, say)
+
+    info = machine_info()
+    info["compiler"] = _compiler(build_dir)
+    start_load = loadavg()
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    print(f"juno bench, {stamp}{' (--quick)' if args.quick else ''}")
+    cores = f"{info.get('logical_cores')} logical cores"
+    if "physical_cores" in info:
+        cores += f" ({info['physical_cores']} physical)"
+    mhz = f" at {info['mhz']:.0f} MHz" if "mhz" in info else ""
+    vm = ", virtual machine" if info.get("hypervisor") else ""
+    print(f"machine: {info['cpu']}{mhz}, {cores}, {info.get('memory_gb', float('nan')):.1f} GB{vm}; {info['os']}; "
+          f"Python {info['python']}, fmpy {info.get('fmpy', '?')}; {info['compiler']}")
+    print(f"{_fmt_load(start_load)} (1, 5, 15 min) on {info.get('logical_cores')} cores at the start; medians of "
+          f"{repeats} repeats (micro-benchmarks), {long_repeats} (joint fit)")
+
+    rep = Report(say)
+    campaign_time = None
+    with tempfile.TemporaryDirectory(prefix="juno-bench-") as tmp_name:
+        tmp = Path(tmp_name)
+        grid = tmp / "mound.asc"
+        if sections & {"fmu-c", "fmpy"}:
+            from .pointcloud import write_esri_ascii
+            from .synthesize import truth_grid
+            write_esri_ascii(grid, truth_grid(seed=0))
+        rss: dict[str, float | None] = {}
+        if "contact" in sections:
+            rss["bench_contact"] = bench_contact(rep, build_dir / "bench_contact", repeats, min_time, say)
+        if "fmu-c" in sections:
+            rss["bench_fmu"] = bench_fmu_c(rep, build_dir / "bench_fmu", build_dir / "fmu", grid, repeats, say)
+        with JunoFMU(fmu_path) as fmu:
+            if "fmpy" in sections:
+                bench_fmpy(rep, fmu, grid, repeats, say)
+            if sections & {"cost", "joint"} or args.with_diagnose:
+                campaign, campaign_time = _campaign(tmp, fmu, say)
+                if "cost" in sections:
+                    bench_cost(rep, fmu, campaign, repeats, say)
+                if "joint" in sections:
+                    bench_joint(rep, fmu, campaign, long_repeats, say)
+                if args.with_diagnose:
+                    rss["diagnose workers"] = bench_diagnose(rep, fmu, campaign, say)
+
+    rep.section("Peak memory (resident set high-water mark)")
+    rep.figure("maxrss_self_mb", "juno bench process (Python, fmpy, FMU, fits)", _self_maxrss_mb(), "MB",
+               note="getrusage maxrss")
+    for name, value in rss.items():
+        if value is None:
+            rep.figure(f"maxrss_{name.split()[0]}_mb", f"{name} (largest)", float("nan"), "MB",
+                       note="not above the build's compiler processes, which getrusage cannot tell apart")
+        else:
+            rep.figure(f"maxrss_{name.split()[0]}_mb", name + (" (largest)" if " " in name else ""), value, "MB",
+                       note="getrusage maxrss of children (forked: includes shared pages)" if " " in name
+                       else "VmHWM")
+    end_load = loadavg()
+    if campaign_time is not None:
+        rep.line(f"(synthesizing the campaign took {campaign_time:.1f} s)")
+    print(f"\n{_fmt_load(end_load)} at the end.  Figures are wall-clock medians; a CPU share well below 100 % "
+          f"or a load average above {os.cpu_count()} means other processes shared the machine.")
+    missed = [f["label"] for f in rep.figures if f["met"] is False]
+    if missed:
+        print("targets missed: " + "; ".join(missed))
+
+    if args.json:
+        from .atomic import atomic_write_text
+        payload = {"time": stamp, "machine": info, "load_start": start_load, "load_end": end_load,
+                   "repeats": repeats, "long_repeats": long_repeats, "quick": bool(args.quick),
+                   "sections": rep.sections, "figures": rep.figures, "targets": TARGETS}
+        atomic_write_text(args.json, json.dumps(_jsonable(payload), indent=2) + "\n")
+    return 0
