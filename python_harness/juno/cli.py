@@ -51,6 +51,8 @@ def _write_json(path: str | None, payload: Any) -> None:
 
 
 def _parse_params(items: Sequence[str]) -> dict[str, object]:
+    """--param NAME=VALUE pairs; numbers become int or float, other text stays text (the FMU
+    then refuses text for a numeric parameter by name)."""
     params: dict[str, object] = {}
     for item in items or ():
         if "=" not in item:
@@ -63,14 +65,19 @@ def _parse_params(items: Sequence[str]) -> dict[str, object]:
     return params
 
 
+def _require_positive(name: str, value: float | None) -> None:
+    if value is not None and not (np.isfinite(value) and value > 0):
+        raise InputError(f"{name} = {value} must be a positive number of seconds")
+
+
 # ------------------------------------------------------------ subcommands
 
 SCENARIOS = {
-    "drawbar": ("a 30 s drawbar pull test at 45 % throttle against 400 N", 30.0,
+    "drawbar": ("a 30 s drawbar pull test at 45 %% throttle against 400 N", 30.0,
                 {"drive.mode": 2}, {"drawbarForce": 400.0, "throttleLeft": 0.45, "throttleRight": 0.45}),
-    "straight": ("20 s straight run at 45 % throttle, no drawbar", 20.0,
+    "straight": ("20 s straight run at 45 %% throttle, no drawbar", 20.0,
                  {"drive.mode": 2}, {"drawbarForce": 0.0, "throttleLeft": 0.45, "throttleRight": 0.45}),
-    "turn": ("20 s skid-steer turn: 20 % left, 60 % right throttle", 20.0,
+    "turn": ("20 s skid-steer turn: 20 %% left, 60 %% right throttle", 20.0,
              {"drive.mode": 2}, {"drawbarForce": 0.0, "throttleLeft": 0.2, "throttleRight": 0.6}),
     "rest": ("10 s at rest on flat ground", 10.0,
              {"drive.mode": 0}, {"drawbarForce": 0.0, "torqueLeft": 0.0, "torqueRight": 0.0}),
@@ -81,6 +88,8 @@ def cmd_simulate(args) -> int:
     from .campaign import format_run_csv, load_campaign
     from .simulator import DEFAULT_OUTPUTS, InputSignals, JunoFMU
     say = _progress(args.quiet)
+    _require_positive("--stop-time", args.stop_time)
+    _require_positive("--output-interval", args.output_interval)
     params = _parse_params(args.param)
     with JunoFMU(args.fmu) as fmu:
         if args.campaign:
@@ -97,8 +106,8 @@ def cmd_simulate(args) -> int:
             label = f"run {run.id} of {campaign.name}"
         else:
             text, stop, scen_params, inputs = SCENARIOS[args.scenario]
-            stop = args.stop_time or stop
-            say(f"simulating scenario '{args.scenario}': {text}")
+            stop = args.stop_time if args.stop_time is not None else stop
+            say(f"simulating scenario '{args.scenario}': {text.replace('%%', '%')}")
             result = fmu.simulate({**scen_params, **params}, InputSignals.constant(**inputs), stop,
                                   args.output_interval, outputs=DEFAULT_OUTPUTS)
             label = f"scenario {args.scenario}"

@@ -153,10 +153,15 @@ class JunoFMU:
             var = self.variables.get(name)
             if var is None:
                 raise KeyError(f"the FMU has no variable '{name}'")
-            if var.type == "Real":
-                reals[var.valueReference] = float(value)
-            elif var.type == "Integer":
-                ints[var.valueReference] = int(value)
+            try:
+                if var.type == "Real":
+                    reals[var.valueReference] = float(value)
+                elif var.type == "Integer":
+                    ints[var.valueReference] = int(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"parameter '{name}' needs a number, got {value!r}") from None
+            if var.type in ("Real", "Integer"):
+                pass
             elif var.type == "String":
                 strs[var.valueReference] = str(value)
             else:
@@ -194,6 +199,8 @@ class JunoFMU:
         params = dict(parameters)
         if self.solver_step is not None and "solver.step" not in params:
             params["solver.step"] = self.solver_step
+        if not (np.isfinite(output_interval) and output_interval > 0):
+            raise ValueError(f"output_interval must be a positive number of seconds, got {output_interval}")
         n_steps = int(round((stop_time - start_time) / output_interval))
         if n_steps < 1:
             raise ValueError(f"stop_time {stop_time} must exceed start_time {start_time} by an output interval")

@@ -179,6 +179,9 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
     if effect not in EFFECTS:
         raise ValueError(f"unknown effect '{effect}'; known: {', '.join(EFFECTS)}")
     say = progress or (lambda msg: None)
+    out_path = Path(out)
+    if out_path.exists() and not overwrite and (not out_path.is_dir() or any(out_path.iterdir())):
+        raise FileExistsError(f"{out}: exists and is not empty (use --overwrite to replace it)")
     truth = draw_truth(effect, strength, seed)
     rng = np.random.default_rng([seed, 2])
     own_fmu = fmu is None
@@ -214,7 +217,8 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
                               "terrain": "terrain/scan.xyz"})
         scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth))
 
-        manifest = {"name": f"juno-synthetic-{seed}", "runs": manifest_runs, "rover": {}}
+        # The name must not reveal the seed (the seed regenerates the truth).
+        manifest = {"name": "juno-synthetic-campaign", "runs": manifest_runs, "rover": {}}
         truth_json = json.dumps({"effect": truth.effect, "strength": truth.strength, "seed": truth.seed,
                                  "noise": noise, "soil": truth.soil, "extension": truth.extension},
                                 indent=2)

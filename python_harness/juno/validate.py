@@ -21,6 +21,8 @@ from .simulator import InputSignals, JunoFMU
 
 #: Default terrain grid resolution (m).
 GRID_CELL = 0.05
+#: Seconds at the start of a run left out of the RMS errors (PID settling).
+SETTLING = 1.0
 
 
 def grid_terrain(campaign: Campaign, run: RunSpec, out_dir: str | Path, cell: float = GRID_CELL) -> tuple[Path, Grid]:
@@ -95,6 +97,8 @@ def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dic
             m = np.interp(times, ts - t0, vs)
         s = np.interp(times, sim["time"], sim[output])
         measured[name], simulated[name] = m, s
-        rms[name] = float(np.sqrt(np.mean((m - s) ** 2)))
-    # The first second is the PID catching the measured spins (the paper's settling phase).
+        # The first SETTLING s are the PID catching the measured spins (the paper's settling
+        # phase): plotted, but not in the RMS.
+        settled = times >= SETTLING
+        rms[name] = float(np.sqrt(np.mean((m[settled] - s[settled]) ** 2)))
     return ValidationResult(run.id, str(grid_file), cell, times, measured, simulated, rms)

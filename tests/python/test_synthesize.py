@@ -173,8 +173,6 @@ def test_truth_is_only_in_truth_json_two_seeds(small_campaign):
     assert structure_differences(sa, sb) == []
 
 
-@pytest.mark.xfail(strict=True, reason="harness bug: synthesize() names the campaign f'juno-synthetic-{seed}'; "
-                   "the seed in campaign.json reproduces the soil truth (draw_truth draws it from the seed alone)")
 def test_manifest_does_not_reveal_the_seed(small_campaign):
     a, b = small_campaign(SEED_A), small_campaign(SEED_B)
     text_a = (a.path / "campaign.json").read_text()
