@@ -1,0 +1,114 @@
+"""Model discovery, blind: an effect is hidden in a synthetic campaign, truth.json is moved out
+of the campaign, and `juno diagnose` must name the hidden cause (or `none`), with a held-out
+gain, and fitted extension parameters near the truth.
+
+Strength and seed are drawn at random for every run of the suite and printed, so a failure can
+be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths are drawn from
+[0.7, 1.0] of each effect's documented range (python_harness/juno/effects.py).
+
+Effects covered here are the ones the analysis detects on every seed tried at strengths 0.7-1
+(README, "What the diagnosis finds today").  `soil_patch` and `terrain_offset` are found at full
+strength on some seeds but not reliably at 0.7 (the patch fit can settle at the wrong place; the
+registration fit at a wrong yaw); `grouser` is confounded with K_vx at the slips of these drawbar
+tests and `multipass` over-fits its training blocks.  They are left out rather than asserted
+loosely; issue 4 stays open for them.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+JUNO = [str(ROOT / ".venv" / "bin" / "juno")] if (ROOT / ".venv" / "bin" / "juno").exists() else \
+    [sys.executable, "-m", "juno.cli"]
+
+DETECTED = ("drivetrain_loss", "slip_sinkage")
+_rng = random.SystemRandom()
+
+
+def _hide_and_diagnose(tmp: Path, effect: str, strength: float, seed: int) -> tuple[dict, dict]:
+    """Synthesizes, moves truth.json out of the campaign, diagnoses; returns (diagnosis, truth)."""
+    campaign = tmp / "campaign"
+    subprocess.run(JUNO + ["synthesize", str(campaign), "--effect", effect, "--strength", f"{strength:.4f}",
+                           "--seed", str(seed), "--quiet"], check=True, cwd=tmp)
+    truth_path = tmp / "truth.json"
+    shutil.move(str(campaign / "truth.json"), truth_path)
+    assert not (campaign / "truth.json").exists()
+    out = tmp / "diagnosis.json"
+    proc = subprocess.run(JUNO + ["diagnose", str(campaign), "--json", str(out), "--quiet"],
+                          capture_output=True, text=True, cwd=tmp)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(out.read_text()), json.loads(truth_path.read_text())
+
+
+@pytest.fixture(scope="module")
+def none_case(tmp_path_factory):
+    seed = _rng.randrange(10_000)
+    print(f"\n[diagnose] effect none, seed {seed}")
+    diagnosis, _ = _hide_and_diagnose(tmp_path_factory.mktemp("none"), "none", 1.0, seed)
+    return diagnosis, seed
+
+
+def test_no_effect_names_no_cause(none_case):
+    diagnosis, seed = none_case
+    for key in ("cause", "candidates", "baseline", "extended", "gain"):
+        assert key in diagnosis, f"diagnose JSON lacks '{key}'"
+    summary = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["candidates"])
+    assert diagnosis["cause"] == "none", f"seed {seed}: a false cause was named: {summary}"
+    assert len(diagnosis["candidates"]) == 6
+
+
+def _extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
+    """Which fitted extension parameters are far from the truth (empty: all near)."""
+    far = []
+
+    def rel(name, tol):
+        t, f = truth[name], fitted.get(name, float("nan"))
+        if not abs(f - t) <= tol * abs(t):
+            far.append(f"{name}: fitted {f:.4g}, truth {t:.4g}")
+
+    if effect == "drivetrain_loss":
+        rel("drive.lossFraction", 0.35)
+    elif effect == "slip_sinkage":
+        rel("slipSinkage.coefficient", 0.6)
+    elif effect == "soil_patch":  # kept for when soil_patch joins DETECTED
+        dx = fitted["soilPatch.x"] - truth["soilPatch.x"]
+        dy = fitted["soilPatch.y"] - truth["soilPatch.y"]
+        if (dx * dx + dy * dy) ** 0.5 > 1.0:
+            far.append(f"patch centre {dx:+.2f}, {dy:+.2f} m off")
+        if not fitted["soilPatch.khFactor"] < 1.0:
+            far.append(f"soilPatch.khFactor {fitted['soilPatch.khFactor']:.3f} is not a weaker patch")
+    elif effect == "terrain_offset":
+        if abs(fitted["terrain.offsetZ"] - truth["terrain.offsetZ"]) > 0.015:
+            far.append(f"offsetZ fitted {fitted['terrain.offsetZ']:.4f}, truth {truth['terrain.offsetZ']:.4f}")
+        shift = ((fitted["terrain.offsetX"] - truth["terrain.offsetX"]) ** 2 +
+                 (fitted["terrain.offsetY"] - truth["terrain.offsetY"]) ** 2) ** 0.5
+        if shift > 0.15:
+            far.append(f"horizontal offset {shift:.3f} m from the truth")
+    return far
+
+
+@pytest.mark.parametrize("effect", DETECTED)
+def test_hidden_effect_is_found_blind(effect, tmp_path, none_case):
+    strength = round(_rng.uniform(0.7, 1.0), 3)
+    seed = _rng.randrange(10_000)
+    replay = f"juno synthesize OUT --effect {effect} --strength {strength} --seed {seed}"
+    print(f"\n[diagnose] {replay}")
+    diagnosis, truth = _hide_and_diagnose(tmp_path, effect, strength, seed)
+    summary = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["candidates"])
+    assert diagnosis["cause"] == effect, f"[{replay}] named {diagnosis['cause']}: {summary}"
+    gain = diagnosis["gain"]["relative"]
+    none_diag = none_case[0]
+    none_gain = max((c["gain"] for c in none_diag["candidates"] if c["name"] == effect), default=0.0)
+    assert gain > 0 and gain > none_gain, f"[{replay}] held-out gain {gain:.1%} vs {none_gain:.1%} with no effect"
+    far = _extension_close(effect, diagnosis["extended"]["extension"], truth["extension"])
+    assert not far, f"[{replay}] fitted extension far from the truth: {far}"
+    for signal, g in diagnosis["gain"]["per_signal"].items():
+        assert g["before"] > 0 and g["after"] >= 0, signal
