@@ -59,8 +59,8 @@ static int check_params(const Params *p, char *err, size_t n)
     if (!(p->wheel_inertia > 0)) return snprintf(err, n, "wheel.inertia = %g must be positive", p->wheel_inertia), -1;
     if (!(p->rover_rockerMass > 0)) return snprintf(err, n, "rover.rockerMass = %g must be positive", p->rover_rockerMass), -1;
     if (!(p->rover_mass > wheels + rockers))
-        return snprintf(err, n, "rover.mass = %g must exceed the wheels' and rockers' mass (%g kg)", p->rover_mass,
-                        wheels + rockers), -1;
+        return snprintf(err, n, "rover.mass = %g must exceed the wheels' and rockers' mass, 4 wheel.mass + "
+                        "2 rover.rockerMass = %g kg", p->rover_mass, wheels + rockers), -1;
     if (!(p->rover_wheelbase > 0)) return snprintf(err, n, "rover.wheelbase = %g must be positive", p->rover_wheelbase), -1;
     if (!(p->rover_track > p->wheel_width))
         return snprintf(err, n, "rover.track = %g must exceed wheel.width = %g", p->rover_track, p->wheel_width), -1;
@@ -786,12 +786,19 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
     double x[4] = {mean_ground + (p->rover_pivotHeight + p->wheel_radius - 0.01) * cos(pitch) * cos(roll), roll,
                    pitch, 0.5 * (pitch_left - pitch_right)};
     double r[4];
-    equilibrium_residual(m, x, r);
-    /* Lower the rover until the soil carries its weight, then Newton. */
-    for (int it = 0; it < 200 && r[0] < 0; ++it) {
-        x[0] -= 2e-3;
+    /* Height first, by bisection between a pose with every wheel in the air (the soil
+     * carries nothing) and one sunk 0.8 R deeper (it carries more than the weight): robust
+     * from the softest to a near-rigid soil, where the first guess may already be far too
+     * deep.  Then Newton on all four. */
+    double z_air = x[0] + 0.05, z_deep = x[0] - 0.8 * p->wheel_radius;
+    for (int it = 0; it < 60; ++it) {
+        x[0] = 0.5 * (z_air + z_deep);
         equilibrium_residual(m, x, r);
+        if (r[0] < 0) z_air = x[0];
+        else z_deep = x[0];
     }
+    x[0] = z_deep;
+    equilibrium_residual(m, x, r);
     double res = norm4(r, weight, moment_scale);
     for (int it = 0; it < 100 && res > 1e-10; ++it) {
         double J[4][4], step[4];

@@ -27,8 +27,8 @@
 
 #define JUNO_VARIABLES \
     /* ---- soil: the four identified parameters (paper Table 2) ---- */ \
-    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, 1e12, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
-    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, 5, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
+    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, 1e8, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
+    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, 2, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
     REAL(102, "soil.gamma",     PARAM, "1",      0.0813, 0, 1,     p.soil_gamma,    "Soil rebound as a fraction of the maximum sinkage") \
     REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  0, 100, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5") \
     REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    0, 100, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (assumption: isotropic = 1)") \
@@ -39,17 +39,17 @@
     /* ---- wheel ---- */ \
     REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0, 5, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
     REAL(121, "wheel.width",    PARAM, "m",      0.254,  0, 5, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8)") \
-    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, 1e4, p.wheel_mass,    "Mass of one wheel") \
+    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, 200, p.wheel_mass,    "Mass of one wheel") \
     REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   0, 1e4, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
     /* ---- rover ---- */ \
-    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, 1e5, p.rover_mass,        "Total mass including wheels") \
+    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, 2000, p.rover_mass,        "Total mass including wheels") \
     REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0, 20, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
     REAL(132, "rover.track",       PARAM, "m",  1.35,  0, 20, p.rover_track,       "Distance between left and right wheel centres (assumed)") \
     REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, 10, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \
-    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, 1e4, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
+    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, 200, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
     REAL(135, "rover.cgHeight",    PARAM, "m",  0.25,  -10, 10, p.rover_cgHeight, "Chassis centre of gravity above the axle line (assumed)") \
     REAL(136, "rover.hitchX",      PARAM, "m",  -0.69, -10, 10, p.rover_hitchX,  "Drawbar hitch, longitudinal position in the chassis frame (rear)") \
-    REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -10, 10, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
+    REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -1, 1, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
     REAL(138, "rover.rockerDamping", PARAM, "N.m.s/rad", 20.0, 0, NOLIM, p.rover_rockerDamping, "Viscous friction of the rocker differential (assumed)") \
     REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0, 100, p.env_gravity,     "Gravitational acceleration") \
     /* ---- terrain ---- */ \
