@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .atomic import atomic_directory
-from .errors import NUMBER_RE, InputError, parse_finite
+from .errors import NUMBER_RE, InputError, parse_finite, decode_input_text, read_input_bytes
 from .pointcloud import format_xyz, read_xyz
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -221,23 +221,8 @@ class AlignedColumns(dict):
 # Small helpers
 # --------------------------------------------------------------------------------------------
 
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("file not found", path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a file", path) from None
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", path) from None
 
 
-def _decode(path: Path, data: bytes) -> str:
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        line = data[: e.start].count(b"\n") + 1
-        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x})", path, line) from None
 
 
 def _is_number(value: Any) -> bool:
@@ -405,7 +390,7 @@ def load_campaign(path: PathLike) -> Campaign:
         raise InputError("no such campaign folder or manifest", p)
     manifest = p / MANIFEST_NAME if p.is_dir() else p
     root = manifest.parent
-    text = _decode(manifest, _read_bytes(manifest))
+    text = decode_input_text(manifest, read_input_bytes(manifest))
     doc = _parse_json(manifest, text)
     if not isinstance(doc, dict):
         raise InputError(f"the manifest must be a JSON object, got {type(doc).__name__}", manifest, 1)
@@ -445,7 +430,7 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
     if kind not in KINDS:
         raise ValueError(f"kind must be 'drawbar' or 'terrain', got {kind!r}")
     p = Path(path)
-    text = _decode(p, _read_bytes(p))
+    text = decode_input_text(p, read_input_bytes(p))
     if not text.strip():
         raise InputError("empty file: a header line and data rows are required", p, 1)
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
@@ -550,7 +535,7 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                 f"run {spec.id!r}: steady_window [{a}, {b}] s holds no samples; the run spans "
                 f"{t[0]!r} to {t[-1]!r} s",
                 campaign.manifest_path,
-                _line_of_run(_decode(campaign.manifest_path, _read_bytes(campaign.manifest_path)), spec.id),
+                _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
             )
     return data
 

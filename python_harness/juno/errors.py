@@ -8,6 +8,8 @@ Every refusal of a user's file is an :class:`InputError`; its text names the fil
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import math
 import os
 import re
@@ -84,3 +86,25 @@ def parse_finite(
 
 def _shorten(text: str, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
+
+
+def read_input_bytes(path: "Path") -> bytes:
+    """The bytes of an input file, or an InputError naming it (missing, a directory, unreadable)."""
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("file not found", path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a file", path) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", path) from None
+
+
+def decode_input_text(path: "Path", data: bytes) -> str:
+    """UTF-8 (BOM allowed); refuse other bytes naming the line of the first bad byte."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x})", path, line) from None
+

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .atomic import atomic_write_text
-from .errors import InputError, parse_finite
+from .errors import InputError, parse_finite, decode_input_text, read_input_bytes
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -53,24 +53,8 @@ _SEP_RE = re.compile(r"\s*,\s*|\s+")
 # Point clouds
 # --------------------------------------------------------------------------------------------
 
-def _decode(path: Path, data: bytes) -> str:
-    """UTF-8 (BOM allowed); refuse other bytes naming the line of the first bad byte."""
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        line = data[: e.start].count(b"\n") + 1
-        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x})", path, line) from None
 
 
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("file not found", path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a file", path) from None
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", path) from None
 
 
 def read_xyz(path: PathLike) -> NDArray[np.float64]:
@@ -86,11 +70,11 @@ def read_xyz(path: PathLike) -> NDArray[np.float64]:
             an empty cloud, or fewer than 3 non-collinear points in x-y.
     """
     p = Path(path)
-    data = _read_bytes(p)
+    data = read_input_bytes(p)
     if p.suffix.lower() == ".ply" or data[:4] in (b"ply\n", b"ply\r"):
         points = _parse_ply(p, data)
     else:
-        points = _parse_xyz_text(p, _decode(p, data))
+        points = _parse_xyz_text(p, decode_input_text(p, data))
     check_points(points, p)
     return points
 
@@ -115,9 +99,9 @@ def _parse_ply(path: Path, data: bytes) -> NDArray[np.float64]:
     if not data.startswith(b"ply") or end < 0:
         raise InputError("not a PLY file (needs a 'ply' first line and 'end_header')", path, 1)
     nl = data.find(b"\n", end)
-    header = _decode(path, data[: end + len("end_header")]).splitlines()
+    header = decode_input_text(path, data[: end + len("end_header")]).splitlines()
     body_start_line = len(header) + 1
-    body = _decode(path, data[nl + 1:] if nl >= 0 else b"")
+    body = decode_input_text(path, data[nl + 1:] if nl >= 0 else b"")
     elements: list[tuple[str, int, list[str]]] = []
     fmt = None
     for lineno, raw in enumerate(header, start=1):
@@ -422,7 +406,7 @@ def read_esri_ascii(path: PathLike) -> Grid:
         all cells NODATA.
     """
     p = Path(path)
-    text = _decode(p, _read_bytes(p))
+    text = decode_input_text(p, read_input_bytes(p))
     lines = text.splitlines()
     header: dict[str, tuple[float, int]] = {}
     k = 0

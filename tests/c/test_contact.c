@@ -15,27 +15,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
-
-static int n_pass = 0, n_fail = 0;
-
-#define CHECK(cond, ...)                                        \
-    do {                                                        \
-        if (cond) {                                             \
-            ++n_pass;                                           \
-            printf("PASS  ");                                   \
-        } else {                                                \
-            ++n_fail;                                           \
-            printf("FAIL  ");                                   \
-        }                                                       \
-        printf(__VA_ARGS__);                                    \
-        printf("\n");                                           \
-    } while (0)
-
-static const double R_WHEEL = 0.2794, B_WHEEL = 0.254;
-static const double LOAD = 779.0; /* N, 317.7 kg * 9.81 / 4 */
+#include "check.h"
 
 static ContactModel table2(double eta, double gamma, int method)
 {
