@@ -354,9 +354,11 @@ def paired_z(problem: Problem, base: np.ndarray, ext: np.ndarray, mask: np.ndarr
     return float(np.clip(norm.isf(max(p, 1e-300)), -40.0, 40.0))
 
 
-def per_signal_rms(problem: Problem, r: np.ndarray, scale: bool = True) -> dict[str, float]:
-    """Held-out RMS of each signal, in the signal's own units (scaled residual x sigma)."""
-    test = ~problem.train
+def per_signal_rms(problem: Problem, r: np.ndarray, scale: bool = True,
+                   mask: np.ndarray | None = None) -> dict[str, float]:
+    """Held-out RMS of each signal, in the signal's own units (scaled residual x sigma), over the
+    residuals in ``mask`` (default: all)."""
+    test = ~problem.train if mask is None else (~problem.train & mask)
     out = {}
     sigmas = {}
     for p in problem.prepared:
@@ -469,16 +471,19 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     }
     if best:
         res = next(r for r in results if r.name == best["name"])
-        after = per_signal_rms(problem, res.residuals)
+        # Per signal, on the runs the cause was judged on (where its model was fitted).
+        judged = np.isin(run_kind, best["judged_on"])
+        after = per_signal_rms(problem, res.residuals, mask=judged)
+        before_judged = per_signal_rms(problem, base.residuals, mask=judged)
         out["extended"] = {"name": best["name"], "soil": best["soil"], "extension": best["extension"],
                            "test_mse": res.test_mse, "rms": after}
         out["gain"] = {"held_out_mse_before": best["held_out_mse_before"],
                        "held_out_mse_after": best["held_out_mse_after"], "judged_on": best["judged_on"],
                        "relative": best["gain"], "z": best["z"],
-                       "per_signal": {k: {"before": baseline["rms"][k], "after": after.get(k, float("nan")),
-                                          "relative": 1 - after.get(k, np.nan) / baseline["rms"][k]
-                                          if baseline["rms"][k] > 0 else 0.0}
-                                      for k in baseline["rms"]}}
+                       "per_signal": {k: {"before": before_judged[k], "after": after.get(k, float("nan")),
+                                          "relative": 1 - after.get(k, np.nan) / before_judged[k]
+                                          if before_judged[k] > 0 else 0.0}
+                                      for k in before_judged}}
     else:
         out["extended"] = {"name": None}
         out["gain"] = {"held_out_mse_before": base.test_mse, "held_out_mse_after": base.test_mse,
@@ -610,7 +615,9 @@ def report_section(result: dict[str, Any], out: Path) -> list[str]:
         if result["equally_good"]:
             lines += ["Explaining the data about as well: " + ", ".join(result["equally_good"]) + ".", ""]
         lines += ["Fitted extension parameters: " + ", ".join(f"{k} = {v:.4g}" for k, v in ext["extension"].items())
-                  + ".", "", "| signal | held-out RMS before | after | gain |", "|---|---|---|---|"]
+                  + ".", "", f"Held-out RMS per signal on the {' and '.join(result['gain']['judged_on'])} runs, "
+                  "where the extension was fitted:", "",
+                  "| signal | held-out RMS before | after | gain |", "|---|---|---|---|"]
         for k, g in result["gain"]["per_signal"].items():
             lines.append(f"| {k} | {g['before']:.4g} | {g['after']:.4g} | {g['relative']:+.1%} |")
         lines.append("")
