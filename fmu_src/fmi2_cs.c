@@ -42,6 +42,8 @@ typedef struct {
     fmi2ComponentEnvironment env;
     unsigned log_mask;
     FmiState state;
+    int initialized;               /* initialised since instantiation or the last reset: the
+                                    * terrain and derived data a stepping state relies on exist */
     Model model;
     char string_buffer[8];         /* returned for empty strings */
 } Instance;
@@ -311,6 +313,7 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
                 "initialised: A1 = %.4f, Vint = %.4g m3, static sinkage FL %.4f m, chassis z %.4f m",
                 m->d.contact.A1, m->d.contact.Vint, m->out.wheel[0].sinkage, m->out.z);
     inst->state = ST_STEP_COMPLETE;
+    inst->initialized = 1;
     return fmi2OK;
 }
 
@@ -327,6 +330,7 @@ FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component c)
     free(inst->model.terrain_file);
     inst->model.terrain_file = NULL;
     reset_model(inst);
+    inst->initialized = 0;
     inst->state = ST_INSTANTIATED;
     return fmi2OK;
 }
@@ -513,10 +517,11 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
     if (!snap || snap->magic != SNAPSHOT_MAGIC || snap->version != SNAPSHOT_VERSION)
         return refuse(inst, "fmi2SetFMUstate", "FMUstate is NULL or was not made by this FMU");
     FmiState target = (FmiState)snap->fmi_state;
-    if ((target == ST_STEP_COMPLETE || target == ST_TERMINATED) && inst->state != ST_STEP_COMPLETE &&
-        inst->state != ST_TERMINATED && inst->state != ST_ERROR)
+    /* What a stepping state needs is an instance that has been initialised (its terrain and
+     * derived data exist), whatever FMI mode an earlier restored state left it in. */
+    if ((target == ST_STEP_COMPLETE || target == ST_TERMINATED) && !inst->initialized)
         return refuse(inst, "fmi2SetFMUstate",
-                      "the state was taken after initialisation; this instance is not initialised");
+                      "the state was taken after initialisation; this instance has not been initialised");
     inst->model.p = snap->p;
     inst->model.d = snap->d;
     inst->model.in = snap->in;
