@@ -34,56 +34,16 @@
 
 #include "contact.h"
 #include "model.h"
+#include "bench_util.h"
 #include "wong_reece.h"
 
 #define LOAD 779.0
 #define TABLE 256
 #define MAX_REPEATS 1000
 
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* Wall and CPU time of every timed batch, for the CPU share (< 1: the
  * machine was busy and the wall-clock figures are inflated). */
 static double total_wall, total_cpu;
-
-/* Peak resident memory of this program (kB): VmHWM of /proc/self/status, which
- * belongs to the address space made by exec (getrusage's maxrss can include the
- * parent's memory at fork time); -1 if unknown. */
-static long peak_rss_kb(void)
-{
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    long kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "VmHWM:", 6)) kb = strtol(line + 6, NULL, 10);
-    fclose(f);
-    return kb;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 static volatile double sink;
 
@@ -236,7 +196,7 @@ static Timing time_it(Runner run, const Workload *w, int repeats, double min_tim
     double lowest = ns[0];
     for (int r = 1; r < repeats; ++r) lowest = fmin(lowest, ns[r]);
     t.min_ns = lowest;
-    t.median_ns = median(ns, repeats);
+    t.median_ns = median_in_place(ns, repeats);
     return t;
 }
 

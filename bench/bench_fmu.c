@@ -33,6 +33,7 @@
 
 #include "fmu_loader.h"
 #include "model.h"
+#include "bench_util.h"
 
 #define MAX_REPEATS 100
 #define MAX_OUT 128
@@ -41,47 +42,11 @@
 /* Value references from modelDescription/variables.h (the fmi path looks them up by name). */
 enum { VR_DRAWBAR = 200, VR_THROTTLE_L = 205, VR_THROTTLE_R = 206 };
 
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* Peak resident memory of this program (kB): VmHWM of /proc/self/status, which
- * belongs to the address space made by exec (getrusage's maxrss can include the
- * parent's memory at fork time); -1 if unknown. */
-static long peak_rss_kb(void)
-{
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f) return -1;
-    char line[256];
-    long kb = -1;
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "VmHWM:", 6)) kb = strtol(line + 6, NULL, 10);
-    fclose(f);
-    return kb;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    const double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static double median(const double *v, int n)
 {
     double s[MAX_REPEATS];
     memcpy(s, v, (size_t)n * sizeof *v);
-    qsort(s, (size_t)n, sizeof *s, cmp_double);
-    return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+    return median_in_place(s, n);
 }
 
 typedef struct {
