@@ -308,28 +308,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--diagnose", action="store_true", help="include the discrepancy diagnosis")
     common(p)
     p.set_defaults(func=cmd_report)
-    _add_diagnose(sub, common)
-    _add_bench(sub, common)
+    _add_module_command(sub, common, "diagnose",
+                        "find what the simulation gets wrong, name the cause, measure the gain")
+    _add_module_command(sub, common, "bench",
+                        "benchmark the contact laws, the FMU and the workflow; prints figures")
     return parser
 
 
-def _add_bench(sub, common) -> None:
-    try:
-        from .bench import add_arguments
-    except ImportError:
-        return
-    p = sub.add_parser("bench", help="benchmark the contact laws, the FMU and the workflow; prints figures")
-    add_arguments(p)
-    common(p)
-
-
-def _add_diagnose(sub, common) -> None:
-    try:
-        from .diagnose import add_arguments
-    except ImportError:
-        return
-    p = sub.add_parser("diagnose", help="find what the simulation gets wrong, name the cause, measure the gain")
-    add_arguments(p)
+def _add_module_command(sub, common, name: str, help_text: str) -> None:
+    """A subcommand whose options and function live in its own module (juno.<name>)."""
+    import importlib
+    p = sub.add_parser(name, help=help_text)
+    importlib.import_module(f".{name}", __package__).add_arguments(p)
     common(p)
 
 

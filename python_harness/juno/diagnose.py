@@ -51,32 +51,13 @@ CANDIDATE_ITERATIONS = 15
 
 @dataclass(frozen=True)
 class ExtParam:
-    """One extension parameter: FMU name, start value, and how it is searched."""
+    """One extension parameter: FMU name, start value and bounds.  It is searched as itself
+    (bounded trust-region least squares keeps the finite-difference steps inside the bounds)."""
 
     name: str
     start: float
-    kind: str = "log"    # log (positive), logit (0..1), linear
-    lower: float = -np.inf   # bounds of a linear parameter (search value = the value)
+    lower: float = -np.inf
     upper: float = np.inf
-
-    def to_search(self, v: float) -> float:
-        if self.kind == "log":
-            return float(np.log(v))
-        if self.kind == "logit":
-            v = min(max(v, 1e-6), 1 - 1e-6)
-            return float(np.log(v / (1 - v)))
-        if self.kind == "log1p":
-            return float(np.log(max(v, 0.0) + 0.05))
-        return float(v)
-
-    def from_search(self, x: float) -> float:
-        if self.kind == "log":
-            return float(np.exp(x))
-        if self.kind == "logit":
-            return float(1 / (1 + np.exp(-x)))
-        if self.kind == "log1p":
-            return float(max(np.exp(x) - 0.05, 0.0))
-        return float(x)
 
 
 @dataclass(frozen=True)
@@ -98,26 +79,26 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # finite-difference steps stay inside), and every fit begins at the base model; a soil
     # patch needs a slight contrast for its position to have a gradient.
     Candidate("soil_patch", "soil stiffness and strength vary over the test area",
-              (ExtParam("soilPatch.x", 2.5, "linear"), ExtParam("soilPatch.y", 0.0, "linear"),
-               ExtParam("soilPatch.radius", 1.0, "linear", 0.2, 5.0),
-               ExtParam("soilPatch.khFactor", 0.97, "linear", 0.1, 10.0),
-               ExtParam("soilPatch.strengthFactor", 0.99, "linear", 0.1, 10.0))),
+              (ExtParam("soilPatch.x", 2.5), ExtParam("soilPatch.y", 0.0),
+               ExtParam("soilPatch.radius", 1.0, 0.2, 5.0),
+               ExtParam("soilPatch.khFactor", 0.97, 0.1, 10.0),
+               ExtParam("soilPatch.strengthFactor", 0.99, 0.1, 10.0))),
     # Multi-pass is flat at its neutral point (with no rut, the stiffening has no gradient):
     # it starts with half the rut on moderately compacted soil.
     Candidate("multipass", "rear wheels roll in the front wheels' rut on compacted soil",
-              (ExtParam("multipass.rutFraction", 0.5, "linear", 0.0, 1.0),
-               ExtParam("multipass.khFactor", 1.3, "linear", 0.2, 10.0)),
+              (ExtParam("multipass.rutFraction", 0.5, 0.0, 1.0),
+               ExtParam("multipass.khFactor", 1.3, 0.2, 10.0)),
               grid=tuple((("multipass.rutFraction", r), ("multipass.khFactor", k))
                          for r in (0.5, 1.0) for k in (1.0, 1.5, 2.0, 3.0))),
     Candidate("slip_sinkage", "sinkage grows with slip as the wheel digs in",
-              (ExtParam("slipSinkage.coefficient", 0.0, "linear", 0.0, 20.0),)),
+              (ExtParam("slipSinkage.coefficient", 0.0, 0.0, 20.0),)),
     Candidate("grouser", "lugs add thrust beyond the Mohr-Coulomb limit",
-              (ExtParam("grouser.thrustGain", 0.0, "linear", 0.0, 3.0),)),
+              (ExtParam("grouser.thrustGain", 0.0, 0.0, 3.0),)),
     Candidate("drivetrain_loss", "part of the measured motor torque is lost before the wheels",
-              (ExtParam("drive.lossFraction", 0.0, "linear", 0.0, 0.9),)),
+              (ExtParam("drive.lossFraction", 0.0, 0.0, 0.9),)),
     Candidate("terrain_offset", "the scanned terrain is misregistered against the real one",
-              (ExtParam("terrain.offsetX", 0.0, "linear"), ExtParam("terrain.offsetY", 0.0, "linear"),
-               ExtParam("terrain.offsetZ", 0.0, "linear"), ExtParam("terrain.offsetYaw", 0.0, "linear")),
+              (ExtParam("terrain.offsetX", 0.0), ExtParam("terrain.offsetY", 0.0),
+               ExtParam("terrain.offsetZ", 0.0), ExtParam("terrain.offsetYaw", 0.0)),
               needs_terrain=True,
               grid=tuple((("terrain.offsetX", dx), ("terrain.offsetY", dy), ("terrain.offsetYaw", yaw))
                          for dx in (-0.3, -0.15, 0.0, 0.15, 0.3) for dy in (-0.3, -0.15, 0.0, 0.15, 0.3)
@@ -216,7 +197,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         fixed = dict(candidate.fixed) if candidate else {}
         starts = {e.name: e.start for e in ext}
         starts.update(start_ext or {})
-        x0 = np.concatenate([to_search(start_soil), [e.to_search(starts[e.name]) for e in ext]])
+        x0 = np.concatenate([to_search(start_soil), [starts[e.name] for e in ext]])
         count = [0]
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
@@ -224,7 +205,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         def unpack(x, frozen=None):
             params = {**from_search(x[:4]), **fixed}
             for e, xi in zip(ext, x[4:]):
-                params[e.name] = e.from_search(xi)
+                params[e.name] = float(xi)
             return params
 
         def fit(x_start, kinds, free, iterations):
@@ -264,7 +245,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
             for point in ((),) + candidate.grid:
                 trial = x0.copy()
                 for name, value in point:
-                    trial[index[name]] = ext[index[name] - 4].to_search(value)
+                    trial[index[name]] = value
                 count[0] += 1
                 r = residuals_for(fmu, problem, unpack(trial), kinds)
                 cost = np.inf if r is None else float(np.mean(r[mask] ** 2))
@@ -276,11 +257,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         if terrain_only and has_terrain:
             x = fit(x, ("terrain",), np.array(terrain_only), max_nfev)
 
-        class _Result:
-            pass
-        ls = _Result()
-        ls.x = x
-        params = unpack(ls.x)
+        params = unpack(x)
         r = all_residuals(fmu, problem, params)
         train = problem.train
         return FitResult(candidate.name if candidate else "base", params, float(np.nanmean(r[train] ** 2)),

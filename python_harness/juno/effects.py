@@ -72,11 +72,6 @@ def apply_effect_to_truth(truth, rng: np.random.Generator) -> None:
     truth.sim = {} if e == "terrain_offset" else dict(ext)
 
 
-def measurement_transform(truth) -> dict:
-    """Keyword arguments of :func:`juno.synthesize.measure` for the effect (none act on sensors)."""
-    return {}
-
-
 def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
     """How the LIDAR scan misplaces true points, or None.
 

@@ -115,12 +115,11 @@ def lidar_scan(rng: np.random.Generator, seed: int, n_points: int = 25000, noise
 
 
 def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float,
-            torque_scale: float = 1.0, drawbar: InputSignals | None = None) -> dict[str, np.ndarray]:
+            drawbar: InputSignals | None = None) -> dict[str, np.ndarray]:
     """Turns a truth simulation into the columns of a run CSV (interfaces.md section 3).
 
     Each sensor samples on its own clock; the CSV rows are the union of all
     sample times with empty cells (NaN) where a sensor has no sample.
-    ``torque_scale`` is what the motor-current estimate over-reads by (1 = exact).
     """
     t_end = float(sim["time"][-1])
     T = sim["time"]
@@ -133,8 +132,8 @@ def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noi
 
     if kind == "drawbar":
         add("drawbar_force", sim["drawbarForce"], 100, lambda v: 4.0)
-    add("torque_left", sim["torqueLeftApplied"] * torque_scale, 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
-    add("torque_right", sim["torqueRightApplied"] * torque_scale, 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
+    add("torque_left", sim["torqueLeftApplied"], 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
+    add("torque_right", sim["torqueRightApplied"], 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
     add("omega_left", sim["omegaLeft"], 50, lambda v: 0.005, 0.004)
     add("omega_right", sim["omegaRight"], 50, lambda v: 0.005, 0.004)
     for axis, col, sig in (("x", "pos_x", 0.002), ("y", "pos_y", 0.002), ("z", "pos_z", 0.003)):
@@ -175,7 +174,7 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
     ``time_scale`` < 1 shortens every run (for quick tests); windows scale too.
     The folder is written whole or not at all; ``truth.json`` holds the truth.
     """
-    from .effects import EFFECTS, measurement_transform, scan_transform
+    from .effects import EFFECTS, scan_transform
     if effect not in EFFECTS:
         raise ValueError(f"unknown effect '{effect}'; known: {', '.join(EFFECTS)}")
     say = progress or (lambda msg: None)
@@ -200,7 +199,7 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
                                                  "throttleRight": np.full(len(drawbar.time), THROTTLE)})
             sim = fmu.simulate(base, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
             sim["drawbarForce"] = np.interp(sim["time"], drawbar.time, drawbar.values["drawbarForce"])
-            runs[run_id] = measure(rng, sim, "drawbar", noise, **measurement_transform(truth))
+            runs[run_id] = measure(rng, sim, "drawbar", noise)
             manifest_runs.append({"id": run_id, "kind": "drawbar", "file": f"runs/{run_id}.csv",
                                   "steady_window": list(window)})
 
@@ -212,7 +211,7 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
             inputs = InputSignals.constant(drawbarForce=0.0, throttleLeft=THROTTLE, throttleRight=THROTTLE)
             duration = TERRAIN_DURATION * time_scale
             sim = fmu.simulate(params, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
-        runs["t3d"] = measure(rng, sim, "terrain", noise, **measurement_transform(truth))
+        runs["t3d"] = measure(rng, sim, "terrain", noise)
         manifest_runs.append({"id": "t3d", "kind": "terrain", "file": "runs/t3d.csv",
                               "terrain": "terrain/scan.xyz"})
         scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth))
