@@ -193,7 +193,8 @@ def cmd_validate(args) -> int:
 def cmd_synthesize(args) -> int:
     from .synthesize import synthesize
     say = _progress(args.quiet)
-    path = synthesize(args.out, effect=args.effect, strength=args.strength, seed=args.seed, noise=args.noise,
+    path = synthesize(args.out, effect=args.effect or ["none"], strength=args.strength or [1.0], seed=args.seed,
+                      noise=args.noise,
                       time_scale=args.time_scale, overwrite=args.overwrite, progress=say)
     print(f"wrote campaign {path} (effect hidden: see {path}/truth.json only)")
     _write_json(args.json, {"campaign": str(path)})
@@ -293,8 +294,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("synthesize", help="write a synthetic measured campaign with a hidden effect")
     p.add_argument("out", metavar="OUT")
-    p.add_argument("--effect", default="none", help="effect id to hide (none = nothing)")
-    p.add_argument("--strength", type=float, default=1.0, help="effect strength, 0 to 1 (default 1)")
+    p.add_argument("--effect", action="append", metavar="EFFECT",
+                   help="effect id to hide (default none = nothing); repeat to hide several at once")
+    p.add_argument("--strength", type=float, action="append", metavar="S",
+                   help="effect strength, 0 to 1 (default 1); one for all effects, or one per --effect in order")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--noise", type=float, default=1.0, help="sensor noise scale (0 = exact)")
     p.add_argument("--time-scale", type=float, default=1.0, help="shorten runs (< 1) for quick tests")

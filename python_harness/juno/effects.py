@@ -21,7 +21,9 @@ terrain_offset    the LIDAR scan is misregistered by 0.25 S m in a random     0.
 An effect acts through the truth simulation's FMU parameters
 (``Truth.sim``), through the LIDAR scan (``scan_transform``), or both;
 ``Truth.extension`` holds the FMU parameters with which the extended
-model reproduces the truth (what ``diagnose`` should find).
+model reproduces the truth (what ``diagnose`` should find).  Several effects
+can be hidden at once, each with its own strength (``juno synthesize --effect A
+--strength SA --effect B --strength SB``).
 """
 
 from __future__ import annotations
@@ -41,35 +43,53 @@ EFFECTS: dict[str, str] = {
 }
 
 
-def apply_effect_to_truth(truth, rng: np.random.Generator) -> None:
-    """Fills ``truth.sim`` (truth-simulation parameters) and ``truth.extension``."""
-    if truth.effect not in EFFECTS:
-        raise ValueError(f"unknown effect '{truth.effect}'; known: {', '.join(EFFECTS)}")
-    s = float(truth.strength)
+def effect_parameters(effect: str, strength: float, rng: np.random.Generator) -> tuple[dict[str, float], dict[str, float]]:
+    """FMU parameters of one hidden effect at ``strength`` in [0, 1]: ``(extension, sim)``.
+
+    ``extension`` is what the extended model needs to reproduce the truth (what ``diagnose``
+    should find); ``sim`` is what the truth simulation itself is given (a registration error
+    lives in the scan, not in the world, so ``terrain_offset`` gives the simulation nothing).
+    """
+    if effect not in EFFECTS:
+        raise ValueError(f"unknown effect '{effect}'; known: {', '.join(EFFECTS)}")
+    s = float(strength)
     if not (0.0 <= s <= 1.0):
         raise ValueError(f"--strength {s} must lie in [0, 1]")
-    e = truth.effect
     ext: dict[str, float] = {}
-    if e == "soil_patch":
+    if effect == "soil_patch":
         ext = {"soilPatch.x": float(rng.uniform(1.5, 3.5)), "soilPatch.y": float(rng.uniform(-0.4, 0.4)),
                "soilPatch.radius": float(rng.uniform(0.9, 1.4)),
                "soilPatch.khFactor": 1 - 0.6 * s, "soilPatch.strengthFactor": 1 - 0.4 * s}
-    elif e == "multipass":
+    elif effect == "multipass":
         ext = {"multipass.rutFraction": 1.0, "multipass.khFactor": 1 + 1.5 * s}
-    elif e == "slip_sinkage":
+    elif effect == "slip_sinkage":
         ext = {"slipSinkage.coefficient": 1.5 * s}
-    elif e == "grouser":
+    elif effect == "grouser":
         ext = {"grouser.thrustGain": 0.35 * s}
-    elif e == "drivetrain_loss":
+    elif effect == "drivetrain_loss":
         ext = {"drive.lossFraction": 0.25 * s}
-    elif e == "terrain_offset":
+    elif effect == "terrain_offset":
         angle = float(rng.uniform(0, 2 * np.pi))
         ext = {"terrain.offsetX": 0.25 * s * float(np.cos(angle)), "terrain.offsetY": 0.25 * s * float(np.sin(angle)),
                "terrain.offsetZ": 0.03 * s * float(rng.choice([-1.0, 1.0])),
                "terrain.offsetYaw": float(np.radians(3.0)) * s * float(rng.choice([-1.0, 1.0]))}
-    truth.extension = ext
-    # The scan carries the registration error; the world itself is not offset.
-    truth.sim = {} if e == "terrain_offset" else dict(ext)
+    return ext, ({} if effect == "terrain_offset" else dict(ext))
+
+
+def apply_effects_to_truth(truth, rng: np.random.Generator) -> None:
+    """Fills ``truth.sim`` (truth-simulation parameters) and ``truth.extension`` from
+    ``truth.effects``, a sequence of (effect id, strength); several effects act together (their
+    FMU parameters are disjoint, so the union is well defined)."""
+    names = [e for e, _ in truth.effects]
+    if len(set(names)) != len(names):
+        raise ValueError(f"an effect is hidden twice: {', '.join(names)}")
+    if "none" in names and len(names) > 1:
+        raise ValueError("'none' cannot be combined with other effects")
+    truth.extension, truth.sim = {}, {}
+    for effect, strength in truth.effects:
+        ext, sim = effect_parameters(effect, strength, rng)
+        truth.extension.update(ext)
+        truth.sim.update(sim)
 
 
 def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
@@ -79,7 +99,7 @@ def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
     (grid point q appears at o + Rz(yaw) q), so the scan reports a true point
     p at Rz(-yaw) (p - o).
     """
-    if truth.effect != "terrain_offset":
+    if "terrain.offsetX" not in truth.extension:
         return None
     ox, oy = truth.extension["terrain.offsetX"], truth.extension["terrain.offsetY"]
     oz, yaw = truth.extension["terrain.offsetZ"], truth.extension["terrain.offsetYaw"]

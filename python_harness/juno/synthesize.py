@@ -29,7 +29,7 @@ import json
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -54,8 +54,7 @@ THROTTLE = 0.45
 class Truth:
     """What the synthetic world really is (written to truth.json only)."""
 
-    effect: str
-    strength: float
+    effects: tuple[tuple[str, float], ...]   # (effect id, strength), in the order given
     seed: int
     soil: dict[str, float]
     extension: dict[str, float] = field(default_factory=dict)   # FMU parameters the extended model needs
@@ -155,17 +154,32 @@ TRUTH_OUTPUTS = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omeg
                  "torqueLeftApplied", "torqueRightApplied")
 
 
-def draw_truth(effect: str, strength: float, seed: int) -> Truth:
-    """The synthetic world: soil within +-10 % of Table 2 (drawn from ``seed``) and the effect."""
+def effect_list(effect: str | Sequence[str], strength: float | Sequence[float]) -> tuple[tuple[str, float], ...]:
+    """Pairs effect ids with strengths: one strength applies to every effect, otherwise one each."""
+    effects = [effect] if isinstance(effect, str) else list(effect)
+    strengths = [float(strength)] if isinstance(strength, (int, float)) else [float(s) for s in strength]
+    if not effects:
+        raise ValueError("no effect given (use 'none' to hide nothing)")
+    if len(strengths) == 1:
+        strengths = strengths * len(effects)
+    if len(strengths) != len(effects):
+        raise ValueError(f"{len(effects)} effects but {len(strengths)} strengths: give one strength, "
+                         "or one per effect")
+    return tuple(zip(effects, strengths))
+
+
+def draw_truth(effect: str | Sequence[str], strength: float | Sequence[float], seed: int) -> Truth:
+    """The synthetic world: soil within +-10 % of Table 2 (drawn from ``seed``) and the effects."""
     rng = np.random.default_rng([seed, 1])
     soil = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in TABLE2.items()}
-    truth = Truth(effect=effect, strength=float(strength), seed=int(seed), soil=soil)
-    from .effects import apply_effect_to_truth
-    apply_effect_to_truth(truth, rng)
+    truth = Truth(effects=effect_list(effect, strength), seed=int(seed), soil=soil)
+    from .effects import apply_effects_to_truth
+    apply_effects_to_truth(truth, rng)
     return truth
 
 
-def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, seed: int = 0,
+def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: float | Sequence[float] = 1.0,
+               seed: int = 0,
                noise: float = 1.0, fmu: JunoFMU | None = None, time_scale: float = 1.0,
                overwrite: bool = False, progress: Callable[[str], None] | None = None) -> Path:
     """Writes a synthetic measured campaign to ``out`` and returns its path.
@@ -174,14 +188,12 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
     ``time_scale`` < 1 shortens every run (for quick tests); windows scale too.
     The folder is written whole or not at all; ``truth.json`` holds the truth.
     """
-    from .effects import EFFECTS, scan_transform
-    if effect not in EFFECTS:
-        raise ValueError(f"unknown effect '{effect}'; known: {', '.join(EFFECTS)}")
+    from .effects import scan_transform
     say = progress or (lambda msg: None)
     out_path = Path(out)
     if out_path.exists() and not overwrite and (not out_path.is_dir() or any(out_path.iterdir())):
         raise FileExistsError(f"{out}: exists and is not empty (use --overwrite to replace it)")
-    truth = draw_truth(effect, strength, seed)
+    truth = draw_truth(effect, strength, seed)   # validates the effects before anything is written
     rng = np.random.default_rng([seed, 2])
     own_fmu = fmu is None
     fmu = fmu or JunoFMU()
@@ -218,8 +230,11 @@ def synthesize(out: str | Path, effect: str = "none", strength: float = 1.0, see
 
         # The name must not reveal the seed (the seed regenerates the truth).
         manifest = {"name": "juno-synthetic-campaign", "runs": manifest_runs, "rover": {}}
-        truth_json = json.dumps({"effect": truth.effect, "strength": truth.strength, "seed": truth.seed,
-                                 "noise": noise, "soil": truth.soil, "extension": truth.extension},
+        names = [e for e, _ in truth.effects]
+        truth_json = json.dumps({"effect": "+".join(names), "strength": truth.effects[0][1],
+                                 "effects": [{"effect": e, "strength": s} for e, s in truth.effects],
+                                 "seed": truth.seed, "noise": noise, "soil": truth.soil,
+                                 "extension": truth.extension},
                                 indent=2)
         say(f"writing {out}")
         write_campaign(out, manifest, runs, {"terrain/scan.xyz": scan},

@@ -246,3 +246,34 @@ def test_bad_effect_is_refused_with_a_message(tmp_path, harness_fmu):
         synthesize(out, effect="no_such_effect", fmu=harness_fmu, time_scale=SMALL_TIME_SCALE)
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------- several effects at once
+
+def test_two_effects_are_hidden_together(tmp_path):
+    """``--effect A --strength SA --effect B --strength SB``: both act (the truth's extension is
+    the union of each effect's own, at its own strength), and truth.json lists them in order."""
+    out = tmp_path / "campaign"
+    proc = run_juno("synthesize", out, "--effect", "drivetrain_loss", "--strength", "0.8",
+                    "--effect", "slip_sinkage", "--strength", "0.4", "--seed", SEED_A,
+                    "--time-scale", SMALL_TIME_SCALE, "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["effects"] == [{"effect": "drivetrain_loss", "strength": 0.8},
+                                {"effect": "slip_sinkage", "strength": 0.4}]
+    assert truth["extension"] == pytest.approx({"drive.lossFraction": 0.25 * 0.8,
+                                                "slipSinkage.coefficient": 1.5 * 0.4})
+    assert files_of(out) == EXPECTED_FILES
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--effect", "grouser", "--effect", "grouser"], "twice"),
+    (["--effect", "none", "--effect", "grouser"], "none"),
+    (["--effect", "grouser", "--effect", "multipass", "--strength", "1", "--strength", "1",
+      "--strength", "1"], "strengths"),
+])
+def test_inconsistent_effect_lists_are_refused(tmp_path, args, needle):
+    out = tmp_path / "campaign"
+    proc = run_juno("synthesize", out, *args, "--time-scale", SMALL_TIME_SCALE, "--quiet")
+    one_line_error(proc, needle)
+    assert not out.exists()
