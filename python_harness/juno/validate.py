@@ -20,7 +20,11 @@ from .pointcloud import Grid, grid_from_points, write_esri_ascii
 from .simulator import InputSignals, JunoFMU
 
 #: Default terrain grid resolution (m).
-GRID_CELL = 0.05
+#: Measured on the synthetic campaign (5 mm point noise, ~1200 points per m^2): at 5 cm cells
+#: the gridded slope is noisy (0.07 rad RMS), and on the terrain run the drive-torque residual
+#: with the true soil and registration stayed at 3x the sensor noise; at 10 cm it is at 1.3x,
+#: and the 0.5 m mound and 2-6 m undulations are resolved the same.
+GRID_CELL = 0.10
 #: Seconds at the start of a run left out of the RMS errors (PID settling).
 SETTLING = 1.0
 

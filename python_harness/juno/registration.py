@@ -1,0 +1,150 @@
+"""Registration of a LIDAR scan against a measured traverse, without simulating the rover.
+
+A misregistered scan puts the terrain's features (the mound) in the wrong place, and the
+rover's measured height and pitch along its measured path show where they really are.  The
+chassis reference point rides at a nearly constant height above the mean ground under its four
+wheels, and its pitch follows the ground's slope between the axles, so for a trial registration
+(offset o = (ox, oy) m, raise oz m, yaw psi rad: grid point q appears at o + Rz(psi) q, as the
+FMU's ``terrain.offset*`` parameters place it) the predicted measurements are
+
+    z(t)     = h0 + mean over wheels of [G(Rz(-psi) (p_w(t) - o)) + oz]
+    pitch(t) = atan((mean rear ground - mean front ground) / wheelbase)   (positive nose down)
+
+with p_w the wheel positions from the measured pose and the rover's geometry, G the gridded
+scan, and h0 the chassis height above flat ground (the mean measured height on the drawbar
+runs, which are on flat ground at z = 0).  Least squares over the four offsets from a grid of
+starts gives a registration that the diagnosis then refines by simulation.  Cheap (no FMU):
+about 0.1 s for a 30 s run.
+
+Assumptions, named: sinkage is the same on the mound as on the flat (it changes by millimetres
+with the load transfer); the rocker follows the ground so the four-wheel mean is what the
+chassis rides on; roll is not used (the differential rocker makes it the mean of the two
+sides' slopes, which the height already carries).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .pointcloud import Grid
+
+#: Trial offsets of the starting grid: shifts (m) in x and y, yaw (rad).
+START_SHIFTS = (-0.3, -0.15, 0.0, 0.15, 0.3)
+START_YAWS = (-0.06, -0.03, 0.0, 0.03, 0.06)
+#: Weights: the height's and the pitch's typical model error (not the sensor noise: the chassis
+#: does not follow the ground exactly), m and rad.
+SIGMA_Z = 0.01
+SIGMA_PITCH = 0.01
+
+
+@dataclass(frozen=True)
+class Traverse:
+    """A measured terrain run at the total station's sample times: position (m), yaw and
+    pitch (rad, interpolated from the IMU), and the rover's wheelbase and track (m)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    yaw: np.ndarray
+    pitch: np.ndarray | None
+    wheelbase: float
+    track: float
+
+
+def wheel_points(tr: Traverse) -> tuple[np.ndarray, np.ndarray]:
+    """World x, y (m) of the four wheels below their hubs, shape (n, 4): FL, RL, FR, RR."""
+    c, s = np.cos(tr.yaw), np.sin(tr.yaw)
+    half_l, half_w = tr.wheelbase / 2, tr.track / 2
+    fx = np.array([half_l, -half_l, half_l, -half_l])
+    fy = np.array([half_w, half_w, -half_w, -half_w])
+    px = tr.x[:, None] + c[:, None] * fx - s[:, None] * fy
+    py = tr.y[:, None] + s[:, None] * fx + c[:, None] * fy
+    return px, py
+
+
+def ground_under_wheels(grid: Grid, tr: Traverse, offset: np.ndarray) -> np.ndarray:
+    """Ground height (m) under each wheel, shape (n, 4), for offset (ox, oy, oz, yaw)."""
+    ox, oy, oz, yaw = offset
+    px, py = wheel_points(tr)
+    dx, dy = px - ox, py - oy
+    c, s = np.cos(yaw), np.sin(yaw)
+    return grid.height(c * dx + s * dy, -s * dx + c * dy) + oz
+
+
+def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float) -> np.ndarray:
+    """Scaled residuals of height (and pitch, if measured) for a trial registration."""
+    g = ground_under_wheels(grid, tr, offset)
+    r = [(tr.z - h0 - g.mean(axis=1)) / SIGMA_Z]
+    if tr.pitch is not None:
+        slope = ((g[:, 1] + g[:, 3]) - (g[:, 0] + g[:, 2])) / (2 * tr.wheelbase)
+        r.append((tr.pitch - np.arctan(slope)) / SIGMA_PITCH)
+    return np.concatenate(r)
+
+
+def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
+    """The registration offsets (FMU names ``terrain.offsetX/Y/Z/Yaw``) that best explain the
+    measured height and pitch.  With ``h0`` None (no flat-ground run to measure the chassis
+    height on), the raise cannot be told from the chassis height and is left at 0."""
+    fit_z = h0 is not None
+    h = 0.0 if h0 is None else h0
+
+    def res(v: np.ndarray) -> np.ndarray:
+        off = np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]])
+        r = residuals(off, grid, tr, h)
+        if not fit_z:
+            r[:len(tr.z)] -= np.mean(r[:len(tr.z)])   # the height offset is free
+        return r
+
+    starts = [np.array([dx, dy, 0.0, yaw]) for dx in START_SHIFTS for dy in START_SHIFTS for yaw in START_YAWS]
+    costs = [float(np.sum(res(v) ** 2)) for v in starts]
+    best = None
+    for i in np.argsort(costs)[:4]:
+        fit = least_squares(res, starts[i], x_scale=np.array([0.1, 0.1, 0.01, 0.02]), max_nfev=200)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    ox, oy, oz, yaw = best.x
+    return {"terrain.offsetX": float(ox), "terrain.offsetY": float(oy),
+            "terrain.offsetZ": float(oz) if fit_z else 0.0, "terrain.offsetYaw": float(yaw)}
+
+
+#: The FMU's defaults (modelDescription), used when the campaign does not override them.
+DEFAULT_WHEELBASE = 0.82
+DEFAULT_TRACK = 1.35
+SETTLING = 2.0   # s at the start of a run left out (the rover starts from rest)
+
+
+def traverse_of(campaign, run) -> Traverse:
+    """The measured traverse of a terrain run of ``campaign`` (juno.campaign objects)."""
+    from .campaign import read_run
+    data = read_run(campaign, run)
+    t, x = data.samples("pos_x")
+    _, y = data.samples("pos_y")
+    _, z = data.samples("pos_z")
+    keep = t >= t[0] + SETTLING
+    t, x, y, z = t[keep], x[keep], y[keep], z[keep]
+    if data.has("yaw"):
+        ty, yaw = data.samples("yaw")
+        yaw = np.interp(t, ty, np.unwrap(yaw))
+    else:   # heading from the track: the rover drives forwards
+        yaw = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
+    pitch = None
+    if data.has("pitch"):
+        tp, p = data.samples("pitch")
+        pitch = np.interp(t, tp, p)
+    rover = campaign.rover or {}
+    return Traverse(x, y, z, yaw, pitch, float(rover.get("rover.wheelbase", DEFAULT_WHEELBASE)),
+                    float(rover.get("rover.track", DEFAULT_TRACK)))
+
+
+def flat_height(campaign) -> float | None:
+    """Mean measured chassis height (m) on the drawbar runs (flat ground at z = 0), or None."""
+    from .campaign import read_run
+    heights = []
+    for run in campaign.runs_of_kind("drawbar"):
+        data = read_run(campaign, run)
+        t, z = data.samples("pos_z")
+        heights.append(z[t >= t[0] + SETTLING])
+    return float(np.mean(np.concatenate(heights))) if heights else None
