@@ -80,7 +80,7 @@ static double volumetric_load(const ContactModel *cm, double s)
 {
     ContactPatch p;
     contact_patch(cm, s, 0.0, (1.0 - cm->gamma) * s, &p);
-    return p.Fn * cos(p.alpha);
+    return p.Fn * p.cos_alpha;
 }
 
 /* Sinkage carrying `load` (bisection; the load rises with sinkage). */
@@ -148,7 +148,7 @@ static void run_volumetric(const Workload *w, long n)
         double F_long, F_lat, jac[6];
         /* omega R such that the slip is w->slip[k]; a little lateral slip */
         contact_shear(cm, p.Fn, p.area, v, 0.002, v / (1.0 - w->slip[k]), &F_long, &F_lat, jac);
-        acc += p.Fn * cos(p.alpha) + F_long + jac[0];
+        acc += p.Fn * p.cos_alpha + p.dFn_dz + F_long + jac[0];
     }
     sink = acc;
 }

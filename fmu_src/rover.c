@@ -31,7 +31,8 @@ static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
 /* Per-wheel contact result of one evaluation. */
 typedef struct {
     int in_contact;
-    double sinkage, slip, Fn, F_long, F_lat, alpha, v_long;
+    double sinkage, slip, Fn, F_long, F_lat, v_long;
+    double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
     double force[3];               /* world force on the wheel, N */
 } WheelContact;
 
@@ -256,6 +257,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     const double *H = ev->hub[w];
     WheelContact *wc = &ev->wheel[w];
     memset(wc, 0, sizeof *wc);
+    wc->cos_alpha = 1.0;
 
     double n[3];
     const double zt = terrain_query(m, H[0], H[1], n);
@@ -304,8 +306,20 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     ContactPatch patch;
     contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
     patch.Fn *= kh_factor;
-    patch.alpha *= contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
-    const double sa = sin(patch.alpha), ca = cos(patch.alpha);
+    /* The tilt alpha times the rolling factor; the usual factors +-1 and 0
+     * need no trigonometry. */
+    const double roll = contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
+    double sa = patch.sin_alpha, ca = patch.cos_alpha;
+    if (roll == 0.0) {
+        sa = 0.0;
+        ca = 1.0;
+    } else if (roll == -1.0) {
+        sa = -sa;
+    } else if (roll != 1.0) {
+        const double alpha = roll * atan2(sa, ca);
+        sa = sin(alpha);
+        ca = cos(alpha);
+    }
     double nvec[3], t[3], r_rim[3];
     for (int i = 0; i < 3; ++i) {
         nvec[i] = -sa * f[i] + ca * np[i];             /* Eqn 6: from the centroid towards the hub */
@@ -332,7 +346,8 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     wc->Fn = patch.Fn;
     wc->F_long = F_long;
     wc->F_lat = F_lat;
-    wc->alpha = patch.alpha;
+    wc->sin_alpha = sa;
+    wc->cos_alpha = ca;
     for (int i = 0; i < 3; ++i) wc->force[i] = patch.Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
     if (!matrices) return;
 
@@ -351,11 +366,8 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     }
     add_outer(ev->D, a_t, -1.0, dFl);
     add_outer(ev->D, g_lat, -1.0, dFy);
-    /* Normal stiffness dFn/dz by a one-sided difference (closed form is cheap). */
-    ContactPatch deeper;
-    const double dz = 1e-6;
-    contact_patch(cm, sinkage + dz, cut_front, cut_rear, &deeper);
-    const double kn = (kh_factor * deeper.Fn - patch.Fn) / dz;
+    /* Normal stiffness dFn/dz at fixed cuts, from contact_patch. */
+    const double kn = kh_factor * patch.dFn_dz;
     double a_n[NU];
     vec_times_jac(a_n, nvec, Jh);
     add_outer(K, a_n, kn, a_n);
@@ -681,7 +693,7 @@ void model_compute_outputs(Model *m)
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const WheelContact *wc = &ev.wheel[w];
         WheelOutputs *wo = &o->wheel[w];
-        const double sa = sin(wc->alpha), ca = cos(wc->alpha);
+        const double sa = wc->sin_alpha, ca = wc->cos_alpha;
         wo->sinkage = wc->sinkage;
         wo->slip = wc->slip;
         wo->Fn = wc->Fn;
