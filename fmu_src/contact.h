@@ -50,6 +50,7 @@ typedef struct {
     double log_Vint;    /* ln Vint, so that the power is exp(vh_exp (ln 2V - ln Vint)) */
     double inv_Kvx;     /* 1 / Kvx: the shear law's slip scale, longitudinal */
     double inv_Kvy;     /* 1 / (Kvy_ratio Kvx): lateral */
+    double inv_R2;      /* 1 / radius^2 */
 } ContactModel;
 
 typedef struct {
