@@ -39,12 +39,18 @@ typedef struct {
     double slip_v_eps;  /* m/s, > 0: slip denominator floor, see contact_shear */
     int method;         /* CONTACT_CLOSED_FORM (Eqn 3) or CONTACT_QUADRATURE */
 
-    /* derived by contact_model_prepare(); read-only afterwards */
+    /* derived by contact_model_prepare(); read-only afterwards (a changed
+     * parameter above needs contact_model_prepare again) */
     double A1;          /* Eqn 3 exponent factor (-> 2/3 at shallow sinkage) */
     double Vint;        /* Eqn 3 reference volume, m^3 (full symmetric segment) */
     double cx_eta;      /* half-patch hypervolume centroid: xbar = cx_eta * half_length */
     double cz_eta;      /* half-patch column centre: depth of centroid = cz_eta * half_depth */
     double tan_phi;
+    double vh_exp;      /* A1 (eta - 1): Vh = V (2 V / Vint)^vh_exp (Eqn 3) */
+    double log_Vint;    /* ln Vint, so that the power is exp(vh_exp (ln 2V - ln Vint)) */
+    double inv_Kvx;     /* 1 / Kvx: the shear law's slip scale, longitudinal */
+    double inv_Kvy;     /* 1 / (Kvy_ratio Kvx): lateral */
+    double inv_R2;      /* 1 / radius^2 */
 } ContactModel;
 
 typedef struct {
@@ -55,7 +61,11 @@ typedef struct {
     double length_front, length_rear; /* m, half lengths actually in contact */
     double xc, zc;      /* hypervolume centroid in the hub frame, m */
     double Fn;          /* normal force magnitude k_h * Vh, N */
-    double alpha;       /* atan2(xc, -zc), rad (Eqn 7); > 0 when the centroid is ahead */
+    double dFn_dz;      /* normal stiffness dFn/d(sinkage) at fixed cuts, N/m (see contact_patch) */
+    /* Tilt alpha of the normal force (Eqn 7), alpha = atan2(xc, -zc), > 0
+     * when the centroid is ahead; given as its sine and cosine (what the
+     * force needs; atan2(sin_alpha, cos_alpha) recovers the angle). */
+    double sin_alpha, cos_alpha;
 } ContactPatch;
 
 typedef struct {
@@ -71,7 +81,13 @@ int contact_model_prepare(ContactModel *m, char *err, size_t errlen);
 
 /* Hypervolume of the patch, its volume, area and centroid, and Fn, for
  * sinkage z_s and cuts c_front, c_rear (each clamped to [0, z_s]).
- * Uses m->method.  No allocation; safe for z_s <= 0 (all zero). */
+ * Uses m->method.  No allocation; safe for z_s <= 0 (all zero, alpha 0).
+ * dFn_dz is the derivative of Fn with respect to z_s with the cuts held
+ * fixed (what the linearly implicit integrator needs): closed form, exact
+ * derivative of Eqn 3 per half, dVh/dh = (1 + A1 (eta-1)) Vh b L / V
+ * (dV/dh of a half segment is its half chord L times the width b);
+ * quadrature, a forward difference over 1e-5 h of the two half
+ * quadratures (the reference method pays one more quadrature for it). */
 void contact_patch(const ContactModel *m, double sinkage, double cut_front,
                    double cut_rear, ContactPatch *out);
 

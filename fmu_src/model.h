@@ -14,10 +14,12 @@
 #include <stddef.h>
 #include "contact.h"
 #include "terrain.h"
+#include "wong_reece.h"
 
 enum { WHEEL_FL = 0, WHEEL_RL = 1, WHEEL_FR = 2, WHEEL_RR = 3, NUM_WHEELS = 4 };
 enum { SIDE_LEFT = 0, SIDE_RIGHT = 1 };
 enum { DRIVE_TORQUE = 0, DRIVE_PID = 1, DRIVE_MOTOR = 2 };
+enum { CONTACT_LAW_VOLUMETRIC = 0, CONTACT_LAW_WONG_REECE = 1 };
 
 /* Generalised velocities u (9): chassis linear velocity (world, 3),
  * chassis angular velocity (world, 3), rocker rate, left and right wheel
@@ -35,6 +37,10 @@ typedef struct {
     double init_x, init_y, init_yaw, init_vx;
     int contact_method;
     double contact_slipVelocityEps, solver_step;
+    /* contact law (contact.model) and the Wong-Reece soil (model-notes section 6) */
+    int contact_model;
+    double wr_n, wr_kc, wr_kphi, wr_K, wr_a0, wr_a1;
+    int wr_points;
     /* extensions (model-notes section 7), off at their defaults */
     double patch_x, patch_y, patch_radius, patch_khFactor, patch_strengthFactor;
     double multipass_rutFraction, multipass_khFactor;
@@ -50,6 +56,7 @@ typedef struct {
 
 typedef struct {
     ContactModel contact;
+    WongReeceModel wong_reece;     /* prepared always (its parameters are checked), used when contact.model = 1 */
     double chassis_mass;
     double chassis_inertia[3];     /* body-frame principal inertia, kg m^2 */
     double rocker_inertia[3];

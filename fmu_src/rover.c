@@ -31,7 +31,8 @@ static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
 /* Per-wheel contact result of one evaluation. */
 typedef struct {
     int in_contact;
-    double sinkage, slip, Fn, F_long, F_lat, alpha, v_long;
+    double sinkage, slip, Fn, F_long, F_lat, v_long;
+    double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
     double force[3];               /* world force on the wheel, N */
 } WheelContact;
 
@@ -242,6 +243,118 @@ static void drive_torques(const Model *m, double torque[2], double dtorque_domeg
     }
 }
 
+/* ------------------------------------------------- Wong-Reece contact */
+
+/* The Wong-Reece/Ishigami law (contact.model = 1) at one wheel, mapped onto
+ * the representation the volumetric law uses (Eqns 8-9): a force Fn
+ * through the hub tilted by alpha, and a traction F_long along the tilted
+ * tangent at the rim point on the tilted ray, whose moment about the axle
+ * is -R F_long.  With F_long = T / R (T the resisting torque) and (Fn,
+ * alpha) solved from (Fx, Fz) = Rot(alpha) (F_long, Fn), the wheel gets
+ * exactly WR's drawbar pull Fx along the heading, vertical load Fz along
+ * the soil normal and torque -T about its axle.
+ *
+ * Assumptions, named (README "Contact laws"):
+ *  - Direction: wong_reece_forces describes a wheel moving forwards; a
+ *    wheel is described in the frame of the faster of its rim speed omega R
+ *    and hub speed v (dir = the sign of that one), mirrored when dir < 0:
+ *    WR slip = dir * slip, Fx and T flip sign, Fz not.
+ *  - Standstill: WR is a steady rolling solution (the shear displacement j
+ *    and the front-heavy stress profile both come from rolling), and at
+ *    slip 0 it has T > 0 and a rolling resistance, which would make a
+ *    parked rover creep.  As for the volumetric tilt (contact.h,
+ *    contact_rolling_factor), below slipVelocityEps they fade: the rolling
+ *    resistance Fx - T/R is scaled by clamp(v / eps, -1, 1) (it always
+ *    opposes the motion) and the traction loses (1 - b) of its zero-slip
+ *    part, F_long = (T(s) - (1 - b) T(0)) / R with b = min(1, max(|omega R|,
+ *    |v|) / eps); at rest only the slip-proportional (viscous) shear is
+ *    left.  At speed >= eps, WR exactly.
+ *  - soilPatch.strengthFactor and grouser.thrustGain scale the traction
+ *    T / R (WR's shear stress scales with c and tan phi); their smaller
+ *    share in Fz and in the rolling resistance is not scaled.  The k_h
+ *    factors (soilPatch.khFactor, multipass.khFactor, slipSinkage) are
+ *    volumetric-only; the multi-pass rut depth (geometry) applies.
+ *  - When T / R exceeds the in-plane resultant (only at sub-millimetre
+ *    sinkage, where WR's cohesion can pull the wheel down), the moment is
+ *    limited to R times the resultant (Fn = 0).
+ * For the linearly implicit integrator it also returns slip derivatives of
+ * the applied forces (a one-sided difference of 1e-3 in slip, 0 where the
+ * WR slip is clamped at +-1) and dFz/d(sinkage) (a difference of 1e-3 of
+ * the sinkage, 1 um at least), checked against a 20000-point reference in
+ * tests/c/test_wong_reece.c.  The speed dependence of the fading factors
+ * b and c is left out of the damping, as that of the volumetric rolling
+ * factor is. */
+typedef struct {
+    double Fn, sin_alpha, cos_alpha, F_long;   /* the Eqn 8-9 representation */
+    double Fx, Fz;                             /* applied along the heading and the soil normal, N */
+    double area;                               /* b r (sin theta_f - sin theta_r), m^2 */
+    double dFx_ds, dFz_ds, dFt_ds;             /* derivatives in the rover's slip, N */
+    double kz;                                 /* dFz / d(sinkage), N/m */
+} WongReeceContact;
+
+static void wong_reece_contact(const Model *m, double sinkage, double slip, double v_long, double omega_r,
+                               double shear_factor, int derivatives, WongReeceContact *out)
+{
+    const WongReeceModel *wm = &m->d.wong_reece;
+    const double R = wm->radius, eps = m->p.contact_slipVelocityEps;
+    const double dir = (fabs(omega_r) >= fabs(v_long) ? omega_r : v_long) < 0 ? -1.0 : 1.0;
+    const double speed = fmax(fabs(omega_r), fabs(v_long));
+    const double b = speed < eps ? speed / eps : 1.0;
+    const double c = v_long >= eps ? 1.0 : v_long <= -eps ? -1.0 : v_long / eps;
+    const double s = dir * slip;
+
+    WRForces f;
+    wong_reece_forces(wm, sinkage, s, &f);
+    double T0 = 0.0;
+    if (b < 1.0) {
+        WRForces f0;
+        wong_reece_forces(wm, sinkage, 0.0, &f0);
+        T0 = f0.T;
+    }
+    /* applied forces along the heading and the soil normal, and the traction */
+    const double Ft = shear_factor * dir * (f.T - (1.0 - b) * T0) / R;
+    const double Hx = c * (f.Fx - f.T / R);            /* rolling resistance, regularised */
+    out->Fx = Ft + Hx;
+    out->Fz = f.Fz;
+    out->area = wm->width * R * (sin(f.theta_f) - sin(f.theta_r));
+
+    /* (Fx + i Fz) = e^{i alpha} (F_long + i Fn) */
+    const double F2 = out->Fx * out->Fx + out->Fz * out->Fz;
+    double Fl = Ft, Fn2 = F2 - Ft * Ft;
+    if (!(Fn2 > 0.0)) {
+        Fn2 = 0.0;
+        Fl = copysign(sqrt(F2), Ft);
+    }
+    out->F_long = Fl;
+    out->Fn = sqrt(Fn2);
+    if (F2 > 0.0) {
+        out->cos_alpha = (out->Fx * Fl + out->Fz * out->Fn) / F2;
+        out->sin_alpha = (out->Fz * Fl - out->Fx * out->Fn) / F2;
+    } else {
+        out->cos_alpha = 1.0;
+        out->sin_alpha = 0.0;
+    }
+
+    out->dFx_ds = out->dFz_ds = out->dFt_ds = out->kz = 0.0;
+    if (!derivatives) return;
+    if (f.slip > -1.0 && f.slip < 1.0) {
+        const double ds = f.slip + 1e-3 <= 1.0 ? 1e-3 : -1e-3;
+        WRForces g;
+        wong_reece_forces(wm, sinkage, f.slip + ds, &g);
+        const double dT = (g.T - f.T) / ds, dFx = (g.Fx - f.Fx) / ds, dFz = (g.Fz - f.Fz) / ds;
+        /* d/d(slip) = dir d/ds (s = dir slip), and dir^2 = 1 */
+        out->dFt_ds = shear_factor * dT / R;
+        out->dFx_ds = out->dFt_ds + c * dir * (dFx - dT / R);
+        out->dFz_ds = dir * dFz;
+    }
+    if (f.sinkage > 0.0 && f.sinkage < R) {
+        const double dh = fmax(1e-3 * f.sinkage, 1e-6);
+        WRForces g;
+        wong_reece_forces(wm, f.sinkage + dh, f.slip, &g);
+        out->kz = (g.Fz - f.Fz) / dh;
+    }
+}
+
 /* ---------------------------------------------------- the dynamics */
 
 /* Contact of wheel w: fills ev->wheel[w]; if J is given (matrices wanted),
@@ -256,6 +369,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     const double *H = ev->hub[w];
     WheelContact *wc = &ev->wheel[w];
     memset(wc, 0, sizeof *wc);
+    wc->cos_alpha = 1.0;
 
     double n[3];
     const double zt = terrain_query(m, H[0], H[1], n);
@@ -299,13 +413,45 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
         kh_factor /= 1.0 + p->slipSinkage_coefficient * fmin(fabs(wc->slip), 1.0);
     const double shear_factor = strength_factor * (1.0 + p->grouser_thrustGain);
 
-    double cut_front, cut_rear;
-    contact_cuts(cm, &m->s.memory[w], sinkage, &cut_front, &cut_rear);
-    ContactPatch patch;
-    contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
-    patch.Fn *= kh_factor;
-    patch.alpha *= contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
-    const double sa = sin(patch.alpha), ca = cos(patch.alpha);
+    /* The normal force Fn, its tilt alpha (Eqns 6-9), the contact area and
+     * the normal stiffness, from the contact law. */
+    const int wong_reece = p->contact_model == CONTACT_LAW_WONG_REECE;
+    WongReeceContact wr = {0};
+    double Fn, sa, ca, area, support, kn;
+    if (wong_reece) {
+        wong_reece_contact(m, sinkage, wc->slip, wc->v_long, omega_r, shear_factor, matrices, &wr);
+        Fn = wr.Fn;
+        sa = wr.sin_alpha;
+        ca = wr.cos_alpha;
+        area = wr.area;
+        support = wr.Fz;            /* the lateral law's normal load */
+        kn = wr.kz;
+    } else {
+        double cut_front, cut_rear;
+        contact_cuts(cm, &m->s.memory[w], sinkage, &cut_front, &cut_rear);
+        ContactPatch patch;
+        contact_patch(cm, sinkage, cut_front, cut_rear, &patch);
+        Fn = kh_factor * patch.Fn;
+        area = patch.area;
+        support = Fn;
+        /* Normal stiffness dFn/dz at fixed cuts, from contact_patch. */
+        kn = kh_factor * patch.dFn_dz;
+        /* The tilt alpha times the rolling factor; the usual factors +-1
+         * and 0 need no trigonometry. */
+        const double roll = contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
+        sa = patch.sin_alpha;
+        ca = patch.cos_alpha;
+        if (roll == 0.0) {
+            sa = 0.0;
+            ca = 1.0;
+        } else if (roll == -1.0) {
+            sa = -sa;
+        } else if (roll != 1.0) {
+            const double alpha = roll * atan2(sa, ca);
+            sa = sin(alpha);
+            ca = cos(alpha);
+        }
+    }
     double nvec[3], t[3], r_rim[3];
     for (int i = 0; i < 3; ++i) {
         nvec[i] = -sa * f[i] + ca * np[i];             /* Eqn 6: from the centroid towards the hub */
@@ -322,18 +468,28 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     for (int i = 0; i < 3; ++i) v_rim[i] = row_dot(Jp[i], u);
     const double v_lat = v3_dot(l, v_rim);
     double F_long, F_lat, jac[6];
-    contact_shear(cm, patch.Fn, patch.area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
+    contact_shear(cm, support, area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
     if (shear_factor != 1.0) {           /* soil patch strength, grouser thrust: F_taumax scales */
         F_long *= shear_factor;
         F_lat *= shear_factor;
         if (matrices)
             for (int i = 0; i < 6; ++i) jac[i] *= shear_factor;
     }
-    wc->Fn = patch.Fn;
+    if (wong_reece) {
+        /* Assumption: Wong-Reece has no lateral force; the lateral one is
+         * the volumetric slip-vector law's (combined slip, soil.Kvx,
+         * soil.KvyRatio) with F_taumax from WR's normal load and contact
+         * area.  The traction along the heading is WR's (its damping is
+         * added below, so the law's own longitudinal Jacobian row goes). */
+        F_long = wr.F_long;
+        if (matrices) jac[0] = jac[1] = jac[2] = 0.0;
+    }
+    wc->Fn = Fn;
     wc->F_long = F_long;
     wc->F_lat = F_lat;
-    wc->alpha = patch.alpha;
-    for (int i = 0; i < 3; ++i) wc->force[i] = patch.Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
+    wc->sin_alpha = sa;
+    wc->cos_alpha = ca;
+    for (int i = 0; i < 3; ++i) wc->force[i] = Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
     if (!matrices) return;
 
     add_generalised(ev->Q, Jp, wc->force);
@@ -351,12 +507,26 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     }
     add_outer(ev->D, a_t, -1.0, dFl);
     add_outer(ev->D, g_lat, -1.0, dFy);
-    /* Normal stiffness dFn/dz by a one-sided difference (closed form is cheap). */
-    ContactPatch deeper;
-    const double dz = 1e-6;
-    contact_patch(cm, sinkage + dz, cut_front, cut_rear, &deeper);
-    const double kn = (kh_factor * deeper.Fn - patch.Fn) / dz;
     double a_n[NU];
+    if (wong_reece) {
+        /* Slip damping of WR's in-plane forces: Q = Jh^T (Fx f + Fz np) -
+         * T e^T Jw depends on u through the slip s = (omega R - v) / den. */
+        double a_z[NU], dQ_ds[NU], ds_du[NU];
+        vec_times_jac(a_z, np, Jh);
+        const double aw = fabs(omega_r), av = fabs(wc->v_long);
+        double dden_dv = 0.0, dden_dw = 0.0;
+        if (aw >= av && aw >= cm->slip_v_eps) dden_dw = omega_r > 0.0 ? 1.0 : -1.0;
+        else if (av >= cm->slip_v_eps) dden_dv = wc->v_long > 0.0 ? 1.0 : -1.0;
+        const double ds_dv = (-1.0 - wc->slip * dden_dv) / den, ds_dw = (1.0 - wc->slip * dden_dw) / den;
+        for (int k = 0; k < NU; ++k) {
+            dQ_ds[k] = g_long[k] * wr.dFx_ds + a_z[k] * wr.dFz_ds - g_spin[k] * wr.dFt_ds;
+            ds_du[k] = ds_dv * g_long[k] + ds_dw * g_spin[k];
+        }
+        add_outer(ev->D, dQ_ds, -1.0, ds_du);
+        /* Normal stiffness dFz/dz along the soil normal. */
+        add_outer(K, a_z, kn, a_z);
+        return;
+    }
     vec_times_jac(a_n, nvec, Jh);
     add_outer(K, a_n, kn, a_n);
 }
@@ -681,7 +851,7 @@ void model_compute_outputs(Model *m)
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const WheelContact *wc = &ev.wheel[w];
         WheelOutputs *wo = &o->wheel[w];
-        const double sa = sin(wc->alpha), ca = cos(wc->alpha);
+        const double sa = wc->sin_alpha, ca = wc->cos_alpha;
         wo->sinkage = wc->sinkage;
         wo->slip = wc->slip;
         wo->Fn = wc->Fn;
@@ -850,6 +1020,35 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
 
 /* ------------------------------------------------------------- life cycle */
 
+/* The Wong-Reece law's constants (model-notes section 6), from wongReece.*,
+ * the shared soil.cohesion, soil.phi, the rebound lambda = soil.gamma and
+ * the wheel.  Checked whatever contact.model is, so a bad value is
+ * reported when it is set, not when the law is switched on later; the
+ * messages name the FMU variables (wong_reece_prepare uses the same names;
+ * gamma, cohesion, phi and the wheel were checked by contact_model_prepare). */
+static int prepare_wong_reece(Model *m, char *err, size_t errlen)
+{
+    const Params *p = &m->p;
+    if (p->contact_model != CONTACT_LAW_VOLUMETRIC && p->contact_model != CONTACT_LAW_WONG_REECE)
+        return snprintf(err, errlen, "contact.model = %d must be 0 (volumetric) or 1 (Wong-Reece)",
+                        p->contact_model), -1;
+    WongReeceModel *wm = &m->d.wong_reece;
+    memset(wm, 0, sizeof *wm);
+    wm->n = p->wr_n;
+    wm->kc = p->wr_kc;
+    wm->kphi = p->wr_kphi;
+    wm->cohesion = p->soil_cohesion;
+    wm->phi = p->soil_phi;
+    wm->K = p->wr_K;
+    wm->a0 = p->wr_a0;
+    wm->a1 = p->wr_a1;
+    wm->lambda = p->soil_gamma;
+    wm->radius = p->wheel_radius;
+    wm->width = p->wheel_width;
+    wm->points = p->wr_points;
+    return wong_reece_prepare(wm, err, errlen);
+}
+
 int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
@@ -868,6 +1067,7 @@ int model_initialize(Model *m, char *err, size_t errlen)
     cm->slip_v_eps = p->contact_slipVelocityEps;
     cm->method = p->contact_method;
     if (contact_model_prepare(cm, err, errlen) != 0) return -1;
+    if (prepare_wong_reece(m, err, errlen) != 0) return -1;
     derive(m);
 
     terrain_free(&m->terrain);

@@ -73,10 +73,11 @@ int wong_reece_prepare(WongReeceModel *m, char *err, size_t errlen)
         return fail(err, errlen, "wongReece.a0", "in [0, 1)", m->a0);
     if (!(fabs(m->a1) <= m->a0 && fabs(m->a1) < 1.0 - m->a0))
         return fail(err, errlen, "wongReece.a1",
-                    "such that 0 <= a0 + a1 s < 1 for all s in [-1, 1], "
-                    "i.e. |a1| <= a0 and |a1| < 1 - a0", m->a1);
+                    "such that 0 <= wongReece.a0 + wongReece.a1 s < 1 for all "
+                    "s in [-1, 1], i.e. |a1| <= a0 and |a1| < 1 - a0", m->a1);
     if (!(m->lambda >= 0.0 && m->lambda <= 1.0))
-        return fail(err, errlen, "wongReece.lambda", "in [0, 1]", m->lambda);
+        return fail(err, errlen, "wongReece.lambda (the FMU's soil.gamma)", "in [0, 1]",
+                    m->lambda);
     if (m->points < WONG_REECE_MIN_POINTS || m->points > WONG_REECE_MAX_POINTS)
         return fail(err, errlen, "wongReece.points", "in [6, 1000000]",
                     (double)m->points);

@@ -97,6 +97,8 @@ static const struct { const char *name, *base; } units[] = {
     {"N.m/A", "kg=\"1\" m=\"2\" s=\"-2\" A=\"-1\""},
     /* the exponent depends on eta, so no fixed SI decomposition exists */
     {"N/m^(2+eta)", NULL},
+    /* Bekker moduli (wongReece.kc, kphi): the exponent depends on n */
+    {"N/m^(n+1)", NULL}, {"N/m^(n+2)", NULL},
 };
 
 int main(int argc, char **argv)

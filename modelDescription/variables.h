@@ -65,6 +65,16 @@
     REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    0, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
     REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  0, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
     REAL(159, "motor.efficiency",  PARAM, "1",   0.85,   0, 1,     p.motor_efficiency, "Gear and chain efficiency (assumed)") \
+    /* ---- Wong-Reece/Ishigami contact law (contact.model = 1; model-notes section 6).  Defaults: the dry \
+     * sand set (Wong, Land Locomotion Lab); cohesion and phi are soil.cohesion and soil.phi (defaults \
+     * 1 kPa, 30 deg; the set has 1.04 kPa, 28 deg), the rear rebound lambda is soil.gamma ---- */ \
+    REAL(160, "wongReece.n",    PARAM, "1",          1.1,     0, 5,       p.wr_n,    "Wong-Reece (contact.model 1): Bekker sinkage exponent n (> 0); default dry sand 1.1") \
+    REAL(161, "wongReece.kc",   PARAM, "N/m^(n+1)",  990.0, -1e8, 1e8,    p.wr_kc,   "Wong-Reece (contact.model 1): Bekker cohesive modulus k_c (fitted sets may be < 0; kc / wheel.width + kphi must be > 0); default dry sand 0.99e3") \
+    REAL(162, "wongReece.kphi", PARAM, "N/m^(n+2)",  1.528e6, -1e10, 1e10, p.wr_kphi, "Wong-Reece (contact.model 1): Bekker frictional modulus k_phi; default dry sand 1.528e6") \
+    REAL(163, "wongReece.K",    PARAM, "m",          0.010,   0, 10,      p.wr_K,    "Wong-Reece (contact.model 1): Janosi-Hanamoto shear deformation modulus K (> 0); default dry sand 10 mm") \
+    REAL(164, "wongReece.a0",   PARAM, "1",          0.40,    0, 1,       p.wr_a0,   "Wong-Reece (contact.model 1): peak stress angle theta_m = (a0 + a1 slip) theta_f, a0 in [0, 1); default 0.40 (Ishigami 2007)") \
+    REAL(165, "wongReece.a1",   PARAM, "1",          0.15,   -1, 1,       p.wr_a1,   "Wong-Reece (contact.model 1): slip coefficient a1 of the peak angle, |a1| <= a0 and |a1| < 1 - a0; default 0.15 (Ishigami 2007)") \
+    INT (166, "wongReece.points", PARAM, 100, 6, 1000000, p.wr_points, "Wong-Reece (contact.model 1): integrand evaluations per contact (Simpson, front and rear regions)") \
     /* ---- initial state ---- */ \
     REAL(170, "init.x",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_x,   "Initial x of the chassis reference point") \
     REAL(171, "init.y",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_y,   "Initial y of the chassis reference point") \
@@ -73,6 +83,7 @@
     /* ---- numerics ---- */ \
     INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
     REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 0, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor: below this speed the shear law is viscous") \
+    INT (183, "contact.model",     PARAM, 0, 0, 1, p.contact_model, "Contact law: 0 = volumetric (Petersen-McPhee, the paper); 1 = Wong-Reece/Ishigami integrated rim stresses (wongReece.*, soil.cohesion, soil.phi, rebound soil.gamma)") \
     REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Largest internal integration step") \
     /* ---- model extensions (model-notes section 7); each is off at its default ---- */ \
     REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \

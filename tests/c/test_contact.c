@@ -40,6 +40,9 @@ static ContactModel table2(double eta, double gamma, int method)
     return m;
 }
 
+/* The tilt alpha of the normal force (Eqn 7), from its sine and cosine. */
+static double alpha_of(const ContactPatch *p) { return atan2(p->sin_alpha, p->cos_alpha); }
+
 static double rel_err(double a, double b)
 {
     return fabs(a - b) / fmax(fabs(b), 1e-300);
@@ -71,7 +74,7 @@ static double vertical_force(const ContactModel *m, int state, double s)
 {
     ContactPatch p;
     patch_in_state(m, state, s, &p);
-    return p.Fn * cos(p.alpha);
+    return p.Fn * p.cos_alpha;
 }
 
 /* Sinkage at which the normal force carries `load` vertically (bisection;
@@ -139,7 +142,7 @@ static void test_exact_identities(void)
     CHECK(w0 < 1e-6, "contact_patch, quadrature, eta = 1e-9: Vh = area (max rel err %.2e)", w0);
 
     contact_patch(&m1, 0.0, 0.0, 0.0, &p);
-    CHECK(p.Vh == 0.0 && p.Fn == 0.0 && p.area == 0.0 && p.alpha == 0.0,
+    CHECK(p.Vh == 0.0 && p.Fn == 0.0 && p.area == 0.0 && alpha_of(&p) == 0.0,
           "zero sinkage: no contact, all outputs zero");
     contact_patch(&m1, -0.01, 0.0, 0.0, &p);
     CHECK(p.Vh == 0.0 && p.Fn == 0.0, "negative sinkage (wheel above ground): no force");
@@ -194,9 +197,9 @@ static void test_free_rolling_gamma_one(void)
         ContactPatch p;
         contact_patch(&m, s, cf, cr, &p);
         CHECK(cf == 0.0 && cr == 0.0, "method %d: rolled wheel, gamma = 1: both cuts are zero", method);
-        CHECK(p.xc == 0.0 && p.alpha == 0.0, "method %d: centroid xc = %g, alpha = %g: straight below the hub",
-              method, p.xc, p.alpha);
-        CHECK(-p.Fn * sin(p.alpha) == 0.0 && p.Fn > 0.0,
+        CHECK(p.xc == 0.0 && alpha_of(&p) == 0.0, "method %d: centroid xc = %g, alpha = %g: straight below the hub",
+              method, p.xc, alpha_of(&p));
+        CHECK(-p.Fn * p.sin_alpha == 0.0 && p.Fn > 0.0,
               "method %d: horizontal normal-force component -Fn sin(alpha) = 0 at Fn = %.1f N", method, p.Fn);
     }
 }
@@ -212,7 +215,7 @@ static void test_resistance_vs_gamma(void)
             const double s = static_sinkage(&m, ROLLED, LOAD);
             ContactPatch p;
             patch_in_state(&m, ROLLED, s, &p);
-            const double res = p.Fn * sin(p.alpha);
+            const double res = p.Fn * p.sin_alpha;
             printf("      method %d gamma %.1f: sinkage %.2f mm, resistance %.2f N\n", method, 0.1 * k, 1e3 * s, res);
             if (!(res < prev)) monotone = 0;
             prev = res;
@@ -233,13 +236,13 @@ static void test_centroid(void)
         const double s = 0.03;
         ContactPatch p;
         patch_in_state(&m, SYMMETRIC, s, &p);
-        CHECK(p.xc == 0.0 && p.alpha == 0.0 && p.zc < -(R_WHEEL - s) && p.zc > -R_WHEEL,
+        CHECK(p.xc == 0.0 && alpha_of(&p) == 0.0 && p.zc < -(R_WHEEL - s) && p.zc > -R_WHEEL,
               "method %d: symmetric patch: xc = 0 exactly, centroid between rim bottom and surface (zc = %.4f)",
               method, p.zc);
         patch_in_state(&m, ROLLED, s, &p);   /* gamma = 0: front only */
-        CHECK(p.length_rear == 0.0 && p.xc > 0.0 && p.alpha > 0.0,
+        CHECK(p.length_rear == 0.0 && p.xc > 0.0 && alpha_of(&p) > 0.0,
               "method %d: gamma = 0, rolled: front-only contact, xc = %.4f m > 0, alpha = %.4f rad > 0",
-              method, p.xc, p.alpha);
+              method, p.xc, alpha_of(&p));
     }
     ContactModel mc = table2(0.501, 0.0813, CONTACT_CLOSED_FORM);
     ContactModel mq = table2(0.501, 0.0813, CONTACT_QUADRATURE);
@@ -302,6 +305,8 @@ static void test_shear(void)
     printf("-- 7. shear force: Eqn 5 on straight running, slip-vector direction, Jacobian\n");
     ContactModel m = table2(0.501, 0.0813, CONTACT_CLOSED_FORM);
     m.Kvy_ratio = 0.7;  /* a distinct lateral modulus exercises the elliptic scaling */
+    char err[256];
+    CHECK(contact_model_prepare(&m, err, sizeof err) == 0, "prepared again after changing Kvy_ratio %s", err);
     ContactPatch p;
     contact_patch(&m, 0.02, 0.0, 0.0, &p);
     const double Fn = p.Fn, area = p.area;
@@ -531,6 +536,52 @@ static void test_memory(void)
           "lift-off (sinkage 0): memory reset, virgin soil, zero cuts");
 }
 
+/* The normal stiffness dFn/dz that contact_patch returns (the integrator's
+ * K matrix), against a central difference of Fn with the cuts fixed:
+ * closed form (analytic) to 1e-6, quadrature (its own forward difference)
+ * to 1e-4; and alpha from its sine and cosine is the centroid angle. */
+static void test_normal_stiffness(void)
+{
+    printf("-- 10. normal stiffness dFn/dz and the tilt's sine and cosine\n");
+    const double etas[] = {0.3, 0.501, 1.0, 1.6};
+    const double depths[] = {0.0005, 0.005, 0.0319, 0.08, 0.2};
+    for (int method = 0; method <= 1; ++method) {
+        double worst = 0.0, worst_angle = 0.0;
+        int n = 0;
+        for (int i = 0; i < 4; ++i) {
+            const ContactModel m = table2(etas[i], 0.0813, method);
+            for (int j = 0; j < 5; ++j) {
+                const double s = depths[j];
+                /* symmetric, rolled (rear cut (1 - gamma) s), front cut, rear cut beyond s */
+                const double cuts[4][2] = {{0.0, 0.0}, {0.0, (1.0 - m.gamma) * s}, {0.3 * s, 0.0}, {0.0, 2.0 * s}};
+                for (int c = 0; c < 4; ++c) {
+                    ContactPatch p, lo, hi;
+                    const double dz = 1e-6 * s;
+                    contact_patch(&m, s, cuts[c][0], cuts[c][1], &p);
+                    contact_patch(&m, s - dz, cuts[c][0], cuts[c][1], &lo);
+                    contact_patch(&m, s + dz, cuts[c][0], cuts[c][1], &hi);
+                    const double fd = (hi.Fn - lo.Fn) / (2.0 * dz);
+                    worst = fmax(worst, rel_err(p.dFn_dz, fd));
+                    worst_angle = fmax(worst_angle, fabs(alpha_of(&p) - atan2(p.xc, -p.zc)));
+                    worst_angle = fmax(worst_angle, fabs(p.sin_alpha * p.sin_alpha + p.cos_alpha * p.cos_alpha - 1.0));
+                    ++n;
+                }
+            }
+        }
+        CHECK(worst < (method == CONTACT_CLOSED_FORM ? 1e-6 : 1e-4),
+              "method %d: dFn/dz matches a central difference of Fn at fixed cuts, %d cases, eta 0.3..1.6, "
+              "sinkage 0.5..200 mm (max rel err %.2e)", method, n, worst);
+        CHECK(worst_angle < 1e-14, "method %d: sin_alpha, cos_alpha are those of atan2(xc, -zc) (max err %.1e)",
+              method, worst_angle);
+    }
+    const ContactModel m = table2(0.501, 0.0813, CONTACT_CLOSED_FORM);
+    ContactPatch p;
+    contact_patch(&m, 2.0 * R_WHEEL, 0.0, 0.0, &p);
+    CHECK(p.dFn_dz == 0.0 && p.Fn > 0.0, "sinkage beyond R (clamped): Fn = %.0f N, no stiffness", p.Fn);
+    contact_patch(&m, 0.0, 0.0, 0.0, &p);
+    CHECK(p.dFn_dz == 0.0 && p.sin_alpha == 0.0 && p.cos_alpha == 1.0, "no contact: no stiffness, alpha = 0");
+}
+
 int main(void)
 {
     test_exact_identities();
@@ -542,6 +593,7 @@ int main(void)
     test_shear();
     test_prepare_validation();
     test_memory();
+    test_normal_stiffness();
     printf("%d passed, %d failed\n", n_pass, n_fail);
     return n_fail != 0;
 }

@@ -740,6 +740,49 @@ static void time_forces(int soil)
            calls, (double)sink);
 }
 
+/* The FMU's linearisation of this model (rover.c, wong_reece_contact):
+ * forward differences of 1e-3 of the sinkage (relative) for dFz/dh and of
+ * 1e-3 in slip for dT, dFx, dFz per unit slip, at the default 100 points.
+ * Against central differences of a 20000-point reference over sinkage
+ * 2..60 mm and slip -0.5..0.9 (dry sand, lambda = gamma): the step is wide
+ * enough that the Simpson rule's jitter does not show, narrow enough for
+ * the truncation, and the worst is at the kink of the slip law at s = 0. */
+static void test_fmu_differences(void)
+{
+    printf("-- the FMU's difference derivatives (stiffness, slip damping)\n");
+    WongReeceModel m = wong_reece_dry_sand(R_WHEEL, B_WHEEL);
+    m.lambda = 0.0813;
+    WongReeceModel f = m;
+    f.points = 20000;
+    char err[256];
+    CHECK(wong_reece_prepare(&m, err, sizeof err) == 0 && wong_reece_prepare(&f, err, sizeof err) == 0,
+          "models prepared %s", err);
+    double wk = 0.0, wt = 0.0, wx = 0.0, wz = 0.0;
+    for (int i = 0; i < 30; ++i)
+        for (int j = 0; j < 15; ++j) {
+            const double h = 0.002 * pow(30.0, i / 29.0), s = -0.5 + 0.1 * j;
+            WRForces a, b, c, d;
+            wong_reece_forces(&f, h * (1 - 1e-5), s, &a);
+            wong_reece_forces(&f, h * (1 + 1e-5), s, &b);
+            const double kref = (b.Fz - a.Fz) / (2e-5 * h);
+            wong_reece_forces(&f, h, s - 1e-5, &a);
+            wong_reece_forces(&f, h, s + 1e-5, &b);
+            const double tref = (b.T - a.T) / 2e-5, xref = (b.Fx - a.Fx) / 2e-5, zref = (b.Fz - a.Fz) / 2e-5;
+            wong_reece_forces(&m, h, s, &c);
+            wong_reece_forces(&m, h * (1 + 1e-3), s, &d);
+            wk = fmax(wk, fabs((d.Fz - c.Fz) / (1e-3 * h) / kref - 1.0));
+            wong_reece_forces(&m, h, s + 1e-3, &d);
+            /* per unit slip, relative to the load carried */
+            wt = fmax(wt, fabs((d.T - c.T) / 1e-3 - tref) / (R_WHEEL * c.Fz));
+            wx = fmax(wx, fabs((d.Fx - c.Fx) / 1e-3 - xref) / c.Fz);
+            wz = fmax(wz, fabs((d.Fz - c.Fz) / 1e-3 - zref) / c.Fz);
+        }
+    CHECK(wk < 2e-3, "dFz/dh by a 1e-3 h forward difference within %.1e of the reference (< 2e-3), 450 cases", wk);
+    CHECK(wt < 0.03 && wx < 0.03 && wz < 0.03,
+          "d(T/r, Fx, Fz)/ds by a 1e-3 forward difference within %.3f, %.3f, %.3f of the load per unit slip "
+          "(< 0.03)", wt, wx, wz);
+}
+
 int main(void)
 {
     test_bad_parameters();
@@ -754,6 +797,7 @@ int main(void)
     test_slip_trends();
     test_sinkage_for_load();
     test_no_nan();
+    test_fmu_differences();
 
     printf("\nsinkage at 779 N, zero slip (Juno wheel r = 0.2794 m, b = 0.254 m):\n");
     for (int soil = 0; soil < 2; ++soil)
