@@ -21,7 +21,8 @@
    setting).  The cause is the significant candidate with the largest gain,
    or ``none``; candidates whose gain is within TIE_RATIO of the best are
    reported as equally good.
-5. Look for a second cause: every other candidate that helped on its own is
+5. Look for a second cause: every other candidate that helped on its own
+   (gain above GAIN_MIN, extension switched on) is
    refitted together with the first cause and judged against it by the same
    criteria; the causes are listed strongest (largest held-out gain) first.
 
@@ -447,7 +448,7 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     candidate = CANDIDATES[res.name]
     if res.error:
         return {"name": res.name, "cause": candidate.cause, "error": res.error,
-                "significant": False, "gain": 0.0, "z": 0.0}
+                "significant": False, "acts": False, "gain": 0.0, "z": 0.0}
     kinds = _judged_kinds(candidate, run_kind)
     mask = np.isin(run_kind, kinds)
     test = ~problem.train
@@ -460,11 +461,12 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     # kinds: drawbar and terrain runs differ too much for one pooled rank test, where hundreds
     # of unchanged drawbar units would drown a validation run's gain), and not significantly
     # worse on any.
+    acts = candidate.acts(res.params)
     significant = bool(gain > GAIN_MIN and z > z_threshold(len(kinds)) and min(z_by_kind.values()) > -Z_MIN
-                       and candidate.acts(res.params))
+                       and acts)
     own = {e.name for e in candidate.params}
     return {"name": res.name, "cause": candidate.cause, "gain": float(gain), "z": float(z),
-            "z_by_kind": z_by_kind, "judged_on": list(kinds), "held_out_mse_before": before,
+            "z_by_kind": z_by_kind, "acts": acts, "judged_on": list(kinds), "held_out_mse_before": before,
             "held_out_mse_after": after, "significant": significant, "test_mse": res.test_mse,
             "train_mse": res.train_mse, "n_params": len(candidate.params),
             "soil": {k: res.params[k] for k in SOIL_PARAMETERS},
@@ -524,7 +526,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
             first = CANDIDATES[best["name"]]
             first_res = chosen[0]
             more = [c["name"] for c in cands if c["name"] != best["name"] and not c.get("error")
-                    and c["gain"] > 0 and c["name"] not in equally_good]
+                    and c["gain"] > GAIN_MIN and c["acts"] and c["name"] not in equally_good]
             if more:
                 say(f"first cause: {best['name']}; looking for a second cause among {', '.join(more)}")
                 start_soil2 = {k: first_res.params[k] for k in SOIL_PARAMETERS}
