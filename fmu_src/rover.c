@@ -434,10 +434,13 @@ static void add_body(const Eval *ev, const double w[3], double g, const Body *b,
     /* M += m Jv^T Jv + Jw^T I Jw, upper triangle:
      *   vv: m 1, vw: -m [r]x, ww: m (|r|^2 1 - r r^T) + I. */
     const double rr = v3_dot(r, r);
-    for (int i = 0; i < 3; ++i) {
-        M[U_VX + i][U_VX + i] += m;
-        for (int j = i; j < 3; ++j) M[U_WX + i][U_WX + j] += m * ((i == j ? rr : 0) - r[i] * r[j]) + I[3 * i + j];
-    }
+    for (int i = 0; i < 3; ++i) M[U_VX + i][U_VX + i] += m;
+    M[U_WX + 0][U_WX + 0] += m * (rr - r[0] * r[0]) + I[0];
+    M[U_WX + 0][U_WX + 1] += m * (0 - r[0] * r[1]) + I[1];
+    M[U_WX + 0][U_WX + 2] += m * (0 - r[0] * r[2]) + I[2];
+    M[U_WX + 1][U_WX + 1] += m * (rr - r[1] * r[1]) + I[4];
+    M[U_WX + 1][U_WX + 2] += m * (0 - r[1] * r[2]) + I[5];
+    M[U_WX + 2][U_WX + 2] += m * (rr - r[2] * r[2]) + I[8];
     M[U_VX + 0][U_WX + 1] += m * r[2];
     M[U_VX + 0][U_WX + 2] -= m * r[1];
     M[U_VX + 1][U_WX + 0] -= m * r[2];
@@ -599,32 +602,43 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
 }
 
 /* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
- * A and b are overwritten.  Returns -1 if singular. */
+ * A and b are overwritten.  Returns -1 if singular.  The rows are swapped
+ * through pointers, and an elimination skips the pivot column (its entries
+ * below the diagonal are never read again): the arithmetic is that of the
+ * textbook loop, operation for operation. */
 static int solve(double A[NU][NU], double b[NU])
 {
+    double *row[NU], x[NU];
+    int idx[NU];
+    for (int i = 0; i < NU; ++i) row[i] = A[i], idx[i] = i;
     for (int c = 0; c < NU; ++c) {
         int piv = c;
-        for (int r = c + 1; r < NU; ++r)
-            if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
-        if (!(fabs(A[piv][c]) > 1e-300)) return -1;
-        if (piv != c) {
-            for (int k = 0; k < NU; ++k) {
-                double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t;
-            }
-            double t = b[c]; b[c] = b[piv]; b[piv] = t;
-        }
+        double best = fabs(row[c][c]);
         for (int r = c + 1; r < NU; ++r) {
-            double f = A[r][c] / A[c][c];
+            const double v = fabs(row[r][c]);
+            if (v > best) best = v, piv = r;
+        }
+        if (!(best > 1e-300)) return -1;
+        if (piv != c) {
+            double *t = row[c]; row[c] = row[piv]; row[piv] = t;
+            const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
+        }
+        const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
+        for (int r = c + 1; r < NU; ++r) {
+            double *rr = row[r];
+            const double f = rr[c] / pivot;
             if (f == 0) continue;
-            for (int k = c; k < NU; ++k) A[r][k] -= f * A[c][k];
-            b[r] -= f * b[c];
+            for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+            b[idx[r]] -= f * bc;
         }
     }
     for (int c = NU - 1; c >= 0; --c) {
-        double s = b[c];
-        for (int k = c + 1; k < NU; ++k) s -= A[c][k] * b[k];
-        b[c] = s / A[c][c];
+        const double *pr = row[c];
+        double s = b[idx[c]];
+        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
+        x[c] = s / pr[c];
     }
+    memcpy(b, x, sizeof x);
     return 0;
 }
 
