@@ -383,24 +383,31 @@ typedef struct {
     double spin_rate;              /* about e, relative to the chassis, rad/s */
     int side;                      /* SIDE_LEFT or SIDE_RIGHT for a rocker or wheel, -1: chassis */
     int spin;                      /* U_SPIN_L or U_SPIN_R for a wheel, -1 otherwise */
+    double Ie[3], eIe;             /* I e and e.I e (rocker or wheel) */
 } Body;
+
+/* What the bodies share within one evaluation. */
+typedef struct {
+    const double *w;               /* chassis angular velocity, rad/s */
+    double g;                      /* gravity, m/s^2 */
+    double wxe[3];                 /* w x e */
+    double pivot_acc[2][3];        /* w x (w x (pivot - reference point)), per side */
+} BodyCommon;
 
 /* Adds body b's mass matrix (upper triangle) and generalised forces
  * (gravity, bias and gyroscopic terms) to M and Q. */
-static void add_body(const Eval *ev, const double w[3], double g, const Body *b, double M[NU][NU], double Q[NU])
+static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double M[NU][NU], double Q[NU])
 {
-    const double m = b->mass, *r = b->r, *I = b->I, *e = ev->e;
+    const double m = b->mass, *r = b->r, *I = b->I, *e = ev->e, *w = c->w, g = c->g;
     /* Bias accelerations (u' = 0) of the CG and of the angular velocity. */
     double bv[3], bw[3], tmp[3];
     if (b->side >= 0) {
         /* CG = pivot + sv, the body turning at w + sb u_beta e about the pivot */
-        double wxe[3], sv[3], wr[3], tmp2[3];
-        const double *rd = ev->pivot_r[b->side];
+        double sv[3], wr[3], tmp2[3];
+        const double *rd = ev->pivot_r[b->side], *wxe = c->wxe;
         const double sb_rate = b->sb * ev->u_beta;
-        v3_cross(wxe, w, e);
         v3_sub(sv, r, rd);
-        v3_cross(tmp, w, rd);
-        v3_cross(bv, w, tmp);
+        v3_copy(bv, c->pivot_acc[b->side]);
         v3_cross(tmp, wxe, sv);
         v3_axpy(bv, sb_rate, tmp);
         v3_copy(wr, w);
@@ -415,7 +422,7 @@ static void add_body(const Eval *ev, const double w[3], double g, const Body *b,
         v3_set(bw, 0, 0, 0);
     }
     /* body angular velocity and gyroscopic torque */
-    double wb[3], Iw[3], gyro[3], Ibw[3], Ie[3];
+    double wb[3], Iw[3], gyro[3], Ibw[3];
     v3_copy(wb, w);
     v3_axpy(wb, b->spin_rate, e);
     m3_mul_v(Iw, I, wb);
@@ -449,8 +456,7 @@ static void add_body(const Eval *ev, const double w[3], double g, const Body *b,
     M[U_VX + 2][U_WX + 1] -= m * r[0];
     if (b->side < 0) return;
     /* rocker rate column: vb: m cb, wb: m r x cb + sb I e, bb: m cb.cb + sb^2 e.I e */
-    m3_mul_v(Ie, I, e);
-    const double eIe = v3_dot(e, Ie);
+    const double *Ie = b->Ie, eIe = b->eIe;
     double rc[3];
     v3_cross(rc, r, b->cb);
     for (int i = 0; i < 3; ++i) {
@@ -523,7 +529,15 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         memset(ev->Q, 0, sizeof ev->Q);
         memset(ev->D, 0, sizeof ev->D);
         memset(K, 0, sizeof(double) * NU * NU);
-        const double *w = &u[U_WX];
+        BodyCommon common;
+        common.w = &u[U_WX];
+        common.g = p->env_gravity;
+        v3_cross(common.wxe, common.w, ev->e);
+        for (int side = 0; side < 2; ++side) {
+            double tmp[3];
+            v3_cross(tmp, common.w, ev->pivot_r[side]);
+            v3_cross(common.pivot_acc[side], common.w, tmp);
+        }
         Body b;
         /* chassis */
         b.mass = d->chassis_mass;
@@ -534,7 +548,7 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         b.side = -1;
         b.spin_rate = 0;
         b.spin = -1;
-        add_body(ev, w, p->env_gravity, &b, ev->M, ev->Q);
+        add_body(ev, &common, &b, ev->M, ev->Q);
         /* rockers */
         for (int side = 0; side < 2; ++side) {
             double tmp[3], sv[3];
@@ -548,13 +562,17 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
             v3_scale(b.cb, sv, b.sb);
             b.spin_rate = b.sb * u[U_BETA];
             b.spin = -1;
-            add_body(ev, w, p->env_gravity, &b, ev->M, ev->Q);
+            m3_mul_v(b.Ie, b.I, ev->e);
+            b.eIe = v3_dot(ev->e, b.Ie);
+            add_body(ev, &common, &b, ev->M, ev->Q);
         }
         /* wheels: discs about the axle e */
         const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
         b.mass = p->wheel_mass;
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) b.I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
+        m3_mul_v(b.Ie, b.I, ev->e);
+        b.eIe = v3_dot(ev->e, b.Ie);
         for (int wh = 0; wh < NUM_WHEELS; ++wh) {
             const int side = side_of(wh);
             v3_copy(b.r, hub_r[wh]);
@@ -563,7 +581,7 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
             for (int i = 0; i < 3; ++i) b.cb[i] = ev->Jv[BODY_WHEEL0 + wh][i][U_BETA];
             b.spin_rate = b.sb * u[U_BETA] + u[U_SPIN_L + side];
             b.spin = U_SPIN_L + side;
-            add_body(ev, w, p->env_gravity, &b, ev->M, ev->Q);
+            add_body(ev, &common, &b, ev->M, ev->Q);
         }
         for (int i = 0; i < NU; ++i)
             for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
