@@ -43,7 +43,7 @@ typedef struct {
     double pivot[2][3], hub[NUM_WHEELS][3];
     double pivot_r[2][3];          /* pivot - chassis reference point */
     double u_beta;                 /* rocker rate, rad/s */
-    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];
+    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
     double M[NU][NU], Q[NU], D[NU][NU];
     WheelContact wheel[NUM_WHEELS];
     double torque[2];
