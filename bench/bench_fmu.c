@@ -18,10 +18,25 @@
  *            drawbar; the rover may leave the grid (heights are clamped).
  * Each run is timed whole (instantiation, terrain reading, static
  * equilibrium, every step) and its stepping alone; the figure is the median
- * over --repeats runs.  Printed, never asserted.  Not a test.
+ * over --repeats runs, next to the fastest run's (the least disturbed by
+ * other jobs on a shared machine).  Printed, never asserted.  Not a test.
+ *
+ * --trace PREFIX writes, for the first direct run of each scenario, the
+ * time and every Real output after each communication step to
+ * PREFIX_drawbar.txt and PREFIX_terrain.txt (one line per step, %.17g):
+ * for comparing trajectories between builds or solver steps.  With
+ * --compare REF it then compares each trace with REF_<scenario>.txt (an
+ * earlier --trace) and prints, per output, the largest difference relative
+ * to that output's scale (the larger of its largest magnitude in REF and a
+ * floor: 1 m, 0.1 rad, 0.1 m/s, 0.1 rad/s, 10 N m, 1 mm, 0.01 slip, 10 N,
+ * so that outputs that are zero up to rounding, such as y on flat ground,
+ * are not compared with their own noise); it fails above --tolerance
+ * (default 1e-9).
  *
  * usage: bench_fmu [--fmu-dir DIR] [--terrain FILE] [--repeats N]
  *                  [--solver-step S] [--only direct|fmi] [--json FILE]
+ *                  [--trace PREFIX [--compare REF [--tolerance T]]]
+ *                  [--comm-step S]
  */
 #include <math.h>
 #include <stdarg.h>
@@ -37,10 +52,18 @@
 
 #define MAX_REPEATS 100
 #define MAX_OUT 128
-#define COMM_STEP 0.01
 
 /* Value references from modelDescription/variables.h (the fmi path looks them up by name). */
 enum { VR_DRAWBAR = 200, VR_THROTTLE_L = 205, VR_THROTTLE_R = 206 };
+
+/* Smallest of v[0..n): on a shared machine, the run least disturbed. */
+static double fastest(const double *v, int n)
+{
+    double m = v[0];
+    for (int i = 1; i < n; ++i)
+        if (v[i] < m) m = v[i];
+    return m;
+}
 
 static double median(const double *v, int n)
 {
@@ -59,16 +82,98 @@ typedef struct {
 typedef struct {
     double total, stepping;           /* wall s */
     double cpu;                       /* CPU s of the whole run */
+    double stepping_cpu;              /* CPU s of the stepping */
     double x, y, z;                   /* final position */
     int ok;
     char error[1024];
 } RunResult;
 
 static double solver_step = 0.0;      /* 0: the FMU's default */
+static double comm_step = 0.01;       /* s, the default experiment's */
+static const char *trace_prefix = NULL;
+static const char *compare_prefix = NULL;
+static double tolerance = 1e-9;
+
+/* Trace columns: time, then Outputs in order (model.h), with their scale floors. */
+#define TRACE_COLS (1 + (int)(sizeof(Outputs) / sizeof(double)))
+static const char *const trace_names[] = {
+    "time", "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight", "torqueLeftApplied",
+    "torqueRightApplied", "rocker",
+    "FL.sinkage", "FL.slip", "FL.Fn", "FL.Ft", "FL.Fx", "FL.Fy", "FL.Fz",
+    "RL.sinkage", "RL.slip", "RL.Fn", "RL.Ft", "RL.Fx", "RL.Fy", "RL.Fz",
+    "FR.sinkage", "FR.slip", "FR.Fn", "FR.Ft", "FR.Fx", "FR.Fy", "FR.Fz",
+    "RR.sinkage", "RR.slip", "RR.Fn", "RR.Ft", "RR.Fx", "RR.Fy", "RR.Fz"};
+static const double head_floor[13] = {1, 1, 1, 1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 10, 10, 0.1};
+static const double wheel_floor[7] = {1e-3, 0.01, 10, 10, 10, 10, 10};
+
+static double trace_floor(int col)
+{
+    return col < 13 ? head_floor[col] : wheel_floor[(col - 13) % 7];
+}
+
+/* Compares trace files a (reference) and b; prints the worst outputs.
+ * Returns 1 if within the tolerance, 0 if not, -1 if unreadable. */
+static int compare_traces(const char *ref, const char *got, const char *label)
+{
+    _Static_assert(sizeof trace_names / sizeof *trace_names == TRACE_COLS, "trace columns");
+    FILE *fa = fopen(ref, "r"), *fb = fopen(got, "r");
+    if (!fa || !fb) {
+        if (fa) fclose(fa);
+        if (fb) fclose(fb);
+        fprintf(stderr, "bench_fmu: cannot read %s or %s\n", ref, got);
+        return -1;
+    }
+    double scale[TRACE_COLS], diff[TRACE_COLS];
+    for (int c = 0; c < TRACE_COLS; ++c) scale[c] = trace_floor(c), diff[c] = 0;
+    long rows = 0;
+    int ok = 1;
+    for (;;) {
+        double a, b;
+        int ra = 0, rb = 0;
+        for (int c = 0; c < TRACE_COLS; ++c) {
+            ra = fscanf(fa, "%lf", &a);
+            rb = fscanf(fb, "%lf", &b);
+            if (ra != 1 || rb != 1) break;
+            if (fabs(a) > scale[c]) scale[c] = fabs(a);
+            const double d = fabs(a - b);
+            if (!(d <= diff[c])) diff[c] = d;                 /* NaN counts as a difference */
+        }
+        if (ra != 1 || rb != 1) {
+            if (ra != rb) ok = -1;                             /* one file ended early */
+            break;
+        }
+        rows++;
+    }
+    fclose(fa);
+    fclose(fb);
+    if (ok < 0 || rows == 0) {
+        printf("  %-8s compare FAILED: the traces differ in length (%ld rows read)\n", label, rows);
+        return 0;
+    }
+    int worst = 0;
+    for (int c = 0; c < TRACE_COLS; ++c)
+        if (!(diff[c] / scale[c] <= diff[worst] / scale[worst])) worst = c;
+    const double rel = diff[worst] / scale[worst];
+    ok = rel <= tolerance;
+    printf("  %-8s compare %s: %ld rows, largest difference %.3g of scale (%s: %.3g against %.3g), "
+           "tolerance %.3g\n", label, ok ? "ok" : "FAILED", rows, rel, trace_names[worst], diff[worst], scale[worst],
+           tolerance);
+    return ok;
+}
+
+/* One trace line: the time and every field of Outputs (all doubles). */
+static void trace_line(FILE *f, const Model *m)
+{
+    const double *o = (const double *)&m->out;
+    const size_t n = sizeof m->out / sizeof(double);
+    fprintf(f, "%.17g", m->s.time);
+    for (size_t i = 0; i < n; ++i) fprintf(f, " %.17g", o[i]);
+    fputc('\n', f);
+}
 
 /* ------------------------------------------------------------ direct */
 
-static RunResult run_direct(const Scenario *sc)
+static RunResult run_direct(const Scenario *sc, FILE *trace)
 {
     RunResult r;
     memset(&r, 0, sizeof r);
@@ -89,13 +194,22 @@ static RunResult run_direct(const Scenario *sc)
     if (model_initialize(m, err, sizeof err) != 0) {
         snprintf(r.error, sizeof r.error, "model_initialize: %s", err);
     } else {
-        const int n = (int)lround(sc->duration / COMM_STEP);
-        const double t1 = now();
+        const int n = (int)lround(sc->duration / comm_step);
+        const double t1 = now(), c1 = cpu_now();
         int k = 0;
-        for (; k < n; ++k)
-            if (model_do_step(m, COMM_STEP, err, sizeof err) != 0) break;
+        if (trace) {                    /* untimed: writing the trace costs more than the steps */
+            trace_line(trace, m);
+            for (; k < n; ++k) {
+                if (model_do_step(m, comm_step, err, sizeof err) != 0) break;
+                trace_line(trace, m);
+            }
+        } else {
+            for (; k < n; ++k)
+                if (model_do_step(m, comm_step, err, sizeof err) != 0) break;
+        }
         r.stepping = now() - t1;
-        if (k < n) snprintf(r.error, sizeof r.error, "model_do_step at t = %.2f s: %s", k * COMM_STEP, err);
+        r.stepping_cpu = cpu_now() - c1;
+        if (k < n) snprintf(r.error, sizeof r.error, "model_do_step at t = %.2f s: %s", k * comm_step, err);
         else r.ok = 1;
         r.x = m->out.x;
         r.y = m->out.y;
@@ -160,15 +274,16 @@ static RunResult run_fmi(const Scenario *sc)
     if (!ok) {
         snprintf(r.error, sizeof r.error, "set-up: %s", env.last);
     } else {
-        const int n = (int)lround(sc->duration / COMM_STEP);
-        const double t1 = now();
+        const int n = (int)lround(sc->duration / comm_step);
+        const double t1 = now(), c1 = cpu_now();
         int k = 0;
         for (; k < n; ++k) {
-            if (fmi->DoStep(c, k * COMM_STEP, COMM_STEP, fmi2True) != fmi2OK) break;
+            if (fmi->DoStep(c, k * comm_step, comm_step, fmi2True) != fmi2OK) break;
             if (fmi->GetReal(c, out_vrs, n_out, out) != fmi2OK) break;
         }
         r.stepping = now() - t1;
-        if (k < n) snprintf(r.error, sizeof r.error, "fmi2DoStep at t = %.2f s: %s", k * COMM_STEP, env.last);
+        r.stepping_cpu = cpu_now() - c1;
+        if (k < n) snprintf(r.error, sizeof r.error, "fmi2DoStep at t = %.2f s: %s", k * comm_step, env.last);
         else r.ok = 1;
         const unsigned pos_vrs[3] = {vr_x, vr_y, vr_z};
         double pos[3] = {NAN, NAN, NAN};
@@ -212,7 +327,7 @@ static int write_mound_grid(const char *path)
 /* ------------------------------------------------------------ main */
 
 typedef struct {
-    double total[MAX_REPEATS], stepping[MAX_REPEATS], cpu, wall;
+    double total[MAX_REPEATS], stepping[MAX_REPEATS], stepping_cpu[MAX_REPEATS], cpu, wall;
     RunResult last;
     int n;
 } Series;
@@ -228,16 +343,29 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--solver-step") && i + 1 < argc) solver_step = atof(argv[++i]);
         else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
         else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
+        else if (!strcmp(argv[i], "--trace") && i + 1 < argc) trace_prefix = argv[++i];
+        else if (!strcmp(argv[i], "--comm-step") && i + 1 < argc) comm_step = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--compare") && i + 1 < argc) compare_prefix = argv[++i];
+        else if (!strcmp(argv[i], "--tolerance") && i + 1 < argc) tolerance = atof(argv[++i]);
         else {
             fprintf(stderr,
                     "usage: %s [--fmu-dir DIR (default: build/fmu beside this program)] [--terrain FILE.asc] "
-                    "[--repeats N (default 5)] [--solver-step S] [--only direct|fmi] [--json FILE]\n",
+                    "[--repeats N (default 5)] [--solver-step S] [--only direct|fmi] [--json FILE] "
+                    "[--trace PREFIX [--compare REF [--tolerance T (default 1e-9)]]] [--comm-step S (default 0.01)]\n",
                     argv[0]);
             return 2;
         }
     }
     if (repeats < 1 || repeats > MAX_REPEATS) {
         fprintf(stderr, "bench_fmu: --repeats must be 1..%d\n", MAX_REPEATS);
+        return 2;
+    }
+    if (compare_prefix && !trace_prefix) {
+        fprintf(stderr, "bench_fmu: --compare needs --trace\n");
+        return 2;
+    }
+    if (!(comm_step > 0) || comm_step > 1) {
+        fprintf(stderr, "bench_fmu: --comm-step must be in (0, 1] s\n");
         return 2;
     }
     if (only && strcmp(only, "direct") && strcmp(only, "fmi")) {
@@ -291,6 +419,9 @@ int main(int argc, char **argv)
     memset(&probe, 0, sizeof probe);
     model_set_defaults(&probe);
     const double h_solver = solver_step > 0 ? solver_step : probe.p.solver_step;
+    /* model_do_step's substep count per communication step (its internal step is comm_step / n). */
+    int per_comm = (int)ceil(comm_step / h_solver - 1e-9);
+    if (per_comm < 1) per_comm = 1;
     const Scenario scenarios[2] = {
         {"drawbar", 30.0, NULL, probe.p.init_x, probe.in.drawbarForce, probe.in.throttleLeft},
         {"terrain", 60.0, terrain, 0.8, 0.0, 0.45},
@@ -300,7 +431,7 @@ int main(int argc, char **argv)
     memset(series, 0, sizeof series);
 
     printf("real-time factor from C (solver.step %g s, communication step %g s, median of %d runs)\n", h_solver,
-           COMM_STEP, repeats);
+           comm_step, repeats);
     printf("  drawbar: 30 s, flat, drive.mode 2, drawbar %g N, throttle %g; terrain: 60 s on %s from x = 0.8 m, "
            "throttle 0.45\n", probe.in.drawbarForce, probe.in.throttleLeft, terrain);
     int failures = 0;
@@ -308,11 +439,26 @@ int main(int argc, char **argv)
         for (int p = 0; p < 2; ++p) {
             if ((p == 0 && !do_direct) || (p == 1 && !do_fmi)) continue;
             Series *se = &series[s][p];
+            if (p == 0 && trace_prefix) {   /* an extra, untimed run */
+                char path[4096];
+                snprintf(path, sizeof path, "%s_%s.txt", trace_prefix, scenarios[s].name);
+                FILE *f = fopen(path, "w");
+                if (!f) return perror(path), 1;
+                const RunResult tr = run_direct(&scenarios[s], f);
+                fclose(f);
+                if (!tr.ok) printf("  %-8s trace   FAILED: %s\n", scenarios[s].name, tr.error);
+                if (compare_prefix) {
+                    char ref[4096];
+                    snprintf(ref, sizeof ref, "%s_%s.txt", compare_prefix, scenarios[s].name);
+                    if (compare_traces(ref, path, scenarios[s].name) != 1) failures++;
+                }
+            }
             for (int r = 0; r < repeats; ++r) {
-                se->last = p == 0 ? run_direct(&scenarios[s]) : run_fmi(&scenarios[s]);
+                se->last = p == 0 ? run_direct(&scenarios[s], NULL) : run_fmi(&scenarios[s]);
                 if (!se->last.ok) break;
                 se->total[se->n] = se->last.total;
                 se->stepping[se->n] = se->last.stepping;
+                se->stepping_cpu[se->n] = se->last.stepping_cpu;
                 se->cpu += se->last.cpu;
                 se->wall += se->last.total;
                 se->n++;
@@ -324,9 +470,13 @@ int main(int argc, char **argv)
                 continue;
             }
             const double tot = median(se->total, se->n), stp = median(se->stepping, se->n);
+            const double stp_cpu = median(se->stepping_cpu, se->n);
+            const double substeps = lround(dur / comm_step) * (double)per_comm;
             printf("  %-8s %-7s %8.1fx real time whole run (%.3f s), %8.1fx stepping only; %.2f us per "
-                   "internal step; CPU share %.0f %%; final x %.2f y %.2f m\n",
-                   scenarios[s].name, paths[p], dur / tot, tot, dur / stp, stp / (dur / h_solver) * 1e6,
+                   "internal step (%.2f us CPU); fastest run %.1fx whole, %.1fx stepping; CPU share %.0f %%; "
+                   "final x %.2f y %.2f m\n",
+                   scenarios[s].name, paths[p], dur / tot, tot, dur / stp, stp / substeps * 1e6,
+                   stp_cpu / substeps * 1e6, dur / fastest(se->total, se->n), dur / fastest(se->stepping, se->n),
                    100 * se->cpu / se->wall, se->last.x, se->last.y);
         }
     }
@@ -338,7 +488,7 @@ int main(int argc, char **argv)
             return 1;
         }
         fprintf(f, "{\n  \"solver_step\": %.17g, \"comm_step\": %.17g, \"repeats\": %d, \"terrain\": \"%s\",\n  "
-                   "\"peak_rss_kb\": %ld,\n  \"runs\": [", h_solver, COMM_STEP, repeats,
+                   "\"peak_rss_kb\": %ld,\n  \"runs\": [", h_solver, comm_step, repeats,
                 own_grid ? "(generated)" : "(given)", peak_rss_kb());
         int first = 1;
         for (int s = 0; s < 2; ++s)
@@ -350,10 +500,14 @@ int main(int argc, char **argv)
                         se->last.ok ? "true" : "false");
                 first = 0;
                 if (se->last.ok)
-                    fprintf(f, ", \"total_s\": %.17g, \"stepping_s\": %.17g, \"final_x\": %.17g, \"final_y\": %.17g, "
-                               "\"final_z\": %.17g, \"n\": %d, \"cpu_share\": %.17g}",
-                            median(se->total, se->n), median(se->stepping, se->n), se->last.x, se->last.y,
-                            se->last.z, se->n, se->cpu / se->wall);
+                    fprintf(f, ", \"total_s\": %.17g, \"stepping_s\": %.17g, \"stepping_cpu_s\": %.17g, "
+                               "\"total_min_s\": %.17g, \"stepping_min_s\": %.17g, "
+                               "\"final_x\": %.17g, \"final_y\": %.17g, \"final_z\": %.17g, \"n\": %d, "
+                               "\"cpu_share\": %.17g}",
+                            median(se->total, se->n), median(se->stepping, se->n),
+                            median(se->stepping_cpu, se->n), fastest(se->total, se->n),
+                            fastest(se->stepping, se->n), se->last.x, se->last.y, se->last.z, se->n,
+                            se->cpu / se->wall);
                 else {
                     fputs(", \"error\": \"", f);
                     for (const char *c = se->last.error; *c; ++c) {

@@ -42,7 +42,9 @@ typedef struct {
     double e[3];                   /* chassis lateral axis = rocker and wheel axles */
     double heading[3];             /* horizontal unit heading */
     double pivot[2][3], hub[NUM_WHEELS][3];
-    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];
+    double pivot_r[2][3];          /* pivot - chassis reference point */
+    double u_beta;                 /* rocker rate, rad/s */
+    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
     double M[NU][NU], Q[NU], D[NU][NU];
     WheelContact wheel[NUM_WHEELS];
     double torque[2];
@@ -106,20 +108,26 @@ static void derive(Model *m)
  * rocker of the given side (side < 0: chassis). */
 static void point_jacobian(const Eval *ev, const double pos[3], const double x[3], int side, double J[3][NU])
 {
-    double r[3];
+    double r[3], c[3] = {0, 0, 0};
     v3_sub(r, x, pos);
-    memset(J, 0, sizeof(double) * 3 * NU);
-    for (int i = 0; i < 3; ++i) J[i][U_VX + i] = 1;
-    /* v = v_c + w x r  ->  columns of -[r]x */
-    J[0][U_WX + 1] = r[2];  J[0][U_WX + 2] = -r[1];
-    J[1][U_WX + 0] = -r[2]; J[1][U_WX + 2] = r[0];
-    J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0];
     if (side >= 0) {
-        double s[3], c[3];
+        double s[3];
         v3_sub(s, x, ev->pivot[side]);
         v3_cross(c, ev->e, s);
-        for (int i = 0; i < 3; ++i) J[i][U_BETA] = sigma_of(side) * c[i];
+        v3_scale(c, c, sigma_of(side));
     }
+    /* v = v_c + w x r + u_beta c  ->  [1 | -[r]x | c | 0 0], written whole (no memset) */
+    for (int i = 0; i < 3; ++i) {
+        J[i][U_VX + 0] = i == 0;
+        J[i][U_VX + 1] = i == 1;
+        J[i][U_VX + 2] = i == 2;
+        J[i][U_BETA] = c[i];
+        J[i][U_SPIN_L] = 0;
+        J[i][U_SPIN_R] = 0;
+    }
+    J[0][U_WX + 0] = 0;     J[0][U_WX + 1] = r[2];  J[0][U_WX + 2] = -r[1];
+    J[1][U_WX + 0] = -r[2]; J[1][U_WX + 1] = 0;     J[1][U_WX + 2] = r[0];
+    J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0]; J[2][U_WX + 2] = 0;
 }
 
 /* Adds to the point Jacobian J the motion of a point on a wheel body
@@ -531,6 +539,110 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     add_outer(K, a_n, kn, a_n);
 }
 
+/* One rigid body's kinematics for the assembly.  With r = CG - chassis
+ * reference point (world), the CG velocity is
+ *   v = u_v + w x r + u_beta cb,
+ * and the angular velocity w + u_beta sb e + u_spin e (the spin term on
+ * a wheel only); that is, Jv = [I, -[r]x, cb, 0] and Jw = [0, I, sb e, e].
+ * The assembly below multiplies these blocks out instead of forming the
+ * 3 x 9 matrices (most of their 54 entries are 0 or 1). */
+typedef struct {
+    double mass, r[3], I[9];       /* kg; m; world inertia about the CG, kg m^2 */
+    double cb[3];                  /* CG velocity per unit rocker rate, m/rad (0: chassis) */
+    double sb;                     /* rocker-rate factor of the angular velocity: sigma, or 0 */
+    double spin_rate;              /* about e, relative to the chassis, rad/s */
+    int side;                      /* SIDE_LEFT or SIDE_RIGHT for a rocker or wheel, -1: chassis */
+    int spin;                      /* U_SPIN_L or U_SPIN_R for a wheel, -1 otherwise */
+    double Ie[3], eIe;             /* I e and e.I e (rocker or wheel) */
+} Body;
+
+/* What the bodies share within one evaluation. */
+typedef struct {
+    const double *w;               /* chassis angular velocity, rad/s */
+    double g;                      /* gravity, m/s^2 */
+    double wxe[3];                 /* w x e */
+    double pivot_acc[2][3];        /* w x (w x (pivot - reference point)), per side */
+} BodyCommon;
+
+/* Adds body b's mass matrix (upper triangle) and generalised forces
+ * (gravity, bias and gyroscopic terms) to M and Q. */
+static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double M[NU][NU], double Q[NU])
+{
+    const double m = b->mass, *r = b->r, *I = b->I, *e = ev->e, *w = c->w, g = c->g;
+    /* Bias accelerations (u' = 0) of the CG and of the angular velocity. */
+    double bv[3], bw[3], tmp[3];
+    if (b->side >= 0) {
+        /* CG = pivot + sv, the body turning at w + sb u_beta e about the pivot */
+        double sv[3], wr[3], tmp2[3];
+        const double *rd = ev->pivot_r[b->side], *wxe = c->wxe;
+        const double sb_rate = b->sb * ev->u_beta;
+        v3_sub(sv, r, rd);
+        v3_copy(bv, c->pivot_acc[b->side]);
+        v3_cross(tmp, wxe, sv);
+        v3_axpy(bv, sb_rate, tmp);
+        v3_copy(wr, w);
+        v3_axpy(wr, sb_rate, e);
+        v3_cross(tmp, wr, sv);
+        v3_cross(tmp2, wr, tmp);
+        v3_add(bv, bv, tmp2);
+        v3_scale(bw, wxe, b->spin_rate);
+    } else {
+        v3_cross(tmp, w, r);
+        v3_cross(bv, w, tmp);
+        v3_set(bw, 0, 0, 0);
+    }
+    /* body angular velocity and gyroscopic torque */
+    double wb[3], Iw[3], gyro[3], Ibw[3];
+    v3_copy(wb, w);
+    v3_axpy(wb, b->spin_rate, e);
+    m3_mul_v(Iw, I, wb);
+    v3_cross(gyro, wb, Iw);
+    m3_mul_v(Ibw, I, bw);
+    const double F[3] = {-m * bv[0], -m * bv[1], -m * (bv[2] + g)};
+    const double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
+
+    /* Q += Jv^T F + Jw^T T */
+    double rF[3];
+    v3_cross(rF, r, F);
+    for (int i = 0; i < 3; ++i) {
+        Q[U_VX + i] += F[i];
+        Q[U_WX + i] += rF[i] + T[i];
+    }
+    /* M += m Jv^T Jv + Jw^T I Jw, upper triangle:
+     *   vv: m 1, vw: -m [r]x, ww: m (|r|^2 1 - r r^T) + I. */
+    const double rr = v3_dot(r, r);
+    for (int i = 0; i < 3; ++i) M[U_VX + i][U_VX + i] += m;
+    M[U_WX + 0][U_WX + 0] += m * (rr - r[0] * r[0]) + I[0];
+    M[U_WX + 0][U_WX + 1] += m * (0 - r[0] * r[1]) + I[1];
+    M[U_WX + 0][U_WX + 2] += m * (0 - r[0] * r[2]) + I[2];
+    M[U_WX + 1][U_WX + 1] += m * (rr - r[1] * r[1]) + I[4];
+    M[U_WX + 1][U_WX + 2] += m * (0 - r[1] * r[2]) + I[5];
+    M[U_WX + 2][U_WX + 2] += m * (rr - r[2] * r[2]) + I[8];
+    M[U_VX + 0][U_WX + 1] += m * r[2];
+    M[U_VX + 0][U_WX + 2] -= m * r[1];
+    M[U_VX + 1][U_WX + 0] -= m * r[2];
+    M[U_VX + 1][U_WX + 2] += m * r[0];
+    M[U_VX + 2][U_WX + 0] += m * r[1];
+    M[U_VX + 2][U_WX + 1] -= m * r[0];
+    if (b->side < 0) return;
+    /* rocker rate column: vb: m cb, wb: m r x cb + sb I e, bb: m cb.cb + sb^2 e.I e */
+    const double *Ie = b->Ie, eIe = b->eIe;
+    double rc[3];
+    v3_cross(rc, r, b->cb);
+    for (int i = 0; i < 3; ++i) {
+        M[U_VX + i][U_BETA] += m * b->cb[i];
+        M[U_WX + i][U_BETA] += m * rc[i] + b->sb * Ie[i];
+    }
+    M[U_BETA][U_BETA] += m * v3_dot(b->cb, b->cb) + b->sb * b->sb * eIe;
+    Q[U_BETA] += v3_dot(b->cb, F) + b->sb * v3_dot(e, T);
+    if (b->spin < 0) return;
+    /* wheel spin column: ws: I e, bs: sb e.I e, ss: e.I e */
+    for (int i = 0; i < 3; ++i) M[U_WX + i][b->spin] += Ie[i];
+    M[U_BETA][b->spin] += b->sb * eIe;
+    M[b->spin][b->spin] += eIe;
+    Q[b->spin] += v3_dot(e, T);
+}
+
 /* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
 static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
 {
@@ -538,27 +650,48 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
     const Derived *d = &m->d;
     const State *s = &m->s;
     const double *u = s->u;
-    const double g = p->env_gravity;
 
     quat_to_m3(ev->R, s->quat);
     v3_set(ev->e, ev->R[1], ev->R[4], ev->R[7]);
     v3_set(ev->heading, ev->R[0], ev->R[3], 0);
     v3_normalize(ev->heading);
-    const double *w = &u[U_WX];
+    ev->u_beta = u[U_BETA];
 
+    /* Rocker frames R Ry(sigma beta): the y column is the chassis's, one
+     * sine and cosine serve both sides (sin is odd). */
     double Rr[2][9];
+    const double cb = cos(s->beta), sbeta = sin(s->beta);
     for (int k = 0; k < 2; ++k) {
-        const double b = sigma_of(k) * s->beta, cb = cos(b), sb = sin(b);
-        const double Ry[9] = {cb, 0, sb, 0, 1, 0, -sb, 0, cb};
-        m3_mul(Rr[k], ev->R, Ry);
-        double tmp[3];
-        m3_mul_v(tmp, ev->R, d->pivot[k]);
-        v3_add(ev->pivot[k], s->pos, tmp);
+        const double sb = sigma_of(k) * sbeta;
+        const double *R = ev->R;
+        double *A = Rr[k];
+        for (int i = 0; i < 3; ++i) {
+            A[3 * i + 0] = R[3 * i] * cb - R[3 * i + 2] * sb;
+            A[3 * i + 1] = R[3 * i + 1];
+            A[3 * i + 2] = R[3 * i] * sb + R[3 * i + 2] * cb;
+        }
+        m3_mul_v(ev->pivot_r[k], ev->R, d->pivot[k]);
+        v3_add(ev->pivot[k], s->pos, ev->pivot_r[k]);
     }
+    double hub_r[NUM_WHEELS][3];   /* hub - chassis reference point */
     for (int wh = 0; wh < NUM_WHEELS; ++wh) {
+        const int side = side_of(wh);
         double tmp[3];
-        m3_mul_v(tmp, Rr[side_of(wh)], d->hub[wh % 2]);
-        v3_add(ev->hub[wh], ev->pivot[side_of(wh)], tmp);
+        m3_mul_v(tmp, Rr[side], d->hub[wh % 2]);
+        v3_add(ev->hub[wh], ev->pivot[side], tmp);
+        v3_add(hub_r[wh], ev->pivot_r[side], tmp);
+        /* The hub Jacobians wheel_contact works with (dense rows). */
+        double (*Jv)[NU] = ev->Jv[BODY_WHEEL0 + wh];
+        double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + wh];
+        point_jacobian(ev, s->pos, ev->hub[wh], side, Jv);
+        const double sg = sigma_of(side);
+        for (int i = 0; i < 3; ++i) {
+            Jw[i][U_VX + 0] = 0; Jw[i][U_VX + 1] = 0; Jw[i][U_VX + 2] = 0;
+            Jw[i][U_WX + 0] = i == 0; Jw[i][U_WX + 1] = i == 1; Jw[i][U_WX + 2] = i == 2;
+            Jw[i][U_BETA] = sg * ev->e[i];
+            Jw[i][U_SPIN_L] = side == SIDE_LEFT ? ev->e[i] : 0;
+            Jw[i][U_SPIN_R] = side == SIDE_RIGHT ? ev->e[i] : 0;
+        }
     }
 
     if (matrices) {
@@ -566,110 +699,63 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         memset(ev->Q, 0, sizeof ev->Q);
         memset(ev->D, 0, sizeof ev->D);
         memset(K, 0, sizeof(double) * NU * NU);
-    }
-
-    /* Body data: CG (world), mass, world inertia, Jacobians, biases. */
-    for (int body = 0; body < NUM_BODIES; ++body) {
-        double cg[3], I[9], mass;
-        int side = -1;
-        double (*Jv)[NU] = ev->Jv[body];
-        double (*Jw)[NU] = ev->Jw[body];
-        memset(Jw, 0, sizeof(double) * 3 * NU);
-        for (int i = 0; i < 3; ++i) Jw[i][U_WX + i] = 1;
-        double spin_rate = 0;                           /* about e, relative to the chassis */
-        if (body == BODY_CHASSIS) {
+        BodyCommon common;
+        common.w = &u[U_WX];
+        common.g = p->env_gravity;
+        v3_cross(common.wxe, common.w, ev->e);
+        for (int side = 0; side < 2; ++side) {
             double tmp[3];
-            m3_mul_v(tmp, ev->R, d->chassis_cg);
-            v3_add(cg, s->pos, tmp);
-            mass = d->chassis_mass;
-            m3_rotate_diag(I, ev->R, d->chassis_inertia);
-        } else if (body == BODY_ROCKER_L || body == BODY_ROCKER_R) {
-            side = body - BODY_ROCKER_L;
-            double tmp[3];
+            v3_cross(tmp, common.w, ev->pivot_r[side]);
+            v3_cross(common.pivot_acc[side], common.w, tmp);
+        }
+        Body b;
+        /* chassis */
+        b.mass = d->chassis_mass;
+        m3_mul_v(b.r, ev->R, d->chassis_cg);
+        m3_rotate_diag(b.I, ev->R, d->chassis_inertia);
+        v3_set(b.cb, 0, 0, 0);
+        b.sb = 0;
+        b.side = -1;
+        b.spin_rate = 0;
+        b.spin = -1;
+        add_body(ev, &common, &b, ev->M, ev->Q);
+        /* rockers */
+        for (int side = 0; side < 2; ++side) {
+            double tmp[3], sv[3];
+            b.mass = p->rover_rockerMass;
             m3_mul_v(tmp, Rr[side], d->rocker_cg);
-            v3_add(cg, ev->pivot[side], tmp);
-            mass = p->rover_rockerMass;
-            m3_rotate_diag(I, Rr[side], d->rocker_inertia);
-            for (int i = 0; i < 3; ++i) Jw[i][U_BETA] = sigma_of(side) * ev->e[i];
-            spin_rate = sigma_of(side) * u[U_BETA];
-        } else {
-            const int wh = body - BODY_WHEEL0;
-            side = side_of(wh);
-            v3_copy(cg, ev->hub[wh]);
-            mass = p->wheel_mass;
-            const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
-            for (int i = 0; i < 3; ++i)
-                for (int j = 0; j < 3; ++j) I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
-            for (int i = 0; i < 3; ++i) {
-                Jw[i][U_BETA] = sigma_of(side) * ev->e[i];
-                Jw[i][U_SPIN_L + side] = ev->e[i];
-            }
-            spin_rate = sigma_of(side) * u[U_BETA] + u[U_SPIN_L + side];
+            v3_add(b.r, ev->pivot_r[side], tmp);
+            m3_rotate_diag(b.I, Rr[side], d->rocker_inertia);
+            b.sb = sigma_of(side);
+            b.side = side;
+            v3_cross(sv, ev->e, tmp);                 /* e x (CG - pivot) */
+            v3_scale(b.cb, sv, b.sb);
+            b.spin_rate = b.sb * u[U_BETA];
+            b.spin = -1;
+            m3_mul_v(b.Ie, b.I, ev->e);
+            b.eIe = v3_dot(ev->e, b.Ie);
+            add_body(ev, &common, &b, ev->M, ev->Q);
         }
-        point_jacobian(ev, s->pos, cg, side, Jv);
-        if (!matrices) continue;
-
-        /* bias accelerations (u' = 0) */
-        double r_d[3], sv[3], bv[3], bw[3], wxe[3], tmp[3], tmp2[3];
-        v3_cross(wxe, w, ev->e);
-        if (side < 0) {
-            v3_sub(r_d, cg, s->pos);
-            v3_cross(tmp, w, r_d);
-            v3_cross(bv, w, tmp);
-            v3_set(bw, 0, 0, 0);
-        } else {
-            const double sb_rate = sigma_of(side) * u[U_BETA];
-            double wr[3];
-            v3_sub(r_d, ev->pivot[side], s->pos);
-            v3_sub(sv, cg, ev->pivot[side]);
-            v3_cross(tmp, w, r_d);
-            v3_cross(bv, w, tmp);
-            v3_cross(tmp, wxe, sv);
-            v3_axpy(bv, sb_rate, tmp);
-            v3_copy(wr, w);
-            v3_axpy(wr, sb_rate, ev->e);
-            v3_cross(tmp, wr, sv);
-            v3_cross(tmp2, wr, tmp);
-            v3_add(bv, bv, tmp2);
-            v3_scale(bw, wxe, spin_rate);
+        /* wheels: discs about the axle e */
+        const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
+        b.mass = p->wheel_mass;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) b.I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
+        m3_mul_v(b.Ie, b.I, ev->e);
+        b.eIe = v3_dot(ev->e, b.Ie);
+        for (int wh = 0; wh < NUM_WHEELS; ++wh) {
+            const int side = side_of(wh);
+            v3_copy(b.r, hub_r[wh]);
+            b.sb = sigma_of(side);
+            b.side = side;
+            for (int i = 0; i < 3; ++i) b.cb[i] = ev->Jv[BODY_WHEEL0 + wh][i][U_BETA];
+            b.spin_rate = b.sb * u[U_BETA] + u[U_SPIN_L + side];
+            b.spin = U_SPIN_L + side;
+            add_body(ev, &common, &b, ev->M, ev->Q);
         }
-        /* body angular velocity and gyroscopic torque */
-        double wb[3], Iw[3], gyro[3], Ibw[3];
-        v3_copy(wb, w);
-        v3_axpy(wb, spin_rate, ev->e);
-        m3_mul_v(Iw, I, wb);
-        v3_cross(gyro, wb, Iw);
-        m3_mul_v(Ibw, I, bw);
-
-        double F[3] = {-mass * bv[0], -mass * bv[1], -mass * (bv[2] + g)};
-        double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
-        add_generalised(ev->Q, Jv, F);
-        add_generalised(ev->Q, Jw, T);
-        /* M += m Jv^T Jv + Jw^T I Jw over the body's non-zero columns (upper
-         * triangle; mirrored below): the chassis moves only the first 6
-         * velocities, a rocker 7, a wheel 7 and its side's spin. */
-        int cols[NU], nc = 0;
-        for (int k = 0; k < U_BETA; ++k) cols[nc++] = k;
-        if (body != BODY_CHASSIS) cols[nc++] = U_BETA;
-        if (body >= BODY_WHEEL0) cols[nc++] = U_SPIN_L + side;
-        double IJw[3][NU];
-        for (int a = 0; a < 3; ++a)
-            for (int c = 0; c < nc; ++c) {
-                const int k = cols[c];
-                IJw[a][k] = I[3 * a] * Jw[0][k] + I[3 * a + 1] * Jw[1][k] + I[3 * a + 2] * Jw[2][k];
-            }
-        for (int ci = 0; ci < nc; ++ci) {
-            const int i = cols[ci];
-            for (int cj = ci; cj < nc; ++cj) {
-                const int j = cols[cj];
-                ev->M[i][j] += mass * (Jv[0][i] * Jv[0][j] + Jv[1][i] * Jv[1][j] + Jv[2][i] * Jv[2][j]) +
-                               Jw[0][i] * IJw[0][j] + Jw[1][i] * IJw[1][j] + Jw[2][i] * IJw[2][j];
-            }
-        }
-    }
-    if (matrices)
         for (int i = 0; i < NU; ++i)
             for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
+    }
 
     /* Contacts: the hub Jacobian is the wheel body's CG Jacobian. */
     for (int wh = 0; wh < NUM_WHEELS; ++wh)
@@ -690,42 +776,68 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
     /* Rocker differential friction. */
     ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
     ev->D[U_BETA][U_BETA] += p->rover_rockerDamping;
-    /* Drawbar: horizontal, backwards along the heading, at the hitch. */
-    double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ}, hitch[3], Jhitch[3][NU], Fd[3];
-    m3_mul_v(hitch, ev->R, hitch_local);
-    v3_add(hitch, hitch, s->pos);
-    point_jacobian(ev, s->pos, hitch, -1, Jhitch);
+    /* Drawbar: horizontal, backwards along the heading, at the hitch (a
+     * chassis point r from the reference point: Q_v += F, Q_w += r x F). */
+    const double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ};
+    double r_hitch[3], Fd[3], rF[3];
+    m3_mul_v(r_hitch, ev->R, hitch_local);
     v3_scale(Fd, ev->heading, -m->in.drawbarForce);
-    add_generalised(ev->Q, Jhitch, Fd);
+    v3_cross(rF, r_hitch, Fd);
+    for (int i = 0; i < 3; ++i) {
+        ev->Q[U_VX + i] += Fd[i];
+        ev->Q[U_WX + i] += rF[i];
+    }
+}
+
+/* One column of the elimination in solve(): partial pivoting among rows
+ * c..NU-1 (by row pointer), then the rows below lose their column-c entry.
+ * The entries left of the diagonal are never read again, so they are not
+ * updated.  Inlined with a constant c, the loops have fixed lengths. */
+static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], const int c)
+{
+    int piv = c;
+    double best = fabs(row[c][c]);
+    for (int r = c + 1; r < NU; ++r) {
+        const double v = fabs(row[r][c]);
+        if (v > best) best = v, piv = r;
+    }
+    if (!(best > 1e-300)) return -1;
+    if (piv != c) {
+        double *t = row[c]; row[c] = row[piv]; row[piv] = t;
+        const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
+    }
+    const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
+    for (int r = c + 1; r < NU; ++r) {
+        double *rr = row[r];
+        const double f = rr[c] / pivot;
+        if (f == 0) continue;
+        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+        b[idx[r]] -= f * bc;
+    }
+    return 0;
 }
 
 /* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
- * A and b are overwritten.  Returns -1 if singular. */
+ * A and b are overwritten.  Returns -1 if singular.  The rows are swapped
+ * through pointers: the arithmetic is that of the textbook loop,
+ * operation for operation. */
 static int solve(double A[NU][NU], double b[NU])
 {
-    for (int c = 0; c < NU; ++c) {
-        int piv = c;
-        for (int r = c + 1; r < NU; ++r)
-            if (fabs(A[r][c]) > fabs(A[piv][c])) piv = r;
-        if (!(fabs(A[piv][c]) > 1e-300)) return -1;
-        if (piv != c) {
-            for (int k = 0; k < NU; ++k) {
-                double t = A[c][k]; A[c][k] = A[piv][k]; A[piv][k] = t;
-            }
-            double t = b[c]; b[c] = b[piv]; b[piv] = t;
-        }
-        for (int r = c + 1; r < NU; ++r) {
-            double f = A[r][c] / A[c][c];
-            if (f == 0) continue;
-            for (int k = c; k < NU; ++k) A[r][k] -= f * A[c][k];
-            b[r] -= f * b[c];
-        }
-    }
+    _Static_assert(NU == 9, "solve() unrolls its columns for NU = 9");
+    double *row[NU], x[NU];
+    int idx[NU];
+    for (int i = 0; i < NU; ++i) row[i] = A[i], idx[i] = i;
+    if (eliminate_column(row, idx, b, 0) || eliminate_column(row, idx, b, 1) || eliminate_column(row, idx, b, 2) ||
+        eliminate_column(row, idx, b, 3) || eliminate_column(row, idx, b, 4) || eliminate_column(row, idx, b, 5) ||
+        eliminate_column(row, idx, b, 6) || eliminate_column(row, idx, b, 7) || eliminate_column(row, idx, b, 8))
+        return -1;
     for (int c = NU - 1; c >= 0; --c) {
-        double s = b[c];
-        for (int k = c + 1; k < NU; ++k) s -= A[c][k] * b[k];
-        b[c] = s / A[c][c];
+        const double *pr = row[c];
+        double s = b[idx[c]];
+        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
+        x[c] = s / pr[c];
     }
+    memcpy(b, x, sizeof x);
     return 0;
 }
 
