@@ -53,6 +53,7 @@ typedef struct {
  * rear wheel (one wheelbase behind on the same track) rolls in it. */
 #define RUT_SAMPLES 256
 #define RUT_SPACING 0.01
+#define RUT_WINDOW_HALF 5  /* samples: a rear wheel follows the rut's mean over 11 cm, about its contact length */
 
 typedef struct {
     ContactModel contact;

@@ -212,13 +212,25 @@ static void soil_factors(const Params *p, double x, double y, double *kh_factor,
  * forward travel `pos` (m); 0 before the start or beyond the memory.
  * Assumption: the rear wheel follows the front wheel's track one
  * wheelbase behind (straight running; on a turn it strays from the rut). */
-static double rut_depth_at(const State *s, int side, double pos)
+static double rut_point(const State *s, int side, double pos)
 {
     if (pos < 0 || pos < s->path[side] - (RUT_SAMPLES - 2) * RUT_SPACING || pos > s->path[side]) return 0.0;
     const double u = pos / RUT_SPACING;
     const long i = (long)floor(u);
     const double f = u - (double)i;
     return (1 - f) * s->rut[side][i % RUT_SAMPLES] + f * s->rut[side][(i + 1) % RUT_SAMPLES];  /* i >= 0 here */
+}
+
+/* Rut depth under a rear wheel at path position pos, averaged over 2 RUT_WINDOW_HALF + 1 samples.
+ * Assumption: the rim bridges rut features shorter than its contact length, so
+ * the wheel follows the rut's mean over about that length.  Unaveraged, the
+ * step where the rut begins (the pit the front wheel sat in) and steps where
+ * the front wheel's sinkage jumped kick the rear wheel like a kerb. */
+static double rut_depth_at(const State *s, int side, double pos)
+{
+    double sum = 0;
+    for (int k = -RUT_WINDOW_HALF; k <= RUT_WINDOW_HALF; ++k) sum += rut_point(s, side, pos + k * RUT_SPACING);
+    return sum / (2 * RUT_WINDOW_HALF + 1);
 }
 
 /* ---------------------------------------------------------- drive */

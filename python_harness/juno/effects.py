@@ -6,8 +6,9 @@ S in (0, 1] scales it linearly; S = 1 is the top of the documented range.
 ================  =========================================================  =======================
 effect            what the truth does at strength S                           range (S = 0.5 .. 1)
 ================  =========================================================  =======================
-soil_patch        a patch of weaker soil (radius 0.9-1.4 m, centre drawn on   k_h x 0.7 .. 0.4,
-                  the test track): k_h x (1 - 0.6 S), strength x (1 - 0.4 S)   strength x 0.8 .. 0.6
+soil_patch        a patch of weaker soil (Gaussian, sigma 0.6-0.9 m, centre   k_h x 0.7 .. 0.4,
+                  1.2-2 m along the drawbar track, |y| < 0.3 m):              strength x 0.8 .. 0.6
+                  k_h x (1 - 0.6 S), strength x (1 - 0.4 S)
 multipass         rear wheels roll in the front wheels' rut on compacted      k_h x 1.75 .. 2.5
                   soil: k_h x (1 + 1.5 S)
 slip_sinkage      the soil yields under a slipping wheel: k_h / (1 + 1.5 S s)  c = 0.75 .. 1.5
@@ -57,8 +58,10 @@ def effect_parameters(effect: str, strength: float, rng: np.random.Generator) ->
         raise ValueError(f"--strength {s} must lie in [0, 1]")
     ext: dict[str, float] = {}
     if effect == "soil_patch":
-        ext = {"soilPatch.x": float(rng.uniform(1.5, 3.5)), "soilPatch.y": float(rng.uniform(-0.4, 0.4)),
-               "soilPatch.radius": float(rng.uniform(0.9, 1.4)),
+        # The centre lies 1.2-2 m along the drawbar track (the drawbar runs start at the origin
+        # and cover 2-3.5 m), so the runs cross the weak patch and firmer soil on both sides.
+        ext = {"soilPatch.x": float(rng.uniform(1.2, 2.0)), "soilPatch.y": float(rng.uniform(-0.3, 0.3)),
+               "soilPatch.radius": float(rng.uniform(0.6, 0.9)),
                "soilPatch.khFactor": 1 - 0.6 * s, "soilPatch.strengthFactor": 1 - 0.4 * s}
     elif effect == "multipass":
         ext = {"multipass.rutFraction": 1.0, "multipass.khFactor": 1 + 1.5 * s}

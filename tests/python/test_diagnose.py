@@ -60,6 +60,18 @@ def none_case(tmp_path_factory):
     return diagnosis, seed
 
 
+@pytest.mark.parametrize("draw", [1, 2])
+def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
+    """With nothing hidden, no cause is named, on further random seeds (the false-cause rate
+    over many seeds is measured by scripts/detection_rates.py; README)."""
+    seed = _rng.randrange(10_000, 20_000)
+    print(f"\n[diagnose] effect none, seed {seed}")
+    diagnosis, _ = _hide_and_diagnose(tmp_path, "none", 1.0, seed)
+    summary = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["candidates"])
+    assert diagnosis["cause"] == "none" and diagnosis["causes"] == [], \
+        f"seed {seed}: a false cause was named: {summary}"
+
+
 def test_no_effect_names_no_cause(none_case):
     diagnosis, seed = none_case
     for key in ("cause", "candidates", "baseline", "extended", "gain"):
@@ -82,7 +94,7 @@ def _extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
         rel("drive.lossFraction", 0.35)
     elif effect == "slip_sinkage":
         rel("slipSinkage.coefficient", 0.6)
-    elif effect == "soil_patch":  # kept for when soil_patch joins DETECTED
+    elif effect == "soil_patch":
         dx = fitted["soilPatch.x"] - truth["soilPatch.x"]
         dy = fitted["soilPatch.y"] - truth["soilPatch.y"]
         if (dx * dx + dy * dy) ** 0.5 > 1.0:
@@ -129,6 +141,8 @@ def test_hidden_effect_is_found_blind(effect, tmp_path, none_case):
     diagnosis, truth = _hide_and_diagnose(tmp_path, effect, strength, seed)
     summary = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["candidates"])
     assert diagnosis["cause"] == effect, f"[{replay}] named {diagnosis['cause']}: {summary}"
+    second = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["second_round"])
+    assert diagnosis["causes"] == [effect], f"[{replay}] a false second cause: {second}"
     gain = diagnosis["gain"]["relative"]
     none_diag = none_case[0]
     none_gain = max((c["gain"] for c in none_diag["candidates"] if c["name"] == effect), default=0.0)
