@@ -12,8 +12,9 @@
    all): the gain is the drop of the mean squared scaled residual (each
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
    extensions are fitted on the drawbar runs only, so the terrain run is a
-   validation run for them, as in the paper; the registration is fitted on
-   the terrain run's training blocks.  A gain counts as significant only when
+   validation run for them, as in the paper; the registration is measured
+   kinematically (juno.registration) and accepted or rejected on the terrain
+   run's training blocks.  A gain counts as significant only when
    a paired test over held-out units (run, block, signal; Wilcoxon on the
    units' mean squared-residual change, so time correlation inside a block is
    respected) gives z > Z_MIN (Bonferroni-corrected over the kinds of run) on
@@ -61,6 +62,14 @@ BASE_ITERATIONS = 15
 CANDIDATE_ITERATIONS = 15
 
 
+#: Bounds of the soil's search vector (ln k_h, ln eta, logit gamma, ln K_vx): k_h 1e3-1e8,
+#: eta 0.05-2, gamma 0.01-0.99, K_vx 0.01-100.  Unbounded, a fit that pushed gamma towards 0
+#: (to absorb an unmodelled torque loss) reached logit -33, where gamma has no gradient left and
+#: can never come back when the loss is modelled.
+SOIL_SEARCH_BOUNDS = (np.array([np.log(1e3), np.log(0.05), -4.6, np.log(0.01)]),
+                      np.array([np.log(1e8), np.log(2.0), 4.6, np.log(100.0)]))
+
+
 @dataclass(frozen=True)
 class ExtParam:
     """One extension parameter: FMU name, start value and bounds.  It is searched as itself
@@ -92,6 +101,9 @@ class Candidate:
     #: if > 0, every grid point is refined by a least-squares fit of this many evaluations (on
     #: the drawbar runs) before the best goes on, instead of being ranked by its cost as is
     short_fits: int = 0
+    #: whether the terrain-registration parameters are refined by least squares on the terrain
+    #: run after the coarse search (False: the best start is kept as it is)
+    refine_terrain: bool = True
 
     def acts(self, params: dict[str, float]) -> bool:
         """Whether the extension is switched on at ``params``."""
@@ -126,8 +138,11 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     Candidate("drivetrain_loss", "part of the measured motor torque is lost before the wheels",
               (ExtParam("drive.lossFraction", 0.0, 0.0, 0.9),),
               active=(("drive.lossFraction", 0.0, 0.005),)),
-    # Its start comes from a kinematic registration of the scan against the measured height and
-    # pitch (juno.registration, no simulation); the neutral setting is tried beside it.
+    # The registration is kinematic (juno.registration: the scan against the measured height and
+    # pitch, no simulation), kept as it is or rejected for the neutral setting by the terrain
+    # run's training error.  Refined by simulation, it would also fit what the soil model gets
+    # wrong on the terrain run (a 4 deg turn of the scan mimicked a grouser's extra climbing
+    # thrust), so it is not refined.
     Candidate("terrain_offset", "the scanned terrain is misregistered against the real one",
               (ExtParam("terrain.offsetX", 0.0), ExtParam("terrain.offsetY", 0.0),
                ExtParam("terrain.offsetZ", 0.0), ExtParam("terrain.offsetYaw", 0.0)),
@@ -135,7 +150,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               active=(("terrain.offsetX", 0.0, 0.01), ("terrain.offsetY", 0.0, 0.01), ("terrain.offsetZ", 0.0, 0.003),
                       ("terrain.offsetYaw", 0.0, 0.003)),
               grid=((("terrain.offsetX", 0.0), ("terrain.offsetY", 0.0), ("terrain.offsetZ", 0.0),
-                     ("terrain.offsetYaw", 0.0)),)),
+                     ("terrain.offsetYaw", 0.0)),),
+              refine_terrain=False),
 )}
 
 
@@ -144,7 +160,8 @@ def combined(first: Candidate, second: Candidate) -> Candidate:
     Named after ``second``; only ``second``'s coarse grid is searched (``first`` starts at its
     fitted values)."""
     return Candidate(second.name, second.cause, first.params + second.params, first.fixed + second.fixed,
-                     first.needs_terrain or second.needs_terrain, second.grid, second.active, second.short_fits)
+                     first.needs_terrain or second.needs_terrain, second.grid, second.active, second.short_fits,
+                     first.refine_terrain and second.refine_terrain)
 
 
 # ------------------------------------------------------------ data set-up
@@ -264,8 +281,8 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
                 x[free] = xf
                 r = residuals_for(fmu, problem, unpack(x), kinds)
                 return np.full(n_train, 30.0) if r is None else r[train]
-            lo = np.array([-np.inf] * 4 + [e.lower for e in ext])[free]
-            hi = np.array([np.inf] * 4 + [e.upper for e in ext])[free]
+            lo = np.concatenate([SOIL_SEARCH_BOUNDS[0], [e.lower for e in ext]])[free]
+            hi = np.concatenate([SOIL_SEARCH_BOUNDS[1], [e.upper for e in ext]])[free]
             ls = least_squares(train_residuals, np.clip(x_start[free], lo, hi), method="trf", diff_step=1e-3,
                                bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8)
             x = x_start.copy()
@@ -301,9 +318,10 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
                 if cost < best_cost:
                     best_x, best_cost = trial, cost
             x = best_x
-        if has_drawbar:
+        physical = candidate is None or any(not e.name.startswith("terrain.") for e in ext)
+        if has_drawbar and physical:
             x = fit(x, ("drawbar",), np.array([i for i in range(len(x0)) if i not in terrain_only]), max_nfev)
-        if terrain_only and has_terrain:
+        if terrain_only and has_terrain and candidate.refine_terrain:
             x = fit(x, ("terrain",), np.array(terrain_only), max_nfev)
 
         params = unpack(x)
@@ -478,7 +496,7 @@ def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]
     candidate so their gains compare.  A physical extension is fitted on the drawbar runs only,
     so for it the terrain run is a validation run, as in the paper (an effect that drawbar
     tests at moderate slip cannot tell from K_vx, grouser thrust, shows when the rover climbs);
-    the registration is fitted on the terrain run's training blocks."""
+    the registration is chosen on the terrain run's training blocks."""
     return tuple(sorted(set(run_kind.tolist())))
 
 

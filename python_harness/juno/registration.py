@@ -38,6 +38,10 @@ START_YAWS = (-0.06, -0.03, 0.0, 0.03, 0.06)
 #: does not follow the ground exactly), m and rad.
 SIGMA_Z = 0.01
 SIGMA_PITCH = 0.01
+#: The registrations searched: shifts up to 0.6 m, raises up to 10 cm, turns up to 7 deg.  A
+#: traverse that crosses no terrain feature leaves the registration undetermined, and an
+#: unbounded search then wanders (a 2 m, 29 deg "registration" was found on such a run).
+LIMITS = np.array([0.6, 0.6, 0.1, 0.12])
 
 
 @dataclass(frozen=True)
@@ -102,7 +106,8 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
     costs = [float(np.sum(res(v) ** 2)) for v in starts]
     best = None
     for i in np.argsort(costs)[:4]:
-        fit = least_squares(res, starts[i], x_scale=np.array([0.1, 0.1, 0.01, 0.02]), max_nfev=200)
+        fit = least_squares(res, starts[i], x_scale=np.array([0.1, 0.1, 0.01, 0.02]), max_nfev=200,
+                            bounds=(-LIMITS, LIMITS))
         if best is None or fit.cost < best.cost:
             best = fit
     ox, oy, oz, yaw = best.x
