@@ -24,7 +24,6 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -34,6 +33,7 @@ from scipy.optimize import least_squares
 
 from .campaign import Campaign, load_campaign
 from .identify import PAPER_INITIAL, PreparedRun, from_search, prepare_run, to_search
+from .parallel import map_tasks
 from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
@@ -364,7 +364,7 @@ def residual_analysis(problem: Problem, r: np.ndarray) -> dict[str, Any]:
 
 def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
              candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> dict[str, Any]:
     """Runs the whole analysis (module docstring) and returns the ``diagnose`` JSON as a dict."""
     say = progress or (lambda m: None)
     t_start = time.perf_counter()
@@ -392,19 +392,11 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         start_soil = {k: base.params[k] for k in SOIL_PARAMETERS}
         jobs = [(problem, n, start_soil, patch_start(campaign, problem, base.residuals) if n == "soil_patch" else None)
                 for n in names]
-        n_workers = workers if workers is not None else min(len(jobs), os.cpu_count() or 1)
-        results: list[FitResult] = []
-        if n_workers > 1:
-            with ProcessPoolExecutor(max_workers=n_workers) as pool:
-                for res in pool.map(_fit_job, jobs):
-                    say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, "
-                        f"{res.wall_time:.0f} s)")
-                    results.append(res)
-        else:
-            for job in jobs:
-                res = _fit_job(job)
-                say(f"  {res.name}: held-out mse {res.test_mse:.4g}")
-                results.append(res)
+        # One task per candidate (juno.parallel): local processes, or the Dask cluster at scheduler.
+        results: list[FitResult] = map_tasks(
+            _fit_job, jobs, workers=workers, scheduler=scheduler,
+            on_result=lambda i, res: say(f"  {res.name}: held-out mse {res.test_mse:.4g} "
+                                         f"({res.evaluations} evaluations, {res.wall_time:.0f} s)"))
 
     kind_of = {p.run_id: p.kind for p in problem.prepared}
     run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
@@ -477,6 +469,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
 def add_arguments(p) -> None:
     p.add_argument("campaign", metavar="CAMPAIGN")
     p.add_argument("--workers", type=int, default=None, help="processes for the candidate fits (default: cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="fit the candidates on the Dask distributed cluster at ADDRESS (tcp://host:port); its "
+                        "workers need the FMU and the campaign folder at the same paths as here")
     p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
     p.add_argument("--plots", metavar="DIR", help="write residual plots to DIR")
     p.set_defaults(func=cmd_diagnose)
@@ -494,7 +489,7 @@ def cmd_diagnose(args) -> int:
     from .cli import _progress, _to_jsonable
     say = _progress(args.quiet)
     result = diagnose(args.campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
-                      candidates=args.candidates, progress=say)
+                      candidates=args.candidates, progress=say, scheduler=args.scheduler)
     if args.plots:
         from .atomic import atomic_directory
         with atomic_directory(args.plots, overwrite=True) as tmp:
