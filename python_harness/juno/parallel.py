@@ -8,7 +8,8 @@ joint fit)::
 
 * results come back in the order of ``items``, whatever order the tasks finish in;
 * ``workers=1`` (and no scheduler) runs ``fn`` in this process, one item after the other;
-  ``workers=None`` means ``os.cpu_count()`` local worker processes (never more than items);
+  ``workers=None`` means ``os.cpu_count()`` local worker processes (never more than items;
+  1 when this is itself a worker process);
 * ``scheduler="tcp://host:port"`` runs the tasks on that Dask distributed cluster
   (``Client.map`` with ``pure=False``, then ``gather``); Dask is imported only then;
 * a task that raises stops the batch with :class:`TaskError`, which names the task's index
@@ -64,10 +65,12 @@ class SchedulerError(ConnectionError):
 
 
 def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
-    """The number of local workers: ``workers`` (>= 1), else ``os.cpu_count()``; at most
-    ``n_items`` when given (an idle worker is only start-up cost)."""
+    """The number of local workers: ``workers`` (>= 1), else ``os.cpu_count()`` - but 1 inside
+    a worker process (a task that runs a batch of its own does not start a pool of its own:
+    the cores are taken already); at most ``n_items`` when given (an idle worker is only
+    start-up cost)."""
     if workers is None:
-        n = os.cpu_count() or 1
+        n = (os.cpu_count() or 1) if multiprocessing.parent_process() is None else 1
     else:
         n = int(workers)
         if n < 1:

@@ -51,6 +51,11 @@ def where(_item) -> int:
     return os.getpid()
 
 
+def nested(_item) -> tuple[int, list[int]]:
+    """A task that runs a batch of its own with the default number of workers."""
+    return os.getpid(), map_tasks(where, range(3))
+
+
 # ---------------------------------------------------------------------------- fixtures
 
 @pytest.fixture(scope="module")
@@ -92,6 +97,12 @@ def test_workers_one_runs_here_and_a_pool_elsewhere():
     pids = map_tasks(where, range(4), workers=2)
     assert os.getpid() not in pids
     assert map_tasks(where, [], workers=2) == []
+
+
+def test_a_batch_inside_a_worker_runs_in_that_worker():
+    """No pools inside pools: the default inside a worker process is 1 (the cores are taken)."""
+    for pid, inner in map_tasks(nested, range(2), workers=2):
+        assert pid != os.getpid() and inner == [pid] * 3
 
 
 def test_workers_must_be_positive():
