@@ -11,7 +11,8 @@ joint fit)::
   ``workers=None`` means ``os.cpu_count()`` local worker processes (never more than items;
   1 when this is itself a worker process);
 * ``scheduler="tcp://host:port"`` runs the tasks on that Dask distributed cluster
-  (``Client.map`` with ``pure=False``, then ``gather``); Dask is imported only then;
+  (``Client.map`` with ``pure=False``, results collected in input order); Dask is imported
+  only then;
 * a task that raises stops the batch with :class:`TaskError`, which names the task's index
   and item and chains the original exception (``__cause__``).
 
@@ -28,7 +29,8 @@ holds its own FMU instance, made once: :func:`local_fmu`.  An FMU instance never
 process boundary.
 
 Local pools use the ``fork`` start method where the platform has it (workers start in
-milliseconds, with the parent's modules already imported), else the platform default.
+milliseconds, with the parent's modules already imported), else the platform default.  A
+worker only runs the tasks it is sent, so the parent's other threads (if any) do not matter.
 """
 
 from __future__ import annotations
