@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
+from threadpoolctl import threadpool_limits
 
 from .campaign import Campaign, RunData, RunSpec, forward_speed, read_run, steady_average
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
@@ -473,7 +474,11 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
         raise ValueError(f"unknown optimizer '{optimizer}' (least-squares or nelder-mead)")
     # Tasks per batch: the runs of one evaluation, or the Jacobian's four points.
     n_workers = resolve_workers(workers, max(len(prepared), 4)) if not scheduler else None
-    with TaskPool(n_workers, scheduler) as pool:
+    # The fit's own linear algebra is on (residuals x 4) matrices, 17845 x 4 for the benchmark
+    # campaign: BLAS threads gain nothing there, and OpenBLAS's spinning between calls took
+    # 1.7-2.3 s of CPU per fit (measured) from the cores the simulations need.  One BLAS thread
+    # during the fit, serial or parallel alike.
+    with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
         fun = JointResiduals(fmu, prepared, extra, pool)
         return _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
 
