@@ -15,6 +15,7 @@ import numpy as np
 from . import __version__
 from .atomic import atomic_write_text
 from .errors import InputError
+from .parallel import SchedulerError, TaskError
 from .simulator import SimulationError
 
 EPILOG = "Every subcommand has --help. Results go to --json FILE as well as to the screen."
@@ -124,19 +125,21 @@ def cmd_simulate(args) -> int:
 
 def cmd_identify(args) -> int:
     from .campaign import load_campaign
-    from .identify import identify_joint, identify_paper
+    from .identify import identify_joint, identify_multistart, identify_paper_runs
     from .simulator import JunoFMU
     say = _progress(args.quiet)
     campaign = load_campaign(args.campaign)
+    if args.starts < 1:
+        raise InputError(f"--starts must be at least 1, got {args.starts}")
+    batch = {"workers": args.workers, "scheduler": args.scheduler}
     out: dict[str, Any] = {"campaign": campaign.name}
     with JunoFMU(args.fmu) as fmu:
         if args.method in ("paper", "both"):
-            out["paper"] = []
-            for run in campaign.runs_of_kind("drawbar"):
-                say(f"paper-style Nelder-Mead on {run.id}")
-                p = identify_paper(fmu, campaign, run, progress=say)
-                out["paper"].append(p)
-                print(f"{run.id}: " + ", ".join(f"{k} = {v:.4g}" for k, v in p.final.items()) +
+            runs = campaign.runs_of_kind("drawbar")
+            say("paper-style Nelder-Mead on " + ", ".join(r.id for r in runs))
+            out["paper"] = identify_paper_runs(fmu, campaign, runs, progress=say, **batch)
+            for p in out["paper"]:
+                print(f"{p.run_id}: " + ", ".join(f"{k} = {v:.4g}" for k, v in p.final.items()) +
                       f" (cost {p.cost:.3g}, {p.evaluations} evaluations, rank {p.jacobian_rank}/4)")
         if args.method in ("joint", "both"):
             grid = None
@@ -144,9 +147,22 @@ def cmd_identify(args) -> int:
             if args.with_terrain:
                 from .validate import grid_terrain
                 grid = str(grid_terrain(campaign, campaign.runs_of_kind("terrain")[0], tmp.name)[0])
-            say("joint identification over the whole time series")
-            j = identify_joint(fmu, campaign, include_terrain=args.with_terrain, terrain_file=grid,
-                               max_evaluations=args.max_evaluations, optimizer=args.optimizer, progress=say)
+            joint_args = dict(include_terrain=args.with_terrain, terrain_file=grid,
+                              max_evaluations=args.max_evaluations, optimizer=args.optimizer)
+            if args.starts > 1:
+                say(f"joint identification from {args.starts} starting points (seed {args.seed})")
+                multi = identify_multistart(fmu, campaign, args.starts, seed=args.seed, progress=say,
+                                            **batch, **joint_args)
+                j = multi.best
+                out["multistart"] = {"starts": multi.starts, "costs": [f.cost for f in multi.fits],
+                                     "params": [f.params for f in multi.fits], "spread": multi.spread,
+                                     "wall_time": multi.wall_time}
+                print(f"multi-start: {args.starts} fits in {multi.wall_time:.1f} s; costs "
+                      + ", ".join(f"{f.cost:.4g}" for f in multi.fits) + "; largest relative distance from "
+                      "the best: " + ", ".join(f"{k} {v:.2%}" for k, v in multi.spread.items()))
+            else:
+                say("joint identification over the whole time series")
+                j = identify_joint(fmu, campaign, progress=say, **batch, **joint_args)
             tmp.cleanup()
             out["joint"] = j
             for k, v in j.params.items():
@@ -282,6 +298,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--optimizer", choices=("least-squares", "nelder-mead"), default="least-squares",
                    help="joint fit: trust-region Gauss-Newton (default) or Nelder-Mead then a polish")
     p.add_argument("--max-evaluations", type=int, default=400, help="Nelder-Mead budget of the joint fit")
+    p.add_argument("--starts", type=int, default=1,
+                   help="joint fit from N starting points (the paper's guess and N-1 scattered around it), "
+                        "one parallel task each; reports the best and how far the others ended (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the scattered starting points (default 0)")
+    add_batch_options(p)
     common(p)
     p.set_defaults(func=cmd_identify)
 
@@ -311,11 +332,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--diagnose", action="store_true", help="include the discrepancy diagnosis")
     common(p)
     p.set_defaults(func=cmd_report)
+    _add_module_command(sub, common, "sweep",
+                        "simulate a scenario over a grid of FMU parameter values; CSV/JSON of summary outputs")
     _add_module_command(sub, common, "diagnose",
                         "find what the simulation gets wrong, name the cause, measure the gain")
     _add_module_command(sub, common, "bench",
                         "benchmark the contact laws, the FMU and the workflow; prints figures")
     return parser
+
+
+def add_batch_options(p) -> None:
+    """--workers and --scheduler of the subcommands that run batches (juno.parallel)."""
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="local worker processes for the batch (default: one per core; 1 = no pool)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the batch on the Dask distributed cluster at ADDRESS (tcp://host:port); its "
+                        "workers need the FMU (and the campaign folder) at the same paths as here")
 
 
 def _add_module_command(sub, common, name: str, help_text: str) -> None:
@@ -331,7 +363,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (InputError, SimulationError, FileNotFoundError, FileExistsError, KeyError, ValueError) as exc:
+    except (InputError, SimulationError, FileNotFoundError, FileExistsError, KeyError, ValueError,
+            TaskError, SchedulerError) as exc:
         print(f"juno {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

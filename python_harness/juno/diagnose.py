@@ -33,10 +33,8 @@ It never reads ``truth.json``.
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -46,6 +44,7 @@ from scipy.optimize import least_squares
 
 from .campaign import Campaign, load_campaign
 from .identify import PAPER_INITIAL, PreparedRun, from_search, prepare_run, to_search
+from .parallel import map_tasks
 from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
@@ -473,22 +472,13 @@ def residual_analysis(problem: Problem, r: np.ndarray) -> dict[str, Any]:
     return {"by_run_signal": by, "overall_mse": float(np.mean(r ** 2))}
 
 
-def _run_jobs(jobs: list, workers: int | None, say: Callable[[str], None]) -> list[FitResult]:
-    """Candidate fits, in a process pool over the cores (or serially with ``workers=1``)."""
-    n_workers = workers if workers is not None else min(len(jobs), os.cpu_count() or 1)
-    results: list[FitResult] = []
-    if n_workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=n_workers) as pool:
-            for res in pool.map(_fit_job, jobs):
-                say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, "
-                    f"{res.wall_time:.0f} s)")
-                results.append(res)
-    else:
-        for job in jobs:
-            res = _fit_job(job)
-            say(f"  {res.name}: held-out mse {res.test_mse:.4g}")
-            results.append(res)
-    return results
+def _run_jobs(jobs: list, workers: int | None, scheduler: str | None,
+              say: Callable[[str], None]) -> list[FitResult]:
+    """Candidate fits, one task each (juno.parallel): local processes over the cores by default,
+    serially with ``workers=1``, or on the Dask cluster at ``scheduler``."""
+    return map_tasks(_fit_job, jobs, workers=workers, scheduler=scheduler,
+                     on_result=lambda i, res: say(f"  {res.name}: held-out mse {res.test_mse:.4g} "
+                                                  f"({res.evaluations} evaluations, {res.wall_time:.0f} s)"))
 
 
 def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]:
@@ -533,7 +523,7 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
 
 def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
              candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> dict[str, Any]:
     """Runs the whole analysis (module docstring) and returns the ``diagnose`` JSON as a dict."""
     say = progress or (lambda m: None)
     t_start = time.perf_counter()
@@ -564,7 +554,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         first_starts = {"soil_patch": patch_start(campaign, problem, base.residuals), "terrain_offset": registration}
         searched = {"soil_patch": replace(CANDIDATES["soil_patch"], grid=patch_grid(campaign))}
         jobs = [(problem, searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)) for n in names]
-        results = _run_jobs(jobs, workers, say)
+        results = _run_jobs(jobs, workers, scheduler, say)
 
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
@@ -597,7 +587,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                 # (its fit may not have converged): a second extension must beat that, not
                 # merely the first fit's stopping point.
                 jobs2.append((problem, replace(first, grid=()), start_soil2, start_ext2))
-                results2 = _run_jobs(jobs2, workers, say)
+                results2 = _run_jobs(jobs2, workers, scheduler, say)
                 continued = results2.pop()
                 reference = continued if continued.error is None and continued.train_mse <= first_res.train_mse \
                     else first_res
@@ -658,6 +648,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
 def add_arguments(p) -> None:
     p.add_argument("campaign", metavar="CAMPAIGN")
     p.add_argument("--workers", type=int, default=None, help="processes for the candidate fits (default: cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="fit the candidates on the Dask distributed cluster at ADDRESS (tcp://host:port); its "
+                        "workers need the FMU and the campaign folder at the same paths as here")
     p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
     p.add_argument("--plots", metavar="DIR", help="write residual plots to DIR")
     p.set_defaults(func=cmd_diagnose)
@@ -675,7 +668,7 @@ def cmd_diagnose(args) -> int:
     from .cli import _progress, _to_jsonable
     say = _progress(args.quiet)
     result = diagnose(args.campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
-                      candidates=args.candidates, progress=say)
+                      candidates=args.candidates, progress=say, scheduler=args.scheduler)
     if args.plots:
         from .atomic import atomic_directory
         with atomic_directory(args.plots, overwrite=True) as tmp:

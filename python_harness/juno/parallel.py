@@ -1,0 +1,265 @@
+"""Batches of independent tasks: serially, in a local process pool, or on a Dask cluster.
+
+One small API for every batch the harness runs (parameter sweeps, multi-start and per-run
+identification, the candidate fits of ``diagnose``, the finite-difference Jacobian of the
+joint fit)::
+
+    results = map_tasks(fn, items, workers=None, scheduler=None)
+
+* results come back in the order of ``items``, whatever order the tasks finish in;
+* ``workers=1`` (and no scheduler) runs ``fn`` in this process, one item after the other;
+  ``workers=None`` means ``os.cpu_count()`` local worker processes (never more than items;
+  1 when this is itself a worker process);
+* ``scheduler="tcp://host:port"`` runs the tasks on that Dask distributed cluster
+  (``Client.map`` with ``pure=False``, results collected in input order); Dask is imported
+  only then;
+* a task that raises stops the batch with :class:`TaskError`, which names the task's index
+  and item and chains the original exception (``__cause__``).
+
+For several batches in a row (an optimiser calling back many times) keep one pool open::
+
+    with TaskPool(workers=2) as pool:
+        a = pool.map(fn, items)
+        b = pool.map(fn, other_items)
+
+Determinism: the functions mapped here are pure functions of their item (a simulation with
+given parameters), so where a task runs cannot change its result: serial, pooled and Dask
+results are identical bit for bit.  Each process (or Dask worker thread) that runs FMU tasks
+holds its own FMU instance, made once: :func:`local_fmu`.  An FMU instance never crosses a
+process boundary.
+
+Local pools use the ``fork`` start method where the platform has it (workers start in
+milliseconds, with the parent's modules already imported), else the platform default.  A
+worker only runs the tasks it is sent, so the parent's other threads (if any) do not matter.
+"""
+
+from __future__ import annotations
+
+import atexit
+import multiprocessing
+import os
+import threading
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, Callable, Iterable, Sequence
+
+__all__ = ["map_tasks", "TaskPool", "TaskError", "SchedulerError", "resolve_workers", "local_fmu", "FMUHandle",
+           "CONNECT_TIMEOUT"]
+
+#: Seconds to wait for a Dask scheduler to answer before giving up.
+CONNECT_TIMEOUT = 10.0
+
+
+class TaskError(RuntimeError):
+    """A task of a batch raised.  ``index`` and ``item`` say which; ``__cause__`` is the error."""
+
+    def __init__(self, index: int, item: Any, error: BaseException):
+        text = repr(item)
+        if len(text) > 300:
+            text = text[:297] + "..."
+        super().__init__(f"task {index} failed on item {text}: {type(error).__name__}: {error}")
+        self.index = index
+        self.item = item
+        self.error = error
+
+
+class SchedulerError(ConnectionError):
+    """The Dask scheduler could not be reached (or Dask is not installed)."""
+
+
+def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
+    """The number of local workers: ``workers`` (>= 1), else ``os.cpu_count()`` - but 1 inside
+    a worker process (a task that runs a batch of its own does not start a pool of its own:
+    the cores are taken already); at most ``n_items`` when given (an idle worker is only
+    start-up cost)."""
+    if workers is None:
+        n = (os.cpu_count() or 1) if multiprocessing.parent_process() is None else 1
+    else:
+        n = int(workers)
+        if n < 1:
+            raise ValueError(f"workers must be at least 1, got {workers}")
+    if n_items is not None:
+        n = max(1, min(n, n_items))
+    return n
+
+
+def _pool_context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("fork" if "fork" in methods else None)
+
+
+def _connect(scheduler: str, timeout: float):
+    """A ``dask.distributed.Client`` connected to ``scheduler``, or :class:`SchedulerError`."""
+    try:
+        from distributed import Client
+    except ImportError as exc:  # pragma: no cover - distributed is a pinned dependency
+        raise SchedulerError(f"--scheduler {scheduler}: the Dask 'distributed' package is not installed "
+                             f"(pip install -r python_harness/requirements.txt)") from exc
+    try:
+        return Client(scheduler, timeout=timeout, set_as_default=False)
+    except Exception as exc:  # OSError, TimeoutError, ValueError for a malformed address
+        raise SchedulerError(f"cannot connect to the Dask scheduler at '{scheduler}' within {timeout:g} s: "
+                             f"{type(exc).__name__}: {exc}") from exc
+
+
+class TaskPool:
+    """Runs batches of tasks; a context manager that owns its workers (or Dask client).
+
+    ``workers``: local processes (None: ``os.cpu_count()``; 1: in this process, no pool).
+    ``scheduler``: address of a Dask scheduler; overrides ``workers``.
+    ``connect_timeout``: seconds to wait for the scheduler (default :data:`CONNECT_TIMEOUT`).
+    ``max_items``: the largest batch expected, to cap the local pool's size.
+    """
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None,
+                 connect_timeout: float | None = None, max_items: int | None = None):
+        self.scheduler = scheduler or None
+        self.workers = resolve_workers(workers, max_items) if self.scheduler is None else None
+        self._executor: ProcessPoolExecutor | None = None
+        self._client = None
+        if self.scheduler is not None:
+            self._client = _connect(self.scheduler, CONNECT_TIMEOUT if connect_timeout is None else connect_timeout)
+        elif self.workers > 1:
+            self._executor = ProcessPoolExecutor(max_workers=self.workers, mp_context=_pool_context())
+
+    @property
+    def parallel(self) -> bool:
+        """True when tasks run outside this process."""
+        return self._executor is not None or self._client is not None
+
+    def map(self, fn: Callable[[Any], Any], items: Iterable[Any],
+            on_result: Callable[[int, Any], None] | None = None) -> list:
+        """``[fn(item) for item in items]``, in input order (see the module docstring).
+
+        ``on_result(index, result)`` is called in input order as results become available.
+        """
+        items = list(items)
+        if self._client is not None:
+            futures = self._client.map(fn, items, pure=False)
+            return self._collect(items, futures, on_result)
+        if self._executor is not None:
+            futures = [self._executor.submit(fn, item) for item in items]
+            return self._collect(items, futures, on_result)
+        results = []
+        for i, item in enumerate(items):
+            try:
+                result = fn(item)
+            except Exception as exc:
+                raise TaskError(i, item, exc) from exc
+            results.append(result)
+            if on_result:
+                on_result(i, result)
+        return results
+
+    @staticmethod
+    def _collect(items: Sequence[Any], futures: list, on_result) -> list:
+        """Results in input order; the first failure (in input order) cancels the rest."""
+        results = []
+        try:
+            for i, future in enumerate(futures):
+                try:
+                    result = future.result()
+                except Exception as exc:
+                    raise TaskError(i, items[i], exc) from exc
+                results.append(result)
+                if on_result:
+                    on_result(i, result)
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+        return results
+
+    def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            self._executor = None
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+    def __enter__(self) -> "TaskPool":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def map_tasks(fn: Callable[[Any], Any], items: Iterable[Any], *, workers: int | None = None,
+              scheduler: str | None = None, connect_timeout: float | None = None,
+              on_result: Callable[[int, Any], None] | None = None) -> list:
+    """``[fn(item) for item in items]`` in input order, serially (``workers=1``), in a local
+    process pool (default: ``os.cpu_count()`` processes) or on the Dask cluster at
+    ``scheduler``.  ``fn`` and the items must be picklable (module-level functions) unless the
+    batch runs serially.  Raises :class:`TaskError` naming the first failed item (in input
+    order), :class:`SchedulerError` if the scheduler cannot be reached."""
+    items = list(items)
+    if not items:
+        return []
+    with TaskPool(workers, scheduler, connect_timeout, max_items=len(items)) as pool:
+        return pool.map(fn, items, on_result)
+
+
+# ------------------------------------------------------------------ per-worker FMU
+
+_local = threading.local()
+
+
+def local_fmu(fmu_path: str | os.PathLike, solver_step: float | None = None):
+    """This process's (this thread's) :class:`~juno.simulator.JunoFMU` for ``fmu_path``,
+    extracted and instantiated once and reused by every later task here.
+
+    Keyed by process id as well: a forked worker never touches (or closes) its parent's
+    instance.  Closed (its extracted folder removed) when the process exits."""
+    from .simulator import JunoFMU
+
+    key = (os.getpid(), os.fspath(fmu_path), solver_step)
+    cache = getattr(_local, "fmus", None)
+    if cache is None or getattr(_local, "pid", None) != os.getpid():
+        cache = _local.fmus = {}
+        _local.pid = os.getpid()
+    fmu = cache.get(key)
+    if fmu is None:
+        fmu = JunoFMU(fmu_path, solver_step)
+        cache[key] = fmu
+        if multiprocessing.parent_process() is not None:
+            # A pool's worker process ends with os._exit (no atexit): multiprocessing's own
+            # exit hook runs its finalizers.
+            from multiprocessing.util import Finalize
+            Finalize(fmu, fmu.close, exitpriority=10)
+        else:
+            atexit.register(fmu.close)
+    return fmu
+
+
+class FMUHandle:
+    """A picklable reference to an FMU for tasks.
+
+    In the process and thread that made it, :meth:`get` returns the caller's own
+    :class:`~juno.simulator.JunoFMU`; anywhere else (a pool's worker process, a Dask worker,
+    a Dask worker thread of an in-process cluster) that process's (thread's) copy from
+    :func:`local_fmu`.  Pickled, it is just the FMU's path and solver step.
+    """
+
+    def __init__(self, fmu):
+        self.fmu_path = os.fspath(fmu.fmu_path)
+        self.solver_step = fmu.solver_step
+        self._fmu = fmu
+        self._owner = (os.getpid(), threading.get_ident())
+
+    def get(self):
+        """The FMU to simulate with here."""
+        return self._fmu if self.is_local else local_fmu(self.fmu_path, self.solver_step)
+
+    @property
+    def is_local(self) -> bool:
+        """True in the process and thread that made the handle (where it holds the caller's FMU)."""
+        return self._fmu is not None and self._owner == (os.getpid(), threading.get_ident())
+
+    def __getstate__(self):
+        return {"fmu_path": self.fmu_path, "solver_step": self.solver_step}
+
+    def __setstate__(self, state):
+        self.fmu_path = state["fmu_path"]
+        self.solver_step = state["solver_step"]
+        self._fmu = None
+        self._owner = None
