@@ -41,6 +41,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from .campaign import Campaign, load_campaign
 from .identify import PAPER_INITIAL, PreparedRun, from_search, prepare_run, to_search
@@ -253,6 +254,9 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
     """Least squares of the soil parameters (and the candidate's) on the training residuals."""
     t0 = time.perf_counter()
     fmu = JunoFMU(problem.fmu_path)
+    # One BLAS thread: the fit's matrices are (residuals x parameters), where threads gain
+    # nothing and OpenBLAS's spinning takes CPU from the simulations (see identify_joint).
+    blas = threadpool_limits(limits=1, user_api="blas")
     try:
         ext = candidate.params if candidate else ()
         fixed = dict(candidate.fixed) if candidate else {}
@@ -332,6 +336,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         return FitResult(candidate.name if candidate else "base", {}, np.inf, np.inf, np.zeros(0), 0,
                          time.perf_counter() - t0, error=str(exc))
     finally:
+        blas.restore_original_limits()
         fmu.close()
 
 
