@@ -82,13 +82,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=None, help="processes per diagnose (default: cores)")
     ap.add_argument("--json", metavar="FILE", help="every case, as JSON")
     args = ap.parse_args(argv)
-    rng = np.random.default_rng(args.first_seed)
     partial = Path(args.json + ".partial") if args.json else None
     done = json.loads(partial.read_text()) if partial and partial.exists() else []
     cases = list(done)
-    for effect in args.effects:
-        for k in range(args.seeds):
+    # Seed-major: every effect gets its k-th case before any gets its (k+1)-th, so a study
+    # stopped early still compares effects on equal footing.
+    for k in range(args.seeds):
+        for effect in args.effects:
             seed = args.first_seed + k
+            # The strength is a function of (first seed, effect, seed) only, so a resumed study
+            # draws the same.
+            rng = np.random.default_rng([args.first_seed, list(EFFECTS).index(effect), seed])
             strength = 1.0 if effect == "none" else round(float(rng.uniform(args.min_strength, args.max_strength)), 3)
             if any(c["effect"] == effect and c["seed"] == seed for c in done):
                 continue
