@@ -244,21 +244,6 @@ def _run_c(cmd: list[str], say: Callable[[str], None]) -> dict[str, Any]:
         return data
 
 
-def _jsonable(obj: Any) -> Any:
-    """JSON-safe copy: tuples as lists, numpy scalars as numbers, NaN/inf as null."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    return obj
-
-
 def _self_maxrss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -610,5 +595,6 @@ def cmd_bench(args) -> int:
         payload = {"time": stamp, "machine": info, "load_start": start_load, "load_end": end_load,
                    "repeats": repeats, "long_repeats": long_repeats, "quick": bool(args.quick),
                    "sections": rep.sections, "figures": rep.figures, "targets": TARGETS}
-        atomic_write_text(args.json, json.dumps(_jsonable(payload), indent=2) + "\n")
+        from .cli import _to_jsonable
+        atomic_write_text(args.json, json.dumps(_to_jsonable(payload), indent=2) + "\n")
     return 0

@@ -31,12 +31,16 @@ def _progress(quiet: bool):
 
 
 def _to_jsonable(obj: Any) -> Any:
+    """JSON-safe copy: tuples and arrays as lists, numpy scalars as numbers, NaN/inf as null,
+    dataclasses as dicts (every --json output goes through it)."""
     if isinstance(obj, dict):
         return {str(k): _to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [_to_jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return _to_jsonable(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
     if isinstance(obj, (np.floating, float)):
         return float(obj) if np.isfinite(obj) else None
     if isinstance(obj, (np.integer,)):
