@@ -7,7 +7,10 @@
 2. Show the base model's residuals against time, position, slip and side.
 3. Fit each candidate extension of model-notes section 7 (its own
    parameters together with the four soil parameters refitted), on the
-   training blocks.
+   training blocks.  Each starts at the base optimum; the physical ones with
+   few parameters are also started from the paper's initial soil, and the
+   better fit by training error is kept (the base fit bends the soil to absorb
+   the hidden effect, and the extension's fit can stay in that basin).
 4. Compare candidates on the held-out blocks of every run (the same data for
    all): the gain is the drop of the mean squared scaled residual (each
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
@@ -104,10 +107,21 @@ class Candidate:
     #: whether the terrain-registration parameters are refined by least squares on the terrain
     #: run after the coarse search (False: the best start is kept as it is)
     refine_terrain: bool = True
+    #: whether the fit is also started from the paper's initial soil (PAPER_INITIAL), not only
+    #: from the base optimum, the better by training error kept.  The base fit bends the soil to
+    #: absorb the hidden effect (measured, multi-pass: k_h 47e3 and eta 0.19 against the true
+    #: 146e3 and 0.49), and from there the extension's fit stays in that basin (rut fraction
+    #: 0.44 and stiffening 1.28 against 1.0 and 2.07, drawbar training error 3.6 against 1.0
+    #: from the paper's start).
+    soil_restart: bool = False
 
     def acts(self, params: dict[str, float]) -> bool:
         """Whether the extension is switched on at ``params``."""
         return any(abs(params.get(n, v) - v) > tol for n, v, tol in self.active)
+
+    def switched_off(self, params: dict[str, float]) -> dict[str, float]:
+        """``params`` with this extension at its neutral setting (everything else kept)."""
+        return {**params, **{n: v for n, v, _tol in self.active}}
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
@@ -128,16 +142,17 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
                ExtParam("multipass.khFactor", 1.3, 0.2, 10.0)),
               active=(("multipass.rutFraction", 0.0, 0.02),),
               grid=tuple((("multipass.rutFraction", r), ("multipass.khFactor", k))
-                         for r in (0.5, 1.0) for k in (1.0, 1.5, 2.0, 3.0))),
+                         for r in (0.5, 1.0) for k in (1.0, 1.5, 2.0, 3.0)),
+              soil_restart=True),
     Candidate("slip_sinkage", "sinkage grows with slip as the wheel digs in",
               (ExtParam("slipSinkage.coefficient", 0.0, 0.0, 20.0),),
-              active=(("slipSinkage.coefficient", 0.0, 0.02),)),
+              active=(("slipSinkage.coefficient", 0.0, 0.02),), soil_restart=True),
     Candidate("grouser", "lugs add thrust beyond the Mohr-Coulomb limit",
               (ExtParam("grouser.thrustGain", 0.0, 0.0, 3.0),),
-              active=(("grouser.thrustGain", 0.0, 0.01),)),
+              active=(("grouser.thrustGain", 0.0, 0.01),), soil_restart=True),
     Candidate("drivetrain_loss", "part of the measured motor torque is lost before the wheels",
               (ExtParam("drive.lossFraction", 0.0, 0.0, 0.9),),
-              active=(("drive.lossFraction", 0.0, 0.005),)),
+              active=(("drive.lossFraction", 0.0, 0.005),), soil_restart=True),
     # The registration is kinematic (juno.registration: the scan against the measured height and
     # pitch, no simulation), kept as it is or rejected for the neutral setting by the terrain
     # run's training error.  Refined by simulation, it would also fit what the soil model gets
@@ -487,6 +502,49 @@ def _run_jobs(jobs: list, workers: int | None, scheduler: str | None,
                                                   f"({res.evaluations} evaluations, {res.wall_time:.0f} s)"))
 
 
+def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> float:
+    """What a physical candidate's fit minimises: the mean squared residual of the drawbar runs'
+    training blocks (infinite for a failed fit).  Chooses between fits from different starts
+    without looking at the held-out blocks."""
+    if res.error or res.residuals.size == 0:
+        return np.inf
+    mask = problem.train & (run_kind == "drawbar")
+    if not np.any(mask):
+        mask = problem.train
+    value = float(np.mean(res.residuals[mask] ** 2))
+    return value if np.isfinite(value) else np.inf
+
+
+def best_reference(problem: Problem, run_kind: np.ndarray, fmu: JunoFMU, reference: FitResult,
+                   fits: Sequence[tuple[Candidate, FitResult]], name: str) -> FitResult:
+    """The reference a candidate must beat: ``reference``, or a candidate's fit with that
+    candidate's extension switched off, whichever has the lower training objective.
+
+    Why: a candidate's fit also refits the soil (and, in the second round, the first cause)
+    from other starting points.  When that alone explains the data better, the gain belongs to
+    the better soil, not to the extension.  Measured: a multi-pass fit gained a further 24.5 %
+    with a "soil patch" of 2 % contrast on top, where the patch's short fits had merely
+    converged the soil further; against the fit with the patch switched off, that gain is gone.
+    Costs one replay of every run per candidate.  Returns the reference and, by candidate name,
+    each candidate's fit with its extension switched off (for :func:`_judge`'s ablation)."""
+    best, best_cost = reference, fit_objective(problem, run_kind, reference)
+    switched_off: dict[str, FitResult] = {}
+    for candidate, res in fits:
+        if res.error or not res.params:
+            continue
+        params = candidate.switched_off(res.params)
+        r = all_residuals(fmu, problem, params)
+        if not np.all(np.isfinite(r)):
+            continue
+        stripped = FitResult(name, params, float(np.mean(r[problem.train] ** 2)),
+                             float(np.mean(r[~problem.train] ** 2)), r, 1, 0.0)
+        switched_off[candidate.name] = stripped
+        cost = fit_objective(problem, run_kind, stripped)
+        if cost < best_cost:
+            best, best_cost = stripped, cost
+    return best, switched_off
+
+
 def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]:
     """Where a candidate is judged: on the held-out blocks of every run, the same data for every
     candidate so their gains compare.  A physical extension is fitted on the drawbar runs only,
@@ -496,8 +554,15 @@ def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]
     return tuple(sorted(set(run_kind.tolist())))
 
 
-def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult) -> dict[str, Any]:
-    """A candidate's held-out gain over ``reference`` (the base model, or the first cause)."""
+def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
+           switched_off: FitResult | None = None) -> dict[str, Any]:
+    """A candidate's held-out gain over ``reference`` (the base model, or the first cause).
+
+    With ``switched_off`` (the candidate's own fit with its extension at neutral), the gain must
+    also survive that ablation: switching the extension off must lose it, by the same criteria.
+    Measured without it: a slip-sinkage fit with a multi-pass of rut fraction 0.10 and
+    stiffening 1.07 on top gained 8 % over the slip-sinkage reference, with the gain in the
+    refitted soil, not in the rut."""
     candidate = CANDIDATES[res.name]
     if res.error:
         return {"name": res.name, "cause": candidate.cause, "error": res.error,
@@ -515,14 +580,24 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     # of unchanged drawbar units would drown a validation run's gain), and not significantly
     # worse on any.
     acts = candidate.acts(res.params)
+    ablation = None
+    if switched_off is not None:
+        off = float(np.mean(capped_square(switched_off.residuals[test & mask])))
+        z_off = {k: paired_z(problem, switched_off.residuals, res.residuals, run_kind == k) for k in kinds}
+        ablation = {"gain": float((off - after) / off) if off > 0 else 0.0, "z": float(max(z_off.values())),
+                    "z_by_kind": z_off}
     # The penalty for extra parameters: each must buy GAIN_MIN of held-out mean squared residual
     # (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first cause by fitting
     # local residual features, a false second cause in 2 of 24 cases).
-    significant = bool(gain > GAIN_MIN * len(candidate.params)   # its own parameters (CANDIDATES)
-                       and z > z_threshold(len(kinds)) and min(z_by_kind.values()) > -Z_MIN and acts)
+    def passes(g: float, zs: dict[str, float]) -> bool:
+        return bool(g > GAIN_MIN * len(candidate.params)      # its own parameters (CANDIDATES)
+                    and max(zs.values()) > z_threshold(len(kinds)) and min(zs.values()) > -Z_MIN)
+    significant = passes(gain, z_by_kind) and acts and (ablation is None or passes(ablation["gain"],
+                                                                                   ablation["z_by_kind"]))
     own = {e.name for e in candidate.params}
     return {"name": res.name, "cause": candidate.cause, "gain": float(gain), "z": float(z),
-            "z_by_kind": z_by_kind, "acts": acts, "judged_on": list(kinds), "held_out_mse_before": before,
+            "z_by_kind": z_by_kind, "acts": acts, "ablation": ablation, "judged_on": list(kinds),
+            "held_out_mse_before": before,
             "held_out_mse_after": after, "significant": significant, "test_mse": res.test_mse,
             "train_mse": res.train_mse, "n_params": len(candidate.params),
             "soil": {k: res.params[k] for k in SOIL_PARAMETERS},
@@ -563,11 +638,24 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         first_starts = {"soil_patch": patch_start(campaign, problem, base.residuals), "terrain_offset": registration}
         searched = {"soil_patch": replace(CANDIDATES["soil_patch"], grid=patch_grid(campaign))}
         jobs = [(problem, searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)) for n in names]
-        results = _run_jobs(jobs, workers, scheduler, say)
+        restarts = [n for n in names if CANDIDATES[n].soil_restart]
+        jobs += [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None) for n in restarts]
+        fitted = _run_jobs(jobs, workers, scheduler, say)
 
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
-        cands = [_judge(problem, run_kind, base, res) for res in results]
+        results = fitted[:len(names)]
+        for n, again in zip(restarts, fitted[len(names):]):
+            i = names.index(n)
+            if fit_objective(problem, run_kind, again) < fit_objective(problem, run_kind, results[i]):
+                results[i] = again
+        ablation_fmu = JunoFMU(fmu_path)
+        try:
+            base, switched_off = best_reference(problem, run_kind, ablation_fmu, base,
+                                                [(CANDIDATES[r.name], r) for r in results], "base")
+        finally:
+            ablation_fmu.close()
+        cands = [_judge(problem, run_kind, base, res, switched_off.get(res.name)) for res in results]
         cands.sort(key=lambda c: -c["gain"])
         significant = [c for c in cands if c["significant"]]
         best = significant[0] if significant else None
@@ -601,9 +689,17 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                 jobs2.append((problem, replace(first, grid=()), start_soil2, start_ext2, 3 * CANDIDATE_ITERATIONS))
                 results2 = _run_jobs(jobs2, workers, scheduler, say)
                 continued = results2.pop()
-                reference = continued if continued.error is None and continued.train_mse <= first_res.train_mse \
-                    else first_res
-                second_round = [_judge(problem, run_kind, reference, res) for res in results2]
+                reference = continued if fit_objective(problem, run_kind, continued) <= \
+                    fit_objective(problem, run_kind, first_res) else first_res
+                ablation_fmu = JunoFMU(fmu_path)
+                try:
+                    reference, switched_off2 = best_reference(problem, run_kind, ablation_fmu, reference,
+                                                              [(CANDIDATES[r.name], r) for r in results2],
+                                                              first_res.name)
+                finally:
+                    ablation_fmu.close()
+                second_round = [_judge(problem, run_kind, reference, res, switched_off2.get(res.name))
+                                for res in results2]
                 second_round.sort(key=lambda c: -c["gain"])
                 if second_round and second_round[0]["significant"]:
                     chosen.append(next(r for r in results2 if r.name == second_round[0]["name"]))
