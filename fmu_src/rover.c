@@ -131,42 +131,92 @@ static void point_jacobian(const Eval *ev, const double pos[3], const double x[3
     J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0]; J[2][U_WX + 2] = 0;
 }
 
+/* Wheel Jacobians are mostly zeros and ones, and the hot loop (four
+ * contacts per evaluation) works only with their structural non-zeros.
+ * For a wheel on side `side` (spin column sp = U_SPIN_L + side):
+ *   point rows J (hub: point_jacobian; rim point: + add_wheel_offset):
+ *     [1 | -[r]x | c | spin column (0 at the hub) | other spin 0],
+ *     the diagonal of the -[r]x block exactly 0;
+ *   angular rows Jw: [0 | 1 | sigma e | e in column sp | 0].
+ * Each function below adds the non-zero products in the order the dense
+ * loop over all NU columns (rows) would, and a product with an exact 0 or
+ * 1 changes nothing in IEEE arithmetic (x + 0 * y = x, 1 * y = y for finite
+ * y), so the results are the dense loops' bit for bit (up to the sign of
+ * an exact zero); bench_fmu --compare checks this against the dense build. */
+
 /* Adds to the point Jacobian J the motion of a point on a wheel body
- * (offset r from its hub): -[r]x times the wheel's angular Jacobian. */
-static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3])
+ * (offset r from its hub): -[r]x times the wheel's angular Jacobian, for
+ * the columns where Jw is not zero (the angular rates, the rocker rate and
+ * this wheel's spin). */
+static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3], int sp)
 {
-    for (int k = 0; k < NU; ++k) {
+    const int cols[5] = {U_WX + 0, U_WX + 1, U_WX + 2, U_BETA, sp};
+    for (int n = 0; n < 5; ++n) {
+        const int k = cols[n];
         double w[3] = {Jw[0][k], Jw[1][k], Jw[2][k]}, c[3];
         v3_cross(c, w, r);
         for (int i = 0; i < 3; ++i) J[i][k] += c[i];
     }
 }
 
-static double row_dot(const double row[NU], const double u[NU])
+/* Row i of a point Jacobian (structure above) times u. */
+static inline double point_row_dot(double J[3][NU], int i, const double u[NU], int sp)
 {
-    double s = 0;
-    for (int k = 0; k < NU; ++k) s += row[k] * u[k];
-    return s;
+    double s = u[U_VX + i];
+    for (int j = 0; j < 3; ++j)
+        if (j != i) s += J[i][U_WX + j] * u[U_WX + j];
+    s += J[i][U_BETA] * u[U_BETA];
+    return s + J[i][sp] * u[sp];
 }
 
-/* a^T J for a 3-vector a: a row of NU. */
-static void vec_times_jac(double out[NU], const double a[3], double J[3][NU])
+/* Row i of an angular wheel Jacobian times u. */
+static inline double angular_row_dot(double Jw[3][NU], int i, const double u[NU], int sp)
 {
-    for (int k = 0; k < NU; ++k) out[k] = a[0] * J[0][k] + a[1] * J[1][k] + a[2] * J[2][k];
+    return u[U_WX + i] + Jw[i][U_BETA] * u[U_BETA] + Jw[i][sp] * u[sp];
 }
 
-/* Q += J^T F */
-static void add_generalised(double Q[NU], double J[3][NU], const double F[3])
+/* a^T J for a point Jacobian J: a row of NU (the other spin column 0). */
+static inline void point_vec_times_jac(double out[NU], const double a[3], double J[3][NU], int sp)
 {
-    for (int k = 0; k < NU; ++k) Q[k] += J[0][k] * F[0] + J[1][k] * F[1] + J[2][k] * F[2];
+    out[U_VX + 0] = a[0];
+    out[U_VX + 1] = a[1];
+    out[U_VX + 2] = a[2];
+    out[U_WX + 0] = a[1] * J[1][U_WX + 0] + a[2] * J[2][U_WX + 0];
+    out[U_WX + 1] = a[0] * J[0][U_WX + 1] + a[2] * J[2][U_WX + 1];
+    out[U_WX + 2] = a[0] * J[0][U_WX + 2] + a[1] * J[1][U_WX + 2];
+    out[U_BETA] = a[0] * J[0][U_BETA] + a[1] * J[1][U_BETA] + a[2] * J[2][U_BETA];
+    out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
+    out[sp] = a[0] * J[0][sp] + a[1] * J[1][sp] + a[2] * J[2][sp];
+}
+
+/* a^T Jw for an angular wheel Jacobian: a row of NU. */
+static inline void angular_vec_times_jac(double out[NU], const double a[3], double Jw[3][NU], int sp)
+{
+    out[U_VX + 0] = out[U_VX + 1] = out[U_VX + 2] = 0.0;
+    out[U_WX + 0] = a[0];
+    out[U_WX + 1] = a[1];
+    out[U_WX + 2] = a[2];
+    out[U_BETA] = a[0] * Jw[0][U_BETA] + a[1] * Jw[1][U_BETA] + a[2] * Jw[2][U_BETA];
+    out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
+    out[sp] = a[0] * Jw[0][sp] + a[1] * Jw[1][sp] + a[2] * Jw[2][sp];
+}
+
+/* Q += J^T F for a point Jacobian J. */
+static inline void point_add_generalised(double Q[NU], double J[3][NU], const double F[3], int sp)
+{
+    double g[NU];
+    point_vec_times_jac(g, F, J, sp);
+    for (int k = 0; k < NU; ++k)
+        if (k < U_SPIN_L || k == sp) Q[k] += g[k];
 }
 
 /* M += a^T s b for rows a, b */
-static void add_outer(double Mx[NU][NU], const double a[NU], double s, const double b[NU])
+static void add_outer(double (*restrict Mx)[NU], const double *restrict a, double s, const double *restrict b)
 {
     for (int i = 0; i < NU; ++i) {
         if (a[i] == 0) continue;
-        for (int j = 0; j < NU; ++j) Mx[i][j] += a[i] * s * b[j];
+        const double as = a[i] * s;             /* a[i] * s * b[j] is (a[i] * s) * b[j] */
+        for (int j = 0; j < NU; ++j) Mx[i][j] += as * b[j];
     }
 }
 
@@ -388,6 +438,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     const double R = cm->radius;
     const double *u = m->s.u;
     const double *H = ev->hub[w];
+    const int sp = U_SPIN_L + side_of(w);       /* this wheel's spin column */
     WheelContact *wc = &ev->wheel[w];
     memset(wc, 0, sizeof *wc);
     wc->cos_alpha = 1.0;
@@ -420,13 +471,13 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     v3_cross(l, n, f);
     v3_normalize(l);
     double vh[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i) vh[i] = row_dot(Jh[i], u);
+    for (int i = 0; i < 3; ++i) vh[i] = point_row_dot(Jh, i, u, sp);
     wc->v_long = v3_dot(f, vh);
     if (sinkage <= 0) return;
     wc->in_contact = 1;
 
     double wheel_omega[3];
-    for (int i = 0; i < 3; ++i) wheel_omega[i] = row_dot(Jw[i], u);
+    for (int i = 0; i < 3; ++i) wheel_omega[i] = angular_row_dot(Jw, i, u, sp);
     const double omega_r = R * v3_dot(wheel_omega, ev->e);
     const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
     wc->slip = (omega_r - wc->v_long) / den;
@@ -484,9 +535,9 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
      * through the hub. */
     double Jp[3][NU];
     memcpy(Jp, Jh, sizeof Jp);
-    add_wheel_offset(Jp, Jw, r_rim);
+    add_wheel_offset(Jp, Jw, r_rim, sp);
     double v_rim[3];
-    for (int i = 0; i < 3; ++i) v_rim[i] = row_dot(Jp[i], u);
+    for (int i = 0; i < 3; ++i) v_rim[i] = point_row_dot(Jp, i, u, sp);
     const double v_lat = v3_dot(l, v_rim);
     double F_long, F_lat, jac[6];
     contact_shear(cm, support, area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
@@ -513,14 +564,14 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     for (int i = 0; i < 3; ++i) wc->force[i] = Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
     if (!matrices) return;
 
-    add_generalised(ev->Q, Jp, wc->force);
+    point_add_generalised(ev->Q, Jp, wc->force, sp);
     /* Damping: -dQ/du of the shear, through v_long, v_lat and omega R. */
     double g_long[NU], g_lat[NU], g_spin[NU], a_t[NU], e_row[NU];
-    vec_times_jac(g_long, f, Jh);
-    vec_times_jac(g_lat, l, Jp);
-    vec_times_jac(e_row, ev->e, Jw);
+    point_vec_times_jac(g_long, f, Jh, sp);
+    point_vec_times_jac(g_lat, l, Jp, sp);
+    angular_vec_times_jac(e_row, ev->e, Jw, sp);
     for (int k = 0; k < NU; ++k) g_spin[k] = R * e_row[k];
-    vec_times_jac(a_t, t, Jp);
+    point_vec_times_jac(a_t, t, Jp, sp);
     double dFl[NU], dFy[NU];
     for (int k = 0; k < NU; ++k) {
         dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
@@ -533,7 +584,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
         /* Slip damping of WR's in-plane forces: Q = Jh^T (Fx f + Fz np) -
          * T e^T Jw depends on u through the slip s = (omega R - v) / den. */
         double a_z[NU], dQ_ds[NU], ds_du[NU];
-        vec_times_jac(a_z, np, Jh);
+        point_vec_times_jac(a_z, np, Jh, sp);
         const double aw = fabs(omega_r), av = fabs(wc->v_long);
         double dden_dv = 0.0, dden_dw = 0.0;
         if (aw >= av && aw >= cm->slip_v_eps) dden_dw = omega_r > 0.0 ? 1.0 : -1.0;
@@ -548,7 +599,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
         add_outer(K, a_z, kn, a_z);
         return;
     }
-    vec_times_jac(a_n, nvec, Jh);
+    point_vec_times_jac(a_n, nvec, Jh, sp);
     add_outer(K, a_n, kn, a_n);
 }
 
@@ -825,9 +876,9 @@ static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], c
         double *t = row[c]; row[c] = row[piv]; row[piv] = t;
         const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
     }
-    const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
+    const double *restrict pr = row[c], pivot = pr[c], bc = b[idx[c]];
     for (int r = c + 1; r < NU; ++r) {
-        double *rr = row[r];
+        double *restrict rr = row[r];          /* a row other than the pivot's */
         const double f = rr[c] / pivot;
         if (f == 0) continue;
         for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
