@@ -23,33 +23,9 @@
 #include "model.h"
 #include "vec3.h"
 
-#define NUM_BODIES 7
 enum { BODY_CHASSIS = 0, BODY_ROCKER_L = 1, BODY_ROCKER_R = 2, BODY_WHEEL0 = 3 };
 
 static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
-
-/* Per-wheel contact result of one evaluation. */
-typedef struct {
-    int in_contact;
-    double sinkage, slip, Fn, F_long, F_lat, v_long;
-    double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
-    double force[3];               /* world force on the wheel, N */
-} WheelContact;
-
-/* Everything one evaluation of the dynamics computes; lives on the stack. */
-typedef struct {
-    double R[9];                   /* world from chassis */
-    double e[3];                   /* chassis lateral axis = rocker and wheel axles */
-    double heading[3];             /* horizontal unit heading */
-    double pivot[2][3], hub[NUM_WHEELS][3];
-    double pivot_r[2][3];          /* pivot - chassis reference point */
-    double u_beta;                 /* rocker rate, rad/s */
-    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
-    double M[NU][NU], Q[NU], D[NU][NU];
-    WheelContact wheel[NUM_WHEELS];
-    double torque[2];
-    double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
-} Eval;
 
 static inline int side_of(int w) { return w / 2; }
 static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
@@ -707,9 +683,13 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
     Q[b->spin] += v3_dot(e, T);
 }
 
-/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
-static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
+/* The part of an evaluation that does not depend on the inputs:
+ * kinematics, the bodies' M and Q (if matrices), the contacts (and their
+ * Q, D, K).  From s.pos, quat, beta, u, memory, path, rut, the parameters,
+ * derived data and terrain only (what EvalKey records). */
+static void evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
+    double (*K)[NU] = ev->K;
     const Params *p = &m->p;
     const Derived *d = &m->d;
     const State *s = &m->s;
@@ -824,7 +804,16 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
     /* Contacts: the hub Jacobian is the wheel body's CG Jacobian. */
     for (int wh = 0; wh < NUM_WHEELS; ++wh)
         wheel_contact(m, ev, wh, ev->Jv[BODY_WHEEL0 + wh], ev->Jw[BODY_WHEEL0 + wh], matrices, K);
+}
 
+/* The part that depends on the inputs (and s.pid_integral): the drive
+ * torques and, if matrices, the drive, rocker damping and drawbar terms
+ * added to the Q, D, K of evaluate_passive (once per passive evaluation). */
+static void evaluate_inputs(const Model *m, Eval *ev, int matrices)
+{
+    const Params *p = &m->p;
+    const double *u = m->s.u;
+    double (*K)[NU] = ev->K;
     double *slope = ev->torque_slope;
     drive_torques(m, ev->torque, slope);
     if (!matrices) return;
@@ -857,6 +846,13 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         ev->Q[U_VX + i] += Fd[i];
         ev->Q[U_WX + i] += rF[i];
     }
+}
+
+/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
+static void evaluate(const Model *m, Eval *ev, int matrices)
+{
+    evaluate_passive(m, ev, matrices);
+    evaluate_inputs(m, ev, matrices);
 }
 
 /* One column of the elimination in solve(): partial pivoting among rows
@@ -930,31 +926,88 @@ static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
     return 1;
 }
 
-/* One internal step of length h. */
-static int substep(Model *m, double h, char *err, size_t errlen)
+/* ------------------------------------------- reusing an evaluation */
+
+/* The evaluation at the end of a communication step (for the outputs) is
+ * that of the state the next step starts from.  Only its drive and drawbar
+ * terms depend on the inputs, which the importer may change in between;
+ * so the input-independent part (evaluate_passive, with matrices) is kept
+ * in m->eval and the next step's first substep adds the input terms to it
+ * (evaluate_inputs), the same operations in the same order as evaluating
+ * afresh.  It is used only if nothing it was computed from has changed
+ * since, byte for byte (EvalKey: parameters, derived data, terrain, the
+ * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
+ * failed step make the next step evaluate afresh. */
+static void eval_key_store(Model *m)
+{
+    EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    memcpy(&k->p, &m->p, sizeof k->p);
+    memcpy(&k->d, &m->d, sizeof k->d);
+    memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
+    memcpy(k->pos, s->pos, sizeof k->pos);
+    memcpy(k->quat, s->quat, sizeof k->quat);
+    k->beta = s->beta;
+    memcpy(k->u, s->u, sizeof k->u);
+    memcpy(k->memory, s->memory, sizeof k->memory);
+    memcpy(k->path, s->path, sizeof k->path);
+    if (m->p.multipass_rutFraction > 0) memcpy(k->rut, s->rut, sizeof k->rut);
+}
+
+static int eval_key_matches(const Model *m)
+{
+    const EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    return memcmp(&k->p, &m->p, sizeof k->p) == 0 && memcmp(&k->d, &m->d, sizeof k->d) == 0 &&
+           memcmp(&k->terrain, &m->terrain, sizeof k->terrain) == 0 &&
+           memcmp(k->pos, s->pos, sizeof k->pos) == 0 && memcmp(k->quat, s->quat, sizeof k->quat) == 0 &&
+           memcmp(&k->beta, &s->beta, sizeof k->beta) == 0 && memcmp(k->u, s->u, sizeof k->u) == 0 &&
+           memcmp(k->memory, s->memory, sizeof k->memory) == 0 &&
+           memcmp(k->path, s->path, sizeof k->path) == 0 &&
+           (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
+}
+
+static void outputs_from(Model *m, const Eval *ev);
+
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
+static void evaluate_end_of_step(Model *m)
+{
+    evaluate_passive(m, &m->eval, 1);
+    eval_key_store(m);
+    m->eval_valid = 1;
+    evaluate_inputs(m, &m->eval, 0);          /* the torques only: Q, D, K stay input-free */
+    outputs_from(m, &m->eval);
+}
+
+/* One internal step of length h.  reuse: m->eval holds the passive
+ * evaluation of the current state (model_do_step checked it). */
+static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 {
     State *s = &m->s;
-    Eval ev;
-    double K[NU][NU], A[NU][NU], b[NU];
-    evaluate(m, &ev, 1, K);
+    Eval *ev = &m->eval;
+    double (*K)[NU] = ev->K;
+    double A[NU][NU], b[NU];
+    if (!reuse) evaluate_passive(m, ev, 1);
+    m->eval_valid = 0;                        /* it gets the input terms, and the state moves on */
+    evaluate_inputs(m, ev, 1);
     for (int i = 0; i < NU; ++i) {
         double Ku = 0;
         for (int j = 0; j < NU; ++j) {
-            A[i][j] = ev.M[i][j] + h * ev.D[i][j] + h * h * K[i][j];
+            A[i][j] = ev->M[i][j] + h * ev->D[i][j] + h * h * K[i][j];
             Ku += K[i][j] * s->u[j];
         }
-        b[i] = h * (ev.Q[i] - h * Ku);
+        b[i] = h * (ev->Q[i] - h * Ku);
     }
     if (m->p.drive_mode == DRIVE_PID)   /* the reference's share of the implicit PID integral */
         for (int k = 0; k < 2; ++k)
-            if (ev.torque_slope[k] != 0) {
+            if (ev->torque_slope[k] != 0) {
                 const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
                 b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
             }
     if (solve(A, b) != 0)
         return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
 
-    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev.torque[k];
+    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
     for (int i = 0; i < NU; ++i) s->u[i] += b[i];
     /* PID integral with anti-windup: integrate only while not saturated,
      * or while the error would bring the torque back inside the limit.  The
@@ -963,8 +1016,8 @@ static int substep(Model *m, double h, char *err, size_t errlen)
         for (int k = 0; k < 2; ++k) {
             double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
             double e = ref - s->u[U_SPIN_L + k];
-            int saturated = fabs(ev.torque[k]) >= m->p.drive_torqueMax;
-            if (!saturated || e * ev.torque[k] < 0) s->pid_integral[k] += e * h;
+            int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
+            if (!saturated || e * ev->torque[k] < 0) s->pid_integral[k] += e * h;
         }
         /* What the wheels got over the step is the end-of-step PID torque. */
         double slope[2];
@@ -974,14 +1027,14 @@ static int substep(Model *m, double h, char *err, size_t errlen)
     quat_integrate_world(s->quat, &s->u[U_WX], h);
     s->beta += h * s->u[U_BETA];
     for (int w = 0; w < NUM_WHEELS; ++w)
-        contact_memory_update(&m->d.contact, &s->memory[w], ev.wheel[w].sinkage, ev.wheel[w].v_long, h);
+        contact_memory_update(&m->d.contact, &s->memory[w], ev->wheel[w].sinkage, ev->wheel[w].v_long, h);
     if (m->p.multipass_rutFraction > 0) {
         /* Record the residual rut each front wheel leaves along its forward travel. */
         for (int side = 0; side < 2; ++side) {
             const int front = 2 * side;
-            const double v = ev.wheel[front].v_long;
+            const double v = ev->wheel[front].v_long;
             if (!(v > 0)) continue;
-            const double depth = ev.wheel[front].sinkage > 0
+            const double depth = ev->wheel[front].sinkage > 0
                                      ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
             const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
             s->path[side] += v * h;
@@ -991,7 +1044,7 @@ static int substep(Model *m, double h, char *err, size_t errlen)
         }
     }
     s->time += h;
-    if (!state_is_sane(m, &ev, err, errlen)) return -1;
+    if (!state_is_sane(m, ev, err, errlen)) return -1;
     return 0;
 }
 
@@ -1013,10 +1066,11 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
     int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
     if (n < 1) n = 1;
     const double h = h_comm / n;
+    const int reuse = m->eval_valid && eval_key_matches(m);
     for (int i = 0; i < n; ++i)
-        if (substep(m, h, err, errlen) != 0) return -1;
+        if (substep(m, h, reuse && i == 0, err, errlen) != 0) return -1;
     m->s.time = t_end;
-    model_compute_outputs(m);
+    evaluate_end_of_step(m);
     return 0;
 }
 
@@ -1025,23 +1079,29 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
 void model_compute_outputs(Model *m)
 {
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
+    outputs_from(m, &ev);
+}
+
+/* Outputs from an evaluation of the current state (with its torques). */
+static void outputs_from(Model *m, const Eval *ev)
+{
     Outputs *o = &m->out;
-    const double *R = ev.R;
+    const double *R = ev->R;
     o->x = m->s.pos[0];
     o->y = m->s.pos[1];
     o->z = m->s.pos[2];
     o->yaw = atan2(R[3], R[0]);
     o->pitch = asin(fmax(-1.0, fmin(1.0, -R[6])));
     o->roll = atan2(R[7], R[8]);
-    o->vx = v3_dot(&m->s.u[U_VX], ev.heading);
+    o->vx = v3_dot(&m->s.u[U_VX], ev->heading);
     o->omegaLeft = m->s.u[U_SPIN_L];
     o->omegaRight = m->s.u[U_SPIN_R];
-    o->torqueLeftApplied = ev.torque[SIDE_LEFT];
-    o->torqueRightApplied = ev.torque[SIDE_RIGHT];
+    o->torqueLeftApplied = ev->torque[SIDE_LEFT];
+    o->torqueRightApplied = ev->torque[SIDE_RIGHT];
     o->rocker = m->s.beta;
     for (int w = 0; w < NUM_WHEELS; ++w) {
-        const WheelContact *wc = &ev.wheel[w];
+        const WheelContact *wc = &ev->wheel[w];
         WheelOutputs *wo = &o->wheel[w];
         const double sa = wc->sin_alpha, ca = wc->cos_alpha;
         wo->sinkage = wc->sinkage;
@@ -1068,7 +1128,7 @@ static void place(Model *m, const double x[4])
     quat_from_euler(s->quat, x[1], x[2], m->p.init_yaw);
     s->beta = x[3];
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double z = ev.wheel[w].sinkage;
         s->memory[w].zmax = z > 0 ? z : 0;
@@ -1082,11 +1142,10 @@ static void equilibrium_residual(Model *m, const double x[4], double r[4])
 {
     place(m, x);
     Eval ev;
-    double K[NU][NU];
     double saved[NU];
     memcpy(saved, m->s.u, sizeof saved);
     memset(m->s.u, 0, sizeof m->s.u);
-    evaluate(m, &ev, 1, K);
+    evaluate(m, &ev, 1);
     memcpy(m->s.u, saved, sizeof saved);
     r[0] = ev.Q[U_VX + 2];
     r[1] = ev.Q[U_WX + 0];
@@ -1198,7 +1257,7 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
     }
     place(m, x);
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
     for (int w = 0; w < NUM_WHEELS; ++w)
         if (!(ev.wheel[w].sinkage > 0)) {
             snprintf(err, errlen,
@@ -1244,6 +1303,7 @@ static int prepare_wong_reece(Model *m, char *err, size_t errlen)
 int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
+    m->eval_valid = 0;
     if (check_params(p, err, errlen) != 0) return -1;
     ContactModel *cm = &m->d.contact;
     memset(cm, 0, sizeof *cm);
@@ -1277,7 +1337,7 @@ int model_initialize(Model *m, char *err, size_t errlen)
     m->s.u[U_VX + 0] = p->init_vx * cos(p->init_yaw);
     m->s.u[U_VX + 1] = p->init_vx * sin(p->init_yaw);
     m->s.u[U_SPIN_L] = m->s.u[U_SPIN_R] = p->init_vx / p->wheel_radius;
-    model_compute_outputs(m);
+    evaluate_end_of_step(m);
     return 0;
 }
 
