@@ -130,6 +130,32 @@ static void lex_ungetc(Lexer *lx)
     lx->pos--;
 }
 
+/* White space and line ends end a token. */
+static int ends_token(int c)
+{
+    return c == '\n' || c == '\r' || is_blank(c);
+}
+
+/* Adds a byte to the current token (kept up to TOK_MAX - 1 bytes). */
+static void lex_append(Lexer *lx, int c)
+{
+    if (c == '\0')
+        lx->has_nul = 1;
+    if (lx->len < TOK_MAX - 1)
+        lx->tok[lx->len] = (char)c;
+    lx->len++;
+}
+
+/* Adds n bytes, all above ' ' (so none is NUL). */
+static void lex_append_run(Lexer *lx, const unsigned char *run, size_t n)
+{
+    if (lx->len < TOK_MAX - 1) {
+        const size_t room = TOK_MAX - 1 - lx->len;
+        memcpy(lx->tok + lx->len, run, n < room ? n : room);
+    }
+    lx->len += n;
+}
+
 static void lex_newline(Lexer *lx)
 {
     if (lx->line < 0x7fffffffL) /* saturate rather than overflow */
@@ -167,23 +193,41 @@ static int lex_next(Lexer *lx)
         lx->tok_index = ++lx->ntok_line;
         lx->len = 0;
         lx->has_nul = 0;
-        do {
-            if (c == '\0')
-                lx->has_nul = 1;
-            if (lx->len < TOK_MAX - 1)
-                lx->tok[lx->len] = (char)c;
-            lx->len++;
+        lex_append(lx, c);
+        /* the rest of the token: runs of bytes taken straight from the
+         * buffer (every byte above ' ' belongs to a token; of those at or
+         * below it, white space and line ends end it, the others, NUL
+         * included, belong to it), one byte at a time across a refill */
+        for (;;) {
+            const unsigned char *q = lx->buf + lx->pos, *const e = lx->buf + lx->end;
+            while (q < e && (*q > ' ' || !ends_token(*q))) {
+                const unsigned char *run = q;
+                while (q < e && *q > ' ')
+                    q++;
+                lex_append_run(lx, run, (size_t)(q - run));
+                if (q < e && !ends_token(*q))
+                    lex_append(lx, *q++);
+            }
+            lx->pos = (size_t)(q - lx->buf);
+            if (q < e)
+                break;                       /* white space: left for the skip loop */
             c = lex_getc(lx);
-        } while (c != EOF && c != '\n' && c != '\r' && !is_blank(c));
+            if (c == EOF) {
+                if (lx->read_error)
+                    return -1;
+                break;
+            }
+            if (ends_token(c)) {
+                /* leave the terminating white space for the skip loop above,
+                 * so that line counting happens in one place */
+                lex_ungetc(lx);
+                break;
+            }
+            lex_append(lx, c);
+        }
         kept = lx->len < TOK_MAX - 1 ? lx->len : TOK_MAX - 1;
         lx->tok[kept] = '\0';
         lx->truncated = lx->len > kept;
-        /* leave the terminating white space for the skip loop above, so that
-         * line counting happens in one place */
-        if (c != EOF)
-            lex_ungetc(lx);
-        else if (lx->read_error)
-            return -1;
 
         /* files saved by some Windows editors start with a UTF-8 BOM */
         if (lx->at_file_start) {
@@ -220,7 +264,8 @@ static const double pow10_exact[23] = {
 };
 
 /* The common decimal token [+-]digits[.digits][(e|E)[+-]digits] with at
- * most 2^53 as its digit string and a decimal exponent within +-22, read
+ * most 19 digits, at most 2^53 as its digit string and a decimal exponent
+ * within +-22, read
  * without strtod: digits m and exponent e give m * 10^e or m / 10^-e,
  * one IEEE operation on two exact doubles (m <= 2^53, 10^|e| <= 10^22 are
  * exactly representable), hence correctly rounded: the value strtod
@@ -235,26 +280,22 @@ static int fast_decimal(const char *p, double *v)
 #if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
     const uint64_t max_exact = (uint64_t)1 << 53;
     uint64_t m = 0;
-    int neg = 0, digits = 0, significant = 0, e10 = 0;
+    int neg = 0, digits = 0, e10 = 0;
     double x;
 
+    /* up to 19 digits (leading zeros included), so m < 10^19 < 2^64 */
     if (*p == '+' || *p == '-')
         neg = *p++ == '-';
-    for (; *p >= '0' && *p <= '9'; p++, digits++) {
-        if (m == 0 && *p == '0')
-            continue;                       /* leading zeros */
-        if (++significant > 17)
+    for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++) {
+        if (++digits > 19)
             return 0;
-        m = 10 * m + (uint64_t)(*p - '0');
+        m = 10 * m + (uint64_t)((unsigned char)*p - '0');
     }
     if (*p == '.') {
-        for (p++; *p >= '0' && *p <= '9'; p++, digits++) {
-            e10--;
-            if (m == 0 && *p == '0')
-                continue;
-            if (++significant > 17)
+        for (p++; (unsigned)((unsigned char)*p - '0') <= 9u; p++, e10--) {
+            if (++digits > 19)
                 return 0;
-            m = 10 * m + (uint64_t)(*p - '0');
+            m = 10 * m + (uint64_t)((unsigned char)*p - '0');
         }
     }
     if (digits == 0)
@@ -522,10 +563,10 @@ static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
     const double nodata = h->val[K_NODATA];
     char q[QUOTE_MAX + 4];
     long k, nnodata = 0, last_line = h->end_line;
+    long frow = 0, col = 0; /* of value k: file row (counted from the north) and column */
     int r = have_first ? 1 : 0;
 
     for (k = 0; k < n; k++) {
-        long frow = k / nc, col = k % nc; /* file row, counted from the north */
         double v;
 
         if (k > 0 || !have_first)
@@ -563,6 +604,8 @@ static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
             return -1;
         }
         g->z[(size_t)(nr - 1 - frow) * (size_t)nc + (size_t)col] = v;
+        if (++col == nc)
+            col = 0, frow++;
     }
 
     r = lex_next(lx);

@@ -696,6 +696,60 @@ static void test_numbers_match_strtod(void)
     terrain_free(&t);
 }
 
+/* Writes the header and, on line 6, "0 0 ... 0 " (a first "00" if needed)
+ * up to byte offset `to` of the file; returns the number of values written.
+ * The header says ncols = nc, nrows = 2. */
+static long pad_to(FILE *f, long nc, long to)
+{
+    long k = 0, at = fprintf(f, "ncols %ld\r\nnrows 2\r\nxllcorner 0\r\nyllcorner 0\r\ncellsize 1\r\n", nc);
+    if ((to - at) % 2 != 0) at += fprintf(f, "00 "), k++;
+    while (at < to) at += fprintf(f, "0 "), k++;
+    return k;
+}
+
+/* The reader takes the file in blocks of 16384 bytes: a CR LF split
+ * between two blocks is one line end, and a token split between them is
+ * one token (here one with a NUL byte in it, which is never a number). */
+static void test_block_boundaries(void)
+{
+    const long block = 16384, nc = 9000;
+    const char *path;
+    char frag[128];
+    FILE *f;
+    Terrain t;
+    long i, k;
+    int bad;
+
+    /* line 6 ends "... 0 1\r\n" with its CR the last byte of the first
+     * block; then one value per line, the last one "x" in the second file */
+    for (bad = 0; bad < 2; bad++) {
+        f = open_fixture(bad ? "crlf_block_bad.asc" : "crlf_block.asc", &path);
+        k = pad_to(f, nc, block - 2) + 1;
+        fputs("1\r\n", f);
+        for (i = k; i < 2 * nc; i++) fputs(bad && i == 2 * nc - 1 ? "x\r\n" : "3\r\n", f);
+        fclose(f);
+        if (bad) {
+            snprintf(frag, sizeof frag, "line %ld, value 1", 6 + 2 * nc - k);
+            expect_fail("crlf_block_bad.asc", NULL, frag, "'x'");
+        } else if (expect_ok(path, &t, (int)nc, 2, "CR LF across blocks")) {
+            CHECK(t.z[nc + k - 2] == 0 && t.z[nc + k - 1] == 1 && t.z[nc + k] == 3, "CR LF across blocks: values");
+            terrain_free(&t);
+        }
+    }
+
+    /* a 200-byte token "1...1<NUL>1...1" on line 6 whose NUL is the first
+     * byte of the second block */
+    f = open_fixture("nul_block.asc", &path);
+    k = pad_to(f, nc, block - 100);
+    for (i = 0; i < 100; i++) fputc('1', f);
+    fputc('\0', f);
+    for (i = 0; i < 99; i++) fputc('1', f);
+    fputs(" 9\r\n", f);
+    fclose(f);
+    snprintf(frag, sizeof frag, "line 6, value %ld on the line (grid row 1, column %ld)", k + 1, k + 1);
+    expect_fail("nul_block.asc", NULL, frag, "is not a number");
+}
+
 /* ---------------------------------------------------------------- */
 /* 8. terrain_free                                                   */
 /* ---------------------------------------------------------------- */
@@ -731,6 +785,7 @@ int main(int argc, char **argv)
     test_err_buffer();
     test_odd_but_valid();
     test_numbers_match_strtod();
+    test_block_boundaries();
     test_free();
 
     remove_fixtures();
