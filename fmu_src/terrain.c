@@ -264,42 +264,155 @@ static const double pow10_exact[23] = {
     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22
 };
 
+#if defined(__SIZEOF_INT128__) && defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
+/* m * 10^e10 correctly rounded (round half to even), for 1 <= m < 2^64 and
+ * -27 <= e10 <= 27, with 128-bit integers: the digit strings fast_decimal's
+ * division cannot take exactly (more than 2^53, e.g. the 17 significant
+ * digits of a shortest round-trip double).  10^e10 = 5^e10 2^e10 and
+ * 5^27 < 2^64:
+ *   e10 >= 0: P = m 5^e10 < 2^127 exactly, rounded to 53 bits, times 2^e10;
+ *   e10 < 0: q = floor(m 2^s / 5^n) (n = -e10, s shifts m to the top of 128
+ *            bits, so q has at least 64 bits) and its remainder as a sticky
+ *            bit, q rounded to 53 bits, times 2^(-s-n).
+ * Results lie between 1e-27 and 2^64 1e27, far from overflow and from the
+ * subnormals, so the scaling by a power of two is exact.  Returns 0
+ * outside that range (the caller then uses strtod). */
+__extension__ typedef unsigned __int128 u128;   /* GCC and Clang; __extension__: not ISO C */
+
+/* 5^0 .. 5^27 (5^27 < 2^63) */
+static const uint64_t pow5[28] = {
+    1u, 5u, 25u, 125u, 625u, 3125u, 15625u, 78125u, 390625u, 1953125u, 9765625u, 48828125u,
+    244140625u, 1220703125u, 6103515625u, 30517578125u, 152587890625u, 762939453125u,
+    3814697265625u, 19073486328125u, 95367431640625u, 476837158203125u, 2384185791015625u,
+    11920928955078125u, 59604644775390625u, 298023223876953125u, 1490116119384765625u,
+    7450580596923828125u
+};
+
+static int long_decimal(uint64_t m, int e10, double *v)
+{
+    u128 q;
+    uint64_t p5, kept;
+    int bits, shift, scale, sticky = 0;   /* __builtin_clzll: GCC and Clang, as __int128 */
+
+    if (e10 < -27 || e10 > 27)
+        return 0;
+    p5 = pow5[e10 < 0 ? -e10 : e10];
+    if (e10 >= 0) {
+        q = (u128)m * p5;
+        scale = e10;
+    } else {
+        const int s = 64 + __builtin_clzll(m);      /* m 2^s has its top bit at bit 127 */
+        const u128 num = (u128)m << s;
+        q = num / p5;
+        sticky = num - q * p5 != 0;
+        scale = e10 - s;
+    }
+    bits = (uint64_t)(q >> 64) != 0 ? 128 - __builtin_clzll((uint64_t)(q >> 64))
+                                    : 64 - __builtin_clzll((uint64_t)q);   /* q >= 1 */
+    if (bits <= 53) {
+        *v = ldexp((double)(uint64_t)q, scale);
+        return 1;
+    }
+    shift = bits - 53;
+    kept = (uint64_t)(q >> shift);
+    {
+        const u128 rest = q & (((u128)1 << shift) - 1), half = (u128)1 << (shift - 1);
+        if (rest > half || (rest == half && (sticky || (kept & 1))))
+            kept++;
+    }
+    if (kept >> 53)                        /* rounded up to 2^53 */
+        kept >>= 1, shift++;
+    *v = ldexp((double)kept, scale + shift);
+    return 1;
+}
+#else
+static int long_decimal(uint64_t m, int e10, double *v)
+{
+    (void)m;
+    (void)e10;
+    (void)v;
+    return 0;
+}
+#endif
+
+/* Eight ASCII digits at p, as eight bytes read at once (little-endian
+ * SWAR, Lemire's parse_eight_digits_unrolled); elsewhere a byte at a time. */
+static int eight_digits(const char *p)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    uint64_t v;
+    memcpy(&v, p, 8);
+    return (((v + 0x4646464646464646u) | (v - 0x3030303030303030u)) & 0x8080808080808080u) == 0;
+#else
+    int i;
+    for (i = 0; i < 8; i++)
+        if ((unsigned)((unsigned char)p[i] - '0') > 9u)
+            return 0;
+    return 1;
+#endif
+}
+
+static uint64_t parse_eight_digits(const char *p)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    const uint64_t mask = 0x000000FF000000FFu, mul1 = 100 + (1000000ull << 32), mul2 = 1 + (10000ull << 32);
+    uint64_t v;
+    memcpy(&v, p, 8);
+    v -= 0x3030303030303030u;
+    v = v * 10 + (v >> 8);              /* pairs of digits */
+    return (((v & mask) * mul1) + (((v >> 16) & mask) * mul2)) >> 32;
+#else
+    uint64_t v = 0;
+    int i;
+    for (i = 0; i < 8; i++)
+        v = 10 * v + (uint64_t)((unsigned char)p[i] - '0');
+    return v;
+#endif
+}
+
 /* The common decimal token [+-]digits[.digits][(e|E)[+-]digits] (the
  * bytes p..end; the byte at end is not a digit, point, sign or e) with at
- * most 19 digits, at most 2^53 as its digit string and a decimal exponent
- * within +-22, read
- * without strtod: digits m and exponent e give m * 10^e or m / 10^-e,
- * one IEEE operation on two exact doubles (m <= 2^53, 10^|e| <= 10^22 are
- * exactly representable), hence correctly rounded: the value strtod
- * returns (Clinger 1990, the "fast path" of every correct strtod).
- * Returns 1 with *v set, or 0 for anything else (longer digit strings,
- * larger exponents, hexadecimal, inf, nan, malformed text), which the
- * caller hands to strtod.  Needs double arithmetic without extended
- * precision (FLT_EVAL_METHOD 0, e.g. SSE2), or the product could be
- * rounded twice; elsewhere it always declines. */
+ * most 19 significant digits, read without strtod.  Its digits m and
+ * decimal exponent e give:
+ *   m <= 2^53 and |e| <= 22: m * 10^e or m / 10^-e, one IEEE operation on
+ *     two exact doubles, hence correctly rounded (Clinger 1990, the "fast
+ *     path" of every correct strtod);
+ *   otherwise, |e| <= 27: long_decimal, exact integer arithmetic.
+ * Either way the value is strtod's.  Returns 1 with *v set, or 0 for
+ * anything else (more digits, larger exponents, hexadecimal, inf, nan,
+ * malformed text), which the caller hands to strtod.  Needs double
+ * arithmetic without extended precision (FLT_EVAL_METHOD 0, e.g. SSE2), or
+ * the product could be rounded twice; elsewhere it always declines. */
 static int fast_decimal(const char *p, const char *end, double *v)
 {
 #if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
     const uint64_t max_exact = (uint64_t)1 << 53;
     uint64_t m = 0;
-    int neg = 0, digits = 0, e10 = 0;
+    int neg = 0, digits = 0, significant = 0, e10 = 0;
     double x;
 
-    /* up to 19 digits (leading zeros included), so m < 10^19 < 2^64 */
+    /* up to 19 significant digits (leading zeros do not count), so
+     * m < 10^19 < 2^64; with more, m wraps and the token is declined */
     if (*p == '+' || *p == '-')
         neg = *p++ == '-';
-    for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++) {
-        if (++digits > 19)
-            return 0;
+    for (; *p == '0'; p++)
+        digits++;
+    while (end - p >= 8 && eight_digits(p))
+        m = 100000000 * m + parse_eight_digits(p), p += 8, digits += 8, significant += 8;
+    for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++, digits++, significant++)
         m = 10 * m + (uint64_t)((unsigned char)*p - '0');
-    }
     if (*p == '.') {
-        for (p++; (unsigned)((unsigned char)*p - '0') <= 9u; p++, e10--) {
-            if (++digits > 19)
-                return 0;
+        p++;
+        if (m == 0)
+            for (; *p == '0'; p++, e10--)
+                digits++;
+        while (end - p >= 8 && eight_digits(p))
+            m = 100000000 * m + parse_eight_digits(p), p += 8, e10 -= 8, digits += 8, significant += 8;
+        for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++, e10--, digits++, significant++)
             m = 10 * m + (uint64_t)((unsigned char)*p - '0');
-        }
     }
+    if (significant > 19)
+        return 0;
     if (digits == 0)
         return 0;
     if (*p == 'e' || *p == 'E') {
@@ -314,14 +427,14 @@ static int fast_decimal(const char *p, const char *end, double *v)
             return 0;
         e10 += eneg ? -ev : ev;
     }
-    if (p != end || m > max_exact)
+    if (p != end)
         return 0;
     if (m == 0)
         x = 0.0;
-    else if (e10 < -22 || e10 > 22)
-        return 0;
-    else
+    else if (m <= max_exact && e10 >= -22 && e10 <= 22)
         x = e10 < 0 ? (double)m / pow10_exact[-e10] : (double)m * pow10_exact[e10];
+    else if (!long_decimal(m, e10, &x))
+        return 0;
     *v = neg ? -x : x;
     return 1;
 #else

@@ -637,9 +637,9 @@ static void test_odd_but_valid(void)
 
 /* Every value read is strtod's for the same text, bit for bit (the reader
  * parses common decimals itself and hands the rest to strtod): fixed
- * corner cases around its limits (2^53 digits, 10^+-22, 17 significant
- * digits, signs, zeros) and 4000 random tokens of 1 to 20 digits with
- * random point, sign and exponent. */
+ * corner cases around its limits (2^53 digits, 10^+-22 and 10^+-27, 17
+ * to 20 significant digits, ties above 2^53, signs, zeros) and 8000
+ * random tokens of up to 20 digits with random point, sign and exponent. */
 static void test_numbers_match_strtod(void)
 {
     static const char *const fixed[] = {
@@ -649,8 +649,15 @@ static void test_numbers_match_strtod(void)
         "18014398509481985", "12345678901234567", "123456789012345678", "0.12345678901234567",
         "0.0038795912416837394", "00000001.50000000000000000000", "0.000000000000000000000001",
         "4.9406564584124654e-324", "1.7976931348623157e308", "3.14159265358979323846", "1e0", "1e-0",
-        "5e-1", "0.000001", "100000000000000000000000", "4503599627370497.5", "2.2250738585072014e-308"};
-    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 4000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
+        "5e-1", "0.000001", "100000000000000000000000", "4503599627370497.5", "2.2250738585072014e-308",
+        /* ties and near-ties above 2^53 (round half to even) */
+        "9007199254740995", "18014398509481986", "18014398509481990", "18014398509481986.000000001",
+        "1801439850948198.6e1", "18014398509481985.9999", "0.0038795912416837394", "-0.00011357538857554618",
+        "1234567890123456789", "12345678901234567890", "0.1234567890123456789e-8", "9999999999999999999e-27",
+        "9999999999999999999e27", "1e-27", "1e27", "1e28", "1e-28"};
+    /* NRAND random tokens of 1 to 20 digits; the second half with 16 to 19
+     * significant digits (beyond 2^53: the exact integer path) */
+    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 8000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
     static char tok[N][48];
     const char *path;
     FILE *f;
@@ -665,7 +672,7 @@ static void test_numbers_match_strtod(void)
             continue;
         }
         if (urand(0, 1) < 0.3) *q++ = urand(0, 1) < 0.8 ? '-' : '+';
-        nd = 1 + (int)urand(0, 20);
+        nd = i < NFIX + NRAND / 2 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
         point = (int)urand(-1, nd + 1);            /* -1: no point */
         for (k = 0; k < nd; k++) {
             if (k == point) *q++ = '.';
