@@ -187,12 +187,11 @@ static inline void point_add_generalised(double Q[NU], double J[3][NU], const do
 }
 
 /* M += a^T s b for rows a, b */
-static void add_outer(double (*restrict Mx)[NU], const double *restrict a, double s, const double *restrict b)
+static void add_outer(double Mx[NU][NU], const double a[NU], double s, const double b[NU])
 {
     for (int i = 0; i < NU; ++i) {
         if (a[i] == 0) continue;
-        const double as = a[i] * s;             /* a[i] * s * b[j] is (a[i] * s) * b[j] */
-        for (int j = 0; j < NU; ++j) Mx[i][j] += as * b[j];
+        for (int j = 0; j < NU; ++j) Mx[i][j] += a[i] * s * b[j];
     }
 }
 
@@ -872,9 +871,9 @@ static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], c
         double *t = row[c]; row[c] = row[piv]; row[piv] = t;
         const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
     }
-    const double *restrict pr = row[c], pivot = pr[c], bc = b[idx[c]];
+    const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
     for (int r = c + 1; r < NU; ++r) {
-        double *restrict rr = row[r];          /* a row other than the pivot's */
+        double *rr = row[r];
         const double f = rr[c] / pivot;
         if (f == 0) continue;
         for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
