@@ -96,6 +96,47 @@ typedef struct {
     WheelOutputs wheel[NUM_WHEELS];
 } Outputs;
 
+/* ---- rover.c's working data (not part of the FMU state) ---- */
+
+#define NUM_BODIES 7
+
+/* Per-wheel contact result of one evaluation. */
+typedef struct {
+    int in_contact;
+    double sinkage, slip, Fn, F_long, F_lat, v_long;
+    double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
+    double force[3];               /* world force on the wheel, N */
+} WheelContact;
+
+/* Everything one evaluation of the dynamics computes (rover.c). */
+typedef struct {
+    double R[9];                   /* world from chassis */
+    double e[3];                   /* chassis lateral axis = rocker and wheel axles */
+    double heading[3];             /* horizontal unit heading */
+    double pivot[2][3], hub[NUM_WHEELS][3];
+    double pivot_r[2][3];          /* pivot - chassis reference point */
+    double u_beta;                 /* rocker rate, rad/s */
+    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
+    double M[NU][NU], Q[NU], D[NU][NU], K[NU][NU];
+    WheelContact wheel[NUM_WHEELS];
+    double torque[2];
+    double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
+} Eval;
+
+/* What the input-independent part of an evaluation is computed from
+ * (rover.c, evaluate_passive): a byte copy, compared byte for byte before
+ * the evaluation at the end of one communication step is reused as the
+ * first one of the next.  rut only counts when multipass is on. */
+typedef struct {
+    Params p;
+    Derived d;
+    Terrain terrain;
+    double pos[3], quat[4], beta, u[NU];
+    ContactMemory memory[NUM_WHEELS];
+    double path[2];
+    double rut[2][RUT_SAMPLES];
+} EvalKey;
+
 typedef struct {
     Params p;
     Derived d;
@@ -105,6 +146,12 @@ typedef struct {
     /* not part of the byte-copied FMU state: */
     char *terrain_file;            /* owned (malloc), NULL = flat ground */
     Terrain terrain;
+    /* The input-independent evaluation of the state at the end of the
+     * last model_do_step (or model_initialize), valid while eval_valid and
+     * the model still matches eval_key; model_do_step checks both. */
+    Eval eval;
+    EvalKey eval_key;
+    int eval_valid;
 } Model;
 
 void model_set_defaults(Model *m);

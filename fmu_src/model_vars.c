@@ -159,6 +159,7 @@ void model_int_range(unsigned vr, int *min, int *max)
 /* Start values: the single place defaults come from. */
 void model_set_defaults(Model *m)
 {
+    m->eval_valid = 0;
 #define REAL(vr_, name, kind, unit, start, lo, hi, field, desc) if (kind != OUTPUT && kind != CALC) m->field = start;
 #define INT(vr_, name, kind, start, lo, hi, field, desc) m->field = start;
 #define STR(vr_, name, kind, start, field, desc)

@@ -23,33 +23,9 @@
 #include "model.h"
 #include "vec3.h"
 
-#define NUM_BODIES 7
 enum { BODY_CHASSIS = 0, BODY_ROCKER_L = 1, BODY_ROCKER_R = 2, BODY_WHEEL0 = 3 };
 
 static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
-
-/* Per-wheel contact result of one evaluation. */
-typedef struct {
-    int in_contact;
-    double sinkage, slip, Fn, F_long, F_lat, v_long;
-    double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
-    double force[3];               /* world force on the wheel, N */
-} WheelContact;
-
-/* Everything one evaluation of the dynamics computes; lives on the stack. */
-typedef struct {
-    double R[9];                   /* world from chassis */
-    double e[3];                   /* chassis lateral axis = rocker and wheel axles */
-    double heading[3];             /* horizontal unit heading */
-    double pivot[2][3], hub[NUM_WHEELS][3];
-    double pivot_r[2][3];          /* pivot - chassis reference point */
-    double u_beta;                 /* rocker rate, rad/s */
-    double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
-    double M[NU][NU], Q[NU], D[NU][NU];
-    WheelContact wheel[NUM_WHEELS];
-    double torque[2];
-    double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
-} Eval;
 
 static inline int side_of(int w) { return w / 2; }
 static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
@@ -131,34 +107,83 @@ static void point_jacobian(const Eval *ev, const double pos[3], const double x[3
     J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0]; J[2][U_WX + 2] = 0;
 }
 
+/* Wheel Jacobians are mostly zeros and ones, and the hot loop (four
+ * contacts per evaluation) works only with their structural non-zeros.
+ * For a wheel on side `side` (spin column sp = U_SPIN_L + side):
+ *   point rows J (hub: point_jacobian; rim point: + add_wheel_offset):
+ *     [1 | -[r]x | c | spin column (0 at the hub) | other spin 0],
+ *     the diagonal of the -[r]x block exactly 0;
+ *   angular rows Jw: [0 | 1 | sigma e | e in column sp | 0].
+ * Each function below adds the non-zero products in the order the dense
+ * loop over all NU columns (rows) would, and a product with an exact 0 or
+ * 1 changes nothing in IEEE arithmetic (x + 0 * y = x, 1 * y = y for finite
+ * y), so the results are the dense loops' bit for bit (up to the sign of
+ * an exact zero); bench_fmu --compare checks this against the dense build. */
+
 /* Adds to the point Jacobian J the motion of a point on a wheel body
- * (offset r from its hub): -[r]x times the wheel's angular Jacobian. */
-static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3])
+ * (offset r from its hub): -[r]x times the wheel's angular Jacobian, for
+ * the columns where Jw is not zero (the angular rates, the rocker rate and
+ * this wheel's spin). */
+static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3], int sp)
 {
-    for (int k = 0; k < NU; ++k) {
+    const int cols[5] = {U_WX + 0, U_WX + 1, U_WX + 2, U_BETA, sp};
+    for (int n = 0; n < 5; ++n) {
+        const int k = cols[n];
         double w[3] = {Jw[0][k], Jw[1][k], Jw[2][k]}, c[3];
         v3_cross(c, w, r);
         for (int i = 0; i < 3; ++i) J[i][k] += c[i];
     }
 }
 
-static double row_dot(const double row[NU], const double u[NU])
+/* Row i of a point Jacobian (structure above) times u. */
+static inline double point_row_dot(double J[3][NU], int i, const double u[NU], int sp)
 {
-    double s = 0;
-    for (int k = 0; k < NU; ++k) s += row[k] * u[k];
-    return s;
+    double s = u[U_VX + i];
+    for (int j = 0; j < 3; ++j)
+        if (j != i) s += J[i][U_WX + j] * u[U_WX + j];
+    s += J[i][U_BETA] * u[U_BETA];
+    return s + J[i][sp] * u[sp];
 }
 
-/* a^T J for a 3-vector a: a row of NU. */
-static void vec_times_jac(double out[NU], const double a[3], double J[3][NU])
+/* Row i of an angular wheel Jacobian times u. */
+static inline double angular_row_dot(double Jw[3][NU], int i, const double u[NU], int sp)
 {
-    for (int k = 0; k < NU; ++k) out[k] = a[0] * J[0][k] + a[1] * J[1][k] + a[2] * J[2][k];
+    return u[U_WX + i] + Jw[i][U_BETA] * u[U_BETA] + Jw[i][sp] * u[sp];
 }
 
-/* Q += J^T F */
-static void add_generalised(double Q[NU], double J[3][NU], const double F[3])
+/* a^T J for a point Jacobian J: a row of NU (the other spin column 0). */
+static inline void point_vec_times_jac(double out[NU], const double a[3], double J[3][NU], int sp)
 {
-    for (int k = 0; k < NU; ++k) Q[k] += J[0][k] * F[0] + J[1][k] * F[1] + J[2][k] * F[2];
+    out[U_VX + 0] = a[0];
+    out[U_VX + 1] = a[1];
+    out[U_VX + 2] = a[2];
+    out[U_WX + 0] = a[1] * J[1][U_WX + 0] + a[2] * J[2][U_WX + 0];
+    out[U_WX + 1] = a[0] * J[0][U_WX + 1] + a[2] * J[2][U_WX + 1];
+    out[U_WX + 2] = a[0] * J[0][U_WX + 2] + a[1] * J[1][U_WX + 2];
+    out[U_BETA] = a[0] * J[0][U_BETA] + a[1] * J[1][U_BETA] + a[2] * J[2][U_BETA];
+    out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
+    out[sp] = a[0] * J[0][sp] + a[1] * J[1][sp] + a[2] * J[2][sp];
+}
+
+/* a^T Jw for an angular wheel Jacobian: a row of NU. */
+static inline void angular_vec_times_jac(double out[NU], const double a[3], double Jw[3][NU], int sp)
+{
+    out[U_VX + 0] = out[U_VX + 1] = out[U_VX + 2] = 0.0;
+    out[U_WX + 0] = a[0];
+    out[U_WX + 1] = a[1];
+    out[U_WX + 2] = a[2];
+    out[U_BETA] = a[0] * Jw[0][U_BETA] + a[1] * Jw[1][U_BETA] + a[2] * Jw[2][U_BETA];
+    out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
+    out[sp] = a[0] * Jw[0][sp] + a[1] * Jw[1][sp] + a[2] * Jw[2][sp];
+}
+
+/* Q += J^T F for a point Jacobian J. */
+static inline void point_add_generalised(double Q[NU], double J[3][NU], const double F[3], int sp)
+{
+    double g[NU];
+    point_vec_times_jac(g, F, J, sp);
+    for (int k = 0; k < NU; ++k)
+        if (k < U_SPIN_L || k == sp) Q[k] += g[k];
 }
 
 /* M += a^T s b for rows a, b */
@@ -388,6 +413,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     const double R = cm->radius;
     const double *u = m->s.u;
     const double *H = ev->hub[w];
+    const int sp = U_SPIN_L + side_of(w);       /* this wheel's spin column */
     WheelContact *wc = &ev->wheel[w];
     memset(wc, 0, sizeof *wc);
     wc->cos_alpha = 1.0;
@@ -420,13 +446,13 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     v3_cross(l, n, f);
     v3_normalize(l);
     double vh[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i) vh[i] = row_dot(Jh[i], u);
+    for (int i = 0; i < 3; ++i) vh[i] = point_row_dot(Jh, i, u, sp);
     wc->v_long = v3_dot(f, vh);
     if (sinkage <= 0) return;
     wc->in_contact = 1;
 
     double wheel_omega[3];
-    for (int i = 0; i < 3; ++i) wheel_omega[i] = row_dot(Jw[i], u);
+    for (int i = 0; i < 3; ++i) wheel_omega[i] = angular_row_dot(Jw, i, u, sp);
     const double omega_r = R * v3_dot(wheel_omega, ev->e);
     const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
     wc->slip = (omega_r - wc->v_long) / den;
@@ -484,9 +510,9 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
      * through the hub. */
     double Jp[3][NU];
     memcpy(Jp, Jh, sizeof Jp);
-    add_wheel_offset(Jp, Jw, r_rim);
+    add_wheel_offset(Jp, Jw, r_rim, sp);
     double v_rim[3];
-    for (int i = 0; i < 3; ++i) v_rim[i] = row_dot(Jp[i], u);
+    for (int i = 0; i < 3; ++i) v_rim[i] = point_row_dot(Jp, i, u, sp);
     const double v_lat = v3_dot(l, v_rim);
     double F_long, F_lat, jac[6];
     contact_shear(cm, support, area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
@@ -513,14 +539,14 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     for (int i = 0; i < 3; ++i) wc->force[i] = Fn * nvec[i] + F_long * t[i] + F_lat * l[i];
     if (!matrices) return;
 
-    add_generalised(ev->Q, Jp, wc->force);
+    point_add_generalised(ev->Q, Jp, wc->force, sp);
     /* Damping: -dQ/du of the shear, through v_long, v_lat and omega R. */
     double g_long[NU], g_lat[NU], g_spin[NU], a_t[NU], e_row[NU];
-    vec_times_jac(g_long, f, Jh);
-    vec_times_jac(g_lat, l, Jp);
-    vec_times_jac(e_row, ev->e, Jw);
+    point_vec_times_jac(g_long, f, Jh, sp);
+    point_vec_times_jac(g_lat, l, Jp, sp);
+    angular_vec_times_jac(e_row, ev->e, Jw, sp);
     for (int k = 0; k < NU; ++k) g_spin[k] = R * e_row[k];
-    vec_times_jac(a_t, t, Jp);
+    point_vec_times_jac(a_t, t, Jp, sp);
     double dFl[NU], dFy[NU];
     for (int k = 0; k < NU; ++k) {
         dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
@@ -533,7 +559,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
         /* Slip damping of WR's in-plane forces: Q = Jh^T (Fx f + Fz np) -
          * T e^T Jw depends on u through the slip s = (omega R - v) / den. */
         double a_z[NU], dQ_ds[NU], ds_du[NU];
-        vec_times_jac(a_z, np, Jh);
+        point_vec_times_jac(a_z, np, Jh, sp);
         const double aw = fabs(omega_r), av = fabs(wc->v_long);
         double dden_dv = 0.0, dden_dw = 0.0;
         if (aw >= av && aw >= cm->slip_v_eps) dden_dw = omega_r > 0.0 ? 1.0 : -1.0;
@@ -548,7 +574,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
         add_outer(K, a_z, kn, a_z);
         return;
     }
-    vec_times_jac(a_n, nvec, Jh);
+    point_vec_times_jac(a_n, nvec, Jh, sp);
     add_outer(K, a_n, kn, a_n);
 }
 
@@ -656,9 +682,13 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
     Q[b->spin] += v3_dot(e, T);
 }
 
-/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
-static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
+/* The part of an evaluation that does not depend on the inputs:
+ * kinematics, the bodies' M and Q (if matrices), the contacts (and their
+ * Q, D, K).  From s.pos, quat, beta, u, memory, path, rut, the parameters,
+ * derived data and terrain only (what EvalKey records). */
+static void evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
+    double (*K)[NU] = ev->K;
     const Params *p = &m->p;
     const Derived *d = &m->d;
     const State *s = &m->s;
@@ -773,7 +803,16 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
     /* Contacts: the hub Jacobian is the wheel body's CG Jacobian. */
     for (int wh = 0; wh < NUM_WHEELS; ++wh)
         wheel_contact(m, ev, wh, ev->Jv[BODY_WHEEL0 + wh], ev->Jw[BODY_WHEEL0 + wh], matrices, K);
+}
 
+/* The part that depends on the inputs (and s.pid_integral): the drive
+ * torques and, if matrices, the drive, rocker damping and drawbar terms
+ * added to the Q, D, K of evaluate_passive (once per passive evaluation). */
+static void evaluate_inputs(const Model *m, Eval *ev, int matrices)
+{
+    const Params *p = &m->p;
+    const double *u = m->s.u;
+    double (*K)[NU] = ev->K;
     double *slope = ev->torque_slope;
     drive_torques(m, ev->torque, slope);
     if (!matrices) return;
@@ -806,6 +845,13 @@ static void evaluate(const Model *m, Eval *ev, int matrices, double K[NU][NU])
         ev->Q[U_VX + i] += Fd[i];
         ev->Q[U_WX + i] += rF[i];
     }
+}
+
+/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
+static void evaluate(const Model *m, Eval *ev, int matrices)
+{
+    evaluate_passive(m, ev, matrices);
+    evaluate_inputs(m, ev, matrices);
 }
 
 /* One column of the elimination in solve(): partial pivoting among rows
@@ -879,31 +925,88 @@ static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
     return 1;
 }
 
-/* One internal step of length h. */
-static int substep(Model *m, double h, char *err, size_t errlen)
+/* ------------------------------------------- reusing an evaluation */
+
+/* The evaluation at the end of a communication step (for the outputs) is
+ * that of the state the next step starts from.  Only its drive and drawbar
+ * terms depend on the inputs, which the importer may change in between;
+ * so the input-independent part (evaluate_passive, with matrices) is kept
+ * in m->eval and the next step's first substep adds the input terms to it
+ * (evaluate_inputs), the same operations in the same order as evaluating
+ * afresh.  It is used only if nothing it was computed from has changed
+ * since, byte for byte (EvalKey: parameters, derived data, terrain, the
+ * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
+ * failed step make the next step evaluate afresh. */
+static void eval_key_store(Model *m)
+{
+    EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    memcpy(&k->p, &m->p, sizeof k->p);
+    memcpy(&k->d, &m->d, sizeof k->d);
+    memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
+    memcpy(k->pos, s->pos, sizeof k->pos);
+    memcpy(k->quat, s->quat, sizeof k->quat);
+    k->beta = s->beta;
+    memcpy(k->u, s->u, sizeof k->u);
+    memcpy(k->memory, s->memory, sizeof k->memory);
+    memcpy(k->path, s->path, sizeof k->path);
+    if (m->p.multipass_rutFraction > 0) memcpy(k->rut, s->rut, sizeof k->rut);
+}
+
+static int eval_key_matches(const Model *m)
+{
+    const EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    return memcmp(&k->p, &m->p, sizeof k->p) == 0 && memcmp(&k->d, &m->d, sizeof k->d) == 0 &&
+           memcmp(&k->terrain, &m->terrain, sizeof k->terrain) == 0 &&
+           memcmp(k->pos, s->pos, sizeof k->pos) == 0 && memcmp(k->quat, s->quat, sizeof k->quat) == 0 &&
+           memcmp(&k->beta, &s->beta, sizeof k->beta) == 0 && memcmp(k->u, s->u, sizeof k->u) == 0 &&
+           memcmp(k->memory, s->memory, sizeof k->memory) == 0 &&
+           memcmp(k->path, s->path, sizeof k->path) == 0 &&
+           (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
+}
+
+static void outputs_from(Model *m, const Eval *ev);
+
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
+static void evaluate_end_of_step(Model *m)
+{
+    evaluate_passive(m, &m->eval, 1);
+    eval_key_store(m);
+    m->eval_valid = 1;
+    evaluate_inputs(m, &m->eval, 0);          /* the torques only: Q, D, K stay input-free */
+    outputs_from(m, &m->eval);
+}
+
+/* One internal step of length h.  reuse: m->eval holds the passive
+ * evaluation of the current state (model_do_step checked it). */
+static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 {
     State *s = &m->s;
-    Eval ev;
-    double K[NU][NU], A[NU][NU], b[NU];
-    evaluate(m, &ev, 1, K);
+    Eval *ev = &m->eval;
+    double (*K)[NU] = ev->K;
+    double A[NU][NU], b[NU];
+    if (!reuse) evaluate_passive(m, ev, 1);
+    m->eval_valid = 0;                        /* it gets the input terms, and the state moves on */
+    evaluate_inputs(m, ev, 1);
     for (int i = 0; i < NU; ++i) {
         double Ku = 0;
         for (int j = 0; j < NU; ++j) {
-            A[i][j] = ev.M[i][j] + h * ev.D[i][j] + h * h * K[i][j];
+            A[i][j] = ev->M[i][j] + h * ev->D[i][j] + h * h * K[i][j];
             Ku += K[i][j] * s->u[j];
         }
-        b[i] = h * (ev.Q[i] - h * Ku);
+        b[i] = h * (ev->Q[i] - h * Ku);
     }
     if (m->p.drive_mode == DRIVE_PID)   /* the reference's share of the implicit PID integral */
         for (int k = 0; k < 2; ++k)
-            if (ev.torque_slope[k] != 0) {
+            if (ev->torque_slope[k] != 0) {
                 const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
                 b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
             }
     if (solve(A, b) != 0)
         return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
 
-    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev.torque[k];
+    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
     for (int i = 0; i < NU; ++i) s->u[i] += b[i];
     /* PID integral with anti-windup: integrate only while not saturated,
      * or while the error would bring the torque back inside the limit.  The
@@ -912,8 +1015,8 @@ static int substep(Model *m, double h, char *err, size_t errlen)
         for (int k = 0; k < 2; ++k) {
             double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
             double e = ref - s->u[U_SPIN_L + k];
-            int saturated = fabs(ev.torque[k]) >= m->p.drive_torqueMax;
-            if (!saturated || e * ev.torque[k] < 0) s->pid_integral[k] += e * h;
+            int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
+            if (!saturated || e * ev->torque[k] < 0) s->pid_integral[k] += e * h;
         }
         /* What the wheels got over the step is the end-of-step PID torque. */
         double slope[2];
@@ -923,14 +1026,14 @@ static int substep(Model *m, double h, char *err, size_t errlen)
     quat_integrate_world(s->quat, &s->u[U_WX], h);
     s->beta += h * s->u[U_BETA];
     for (int w = 0; w < NUM_WHEELS; ++w)
-        contact_memory_update(&m->d.contact, &s->memory[w], ev.wheel[w].sinkage, ev.wheel[w].v_long, h);
+        contact_memory_update(&m->d.contact, &s->memory[w], ev->wheel[w].sinkage, ev->wheel[w].v_long, h);
     if (m->p.multipass_rutFraction > 0) {
         /* Record the residual rut each front wheel leaves along its forward travel. */
         for (int side = 0; side < 2; ++side) {
             const int front = 2 * side;
-            const double v = ev.wheel[front].v_long;
+            const double v = ev->wheel[front].v_long;
             if (!(v > 0)) continue;
-            const double depth = ev.wheel[front].sinkage > 0
+            const double depth = ev->wheel[front].sinkage > 0
                                      ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
             const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
             s->path[side] += v * h;
@@ -940,7 +1043,7 @@ static int substep(Model *m, double h, char *err, size_t errlen)
         }
     }
     s->time += h;
-    if (!state_is_sane(m, &ev, err, errlen)) return -1;
+    if (!state_is_sane(m, ev, err, errlen)) return -1;
     return 0;
 }
 
@@ -962,10 +1065,11 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
     int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
     if (n < 1) n = 1;
     const double h = h_comm / n;
+    const int reuse = m->eval_valid && eval_key_matches(m);
     for (int i = 0; i < n; ++i)
-        if (substep(m, h, err, errlen) != 0) return -1;
+        if (substep(m, h, reuse && i == 0, err, errlen) != 0) return -1;
     m->s.time = t_end;
-    model_compute_outputs(m);
+    evaluate_end_of_step(m);
     return 0;
 }
 
@@ -974,23 +1078,29 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
 void model_compute_outputs(Model *m)
 {
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
+    outputs_from(m, &ev);
+}
+
+/* Outputs from an evaluation of the current state (with its torques). */
+static void outputs_from(Model *m, const Eval *ev)
+{
     Outputs *o = &m->out;
-    const double *R = ev.R;
+    const double *R = ev->R;
     o->x = m->s.pos[0];
     o->y = m->s.pos[1];
     o->z = m->s.pos[2];
     o->yaw = atan2(R[3], R[0]);
     o->pitch = asin(fmax(-1.0, fmin(1.0, -R[6])));
     o->roll = atan2(R[7], R[8]);
-    o->vx = v3_dot(&m->s.u[U_VX], ev.heading);
+    o->vx = v3_dot(&m->s.u[U_VX], ev->heading);
     o->omegaLeft = m->s.u[U_SPIN_L];
     o->omegaRight = m->s.u[U_SPIN_R];
-    o->torqueLeftApplied = ev.torque[SIDE_LEFT];
-    o->torqueRightApplied = ev.torque[SIDE_RIGHT];
+    o->torqueLeftApplied = ev->torque[SIDE_LEFT];
+    o->torqueRightApplied = ev->torque[SIDE_RIGHT];
     o->rocker = m->s.beta;
     for (int w = 0; w < NUM_WHEELS; ++w) {
-        const WheelContact *wc = &ev.wheel[w];
+        const WheelContact *wc = &ev->wheel[w];
         WheelOutputs *wo = &o->wheel[w];
         const double sa = wc->sin_alpha, ca = wc->cos_alpha;
         wo->sinkage = wc->sinkage;
@@ -1017,7 +1127,7 @@ static void place(Model *m, const double x[4])
     quat_from_euler(s->quat, x[1], x[2], m->p.init_yaw);
     s->beta = x[3];
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double z = ev.wheel[w].sinkage;
         s->memory[w].zmax = z > 0 ? z : 0;
@@ -1031,11 +1141,10 @@ static void equilibrium_residual(Model *m, const double x[4], double r[4])
 {
     place(m, x);
     Eval ev;
-    double K[NU][NU];
     double saved[NU];
     memcpy(saved, m->s.u, sizeof saved);
     memset(m->s.u, 0, sizeof m->s.u);
-    evaluate(m, &ev, 1, K);
+    evaluate(m, &ev, 1);
     memcpy(m->s.u, saved, sizeof saved);
     r[0] = ev.Q[U_VX + 2];
     r[1] = ev.Q[U_WX + 0];
@@ -1147,7 +1256,7 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
     }
     place(m, x);
     Eval ev;
-    evaluate(m, &ev, 0, NULL);
+    evaluate(m, &ev, 0);
     for (int w = 0; w < NUM_WHEELS; ++w)
         if (!(ev.wheel[w].sinkage > 0)) {
             snprintf(err, errlen,
@@ -1193,6 +1302,7 @@ static int prepare_wong_reece(Model *m, char *err, size_t errlen)
 int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
+    m->eval_valid = 0;
     if (check_params(p, err, errlen) != 0) return -1;
     ContactModel *cm = &m->d.contact;
     memset(cm, 0, sizeof *cm);
@@ -1226,7 +1336,7 @@ int model_initialize(Model *m, char *err, size_t errlen)
     m->s.u[U_VX + 0] = p->init_vx * cos(p->init_yaw);
     m->s.u[U_VX + 1] = p->init_vx * sin(p->init_yaw);
     m->s.u[U_SPIN_L] = m->s.u[U_SPIN_R] = p->init_vx / p->wheel_radius;
-    model_compute_outputs(m);
+    evaluate_end_of_step(m);
     return 0;
 }
 

@@ -89,6 +89,7 @@ class JunoFMU:
         self._slave: FMU2Slave | None = None
         self._messages: list[str] = []
         self._callbacks = None
+        self._raw: _RawFMI | None = None
         self._initialised_once = False
 
     # -- life cycle -------------------------------------------------------
@@ -135,6 +136,7 @@ class JunoFMU:
                 pass
             self._callbacks = callbacks
             slave.instantiate(callbacks=callbacks)
+            self._raw = _RawFMI(slave.dll)
             self._slave = slave
         else:
             self._slave.reset()
@@ -218,21 +220,56 @@ class JunoFMU:
             self._call("setting inputs", slave.setReal, in_vrs, list(in_table[0]))
         self._call("initialisation", slave.enterInitializationMode)
         self._call("initialisation", slave.exitInitializationMode)
-        data[0] = slave.getReal(out_vrs)
-        do_step, get_real, set_real = slave.doStep, slave.getReal, slave.setReal
+        # The stepping loop calls the FMI functions through ctypes directly (_RawFMI): fmpy's
+        # getReal/setReal build ctypes arrays and Python lists on every call.  Outputs go straight
+        # into their row of `data`; an input row equal to the one already set (sample-and-hold of
+        # a held signal) is not set again, which leaves the FMU's inputs as they are either way.
+        raw = self._raw
+        comp = slave.component
+        n_out, n_in = len(out_vrs), len(in_vrs)
+        out_vr = (ctypes.c_uint * n_out)(*out_vrs)
+        in_vr = (ctypes.c_uint * n_in)(*in_vrs)
+        in_val = (ctypes.c_double * n_in)()
+        row0, row_bytes = data.ctypes.data, data.strides[0]
+        if n_out and raw.get_real(comp, out_vr, n_out, row0) > _FMI2_WARNING:
+            raise SimulationError("reading outputs after initialisation", self._messages)
+        changed = np.ones(n_steps, bool)
+        if inputs is not None:
+            changed[1:] = np.any(in_table[1:n_steps] != in_table[:n_steps - 1], axis=1)
+            changed[0] = False                  # row 0 was set before initialisation
+        do_step, get_real, set_real = raw.do_step, raw.get_real, raw.set_real
         for k in range(n_steps):
-            try:
-                if inputs is not None:
-                    set_real(in_vrs, list(in_table[k]))
-                do_step(times[k], output_interval)
-            except Exception as exc:
-                raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages) from exc
-            data[k + 1] = get_real(out_vrs)
+            if inputs is not None and changed[k]:
+                in_val[:] = in_table[k].tolist()
+                if set_real(comp, in_vr, n_in, in_val) > _FMI2_WARNING:
+                    raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages)
+            if do_step(comp, times[k], output_interval, 1) > _FMI2_WARNING:
+                raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages)
+            if n_out and get_real(comp, out_vr, n_out, row0 + (k + 1) * row_bytes) > _FMI2_WARNING:
+                raise SimulationError(f"reading outputs at t = {times[k + 1]:.3f} s", self._messages)
         self._call("terminate", slave.terminate)
         result = {"time": times}
         for i, n in enumerate(names):
             result[n] = data[:, i]
         return result
+
+
+_FMI2_WARNING = 1   # fmi2Status: OK 0, Warning 1, Discard 2, Error 3, Fatal 4, Pending 5
+
+
+class _RawFMI:
+    """fmi2SetReal, fmi2DoStep and fmi2GetReal of an instance's shared library as plain ctypes
+    functions (the stepping loop's; fmpy's wrappers convert lists on every call).  Each returns
+    the fmi2Status; value arrays are passed as addresses."""
+
+    # Own prototypes (not dll.fmi2GetReal, the object fmpy configures for itself).
+    _ARRAY_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+    _DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
+
+    def __init__(self, dll: ctypes.CDLL):
+        self.set_real = self._ARRAY_CALL(("fmi2SetReal", dll))
+        self.get_real = self._ARRAY_CALL(("fmi2GetReal", dll))
+        self.do_step = self._DO_STEP(("fmi2DoStep", dll))
 
 
 _libc = ctypes.CDLL(None)

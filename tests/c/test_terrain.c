@@ -635,6 +635,128 @@ static void test_odd_but_valid(void)
     expect_fail("oneline_bad.asc", NULL, "line 6, value 16000", "'1.5.3'");
 }
 
+/* Every value read is strtod's for the same text, bit for bit (the reader
+ * parses common decimals itself and hands the rest to strtod): fixed
+ * corner cases around its limits (2^53 digits, 10^+-22 and 10^+-27, 17
+ * to 20 significant digits, ties above 2^53, signs, zeros) and 8000
+ * random tokens of up to 20 digits with random point, sign and exponent. */
+static void test_numbers_match_strtod(void)
+{
+    static const char *const fixed[] = {
+        "0", "-0", "+0", "0.0", "-0.000", "0e999", "-0e-999", "1", "-1", "+7", "1.", ".5", "-.5", "1.5",
+        "0.1", "0.2", "0.3", "123.456", "-9999", "1e22", "1e23", "1e-22", "1e-23", "1E5", "2.5e-3",
+        "2.5E+3", "9007199254740992", "9007199254740993", "9007199254740991", "900719925474099.3",
+        "18014398509481985", "12345678901234567", "123456789012345678", "0.12345678901234567",
+        "0.0038795912416837394", "00000001.50000000000000000000", "0.000000000000000000000001",
+        "4.9406564584124654e-324", "1.7976931348623157e308", "3.14159265358979323846", "1e0", "1e-0",
+        "5e-1", "0.000001", "100000000000000000000000", "4503599627370497.5", "2.2250738585072014e-308",
+        /* ties and near-ties above 2^53 (round half to even) */
+        "9007199254740995", "18014398509481986", "18014398509481990", "18014398509481986.000000001",
+        "1801439850948198.6e1", "18014398509481985.9999", "0.0038795912416837394", "-0.00011357538857554618",
+        "1234567890123456789", "12345678901234567890", "0.1234567890123456789e-8", "9999999999999999999e-27",
+        "9999999999999999999e27", "1e-27", "1e27", "1e28", "1e-28"};
+    /* NRAND random tokens of 1 to 20 digits; the second half with 16 to 19
+     * significant digits (beyond 2^53: the exact integer path) */
+    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 8000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
+    static char tok[N][48];
+    const char *path;
+    FILE *f;
+    Terrain t;
+    int i, k, bad = 0;
+
+    for (i = 0; i < N; i++) {
+        char *q = tok[i];
+        int nd, point, e;
+        if (i < NFIX) {
+            snprintf(tok[i], sizeof tok[i], "%s", fixed[i]);
+            continue;
+        }
+        if (urand(0, 1) < 0.3) *q++ = urand(0, 1) < 0.8 ? '-' : '+';
+        nd = i < NFIX + NRAND / 2 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
+        point = (int)urand(-1, nd + 1);            /* -1: no point */
+        for (k = 0; k < nd; k++) {
+            if (k == point) *q++ = '.';
+            *q++ = (char)('0' + (k == 0 && urand(0, 1) < 0.7 ? 1 + (int)urand(0, 9) : (int)urand(0, 10)));
+        }
+        if (point == nd) *q++ = '.';
+        if (urand(0, 1) < 0.3) {
+            e = (int)urand(-30, 31);
+            q += sprintf(q, "%c%d", urand(0, 1) < 0.5 ? 'e' : 'E', e);
+        }
+        *q = '\0';
+    }
+    f = open_fixture("numbers.asc", &path);
+    fprintf(f, "ncols %d\nnrows 2\nxllcenter 0\nyllcenter 0\ncellsize 1\n", N / 2);
+    for (i = 0; i < N; i++)
+        fprintf(f, "%s%s", tok[i], (i + 1) % (N / 2) == 0 ? "\n" : " ");
+    fclose(f);
+    if (!expect_ok(path, &t, N / 2, 2, "numbers file"))
+        return;
+    for (i = 0; i < N; i++) {
+        /* file row 0 (north) is grid row 1 */
+        const int row = i < N / 2 ? 1 : 0, col = i % (N / 2);
+        const double got = t.z[row * (N / 2) + col], want = strtod(tok[i], NULL);
+        if (memcmp(&got, &want, sizeof got) != 0 && bad++ < 5)
+            CHECK(0, "'%s' read as %.17g, strtod gives %.17g", tok[i], got, want);
+    }
+    CHECK(bad == 0, "%d of %d values differ from strtod's", bad, N);
+    terrain_free(&t);
+}
+
+/* Writes the header and, on line 6, "0 0 ... 0 " (a first "00" if needed)
+ * up to byte offset `to` of the file; returns the number of values written.
+ * The header says ncols = nc, nrows = 2. */
+static long pad_to(FILE *f, long nc, long to)
+{
+    long k = 0, at = fprintf(f, "ncols %ld\r\nnrows 2\r\nxllcorner 0\r\nyllcorner 0\r\ncellsize 1\r\n", nc);
+    if ((to - at) % 2 != 0) at += fprintf(f, "00 "), k++;
+    while (at < to) at += fprintf(f, "0 "), k++;
+    return k;
+}
+
+/* The reader takes the file in blocks of 16384 bytes: a CR LF split
+ * between two blocks is one line end, and a token split between them is
+ * one token (here one with a NUL byte in it, which is never a number). */
+static void test_block_boundaries(void)
+{
+    const long block = 16384, nc = 9000;
+    const char *path;
+    char frag[128];
+    FILE *f;
+    Terrain t;
+    long i, k;
+    int bad;
+
+    /* line 6 ends "... 0 1\r\n" with its CR the last byte of the first
+     * block; then one value per line, the last one "x" in the second file */
+    for (bad = 0; bad < 2; bad++) {
+        f = open_fixture(bad ? "crlf_block_bad.asc" : "crlf_block.asc", &path);
+        k = pad_to(f, nc, block - 2) + 1;
+        fputs("1\r\n", f);
+        for (i = k; i < 2 * nc; i++) fputs(bad && i == 2 * nc - 1 ? "x\r\n" : "3\r\n", f);
+        fclose(f);
+        if (bad) {
+            snprintf(frag, sizeof frag, "line %ld, value 1", 6 + 2 * nc - k);
+            expect_fail("crlf_block_bad.asc", NULL, frag, "'x'");
+        } else if (expect_ok(path, &t, (int)nc, 2, "CR LF across blocks")) {
+            CHECK(t.z[nc + k - 2] == 0 && t.z[nc + k - 1] == 1 && t.z[nc + k] == 3, "CR LF across blocks: values");
+            terrain_free(&t);
+        }
+    }
+
+    /* a 200-byte token "1...1<NUL>1...1" on line 6 whose NUL is the first
+     * byte of the second block */
+    f = open_fixture("nul_block.asc", &path);
+    k = pad_to(f, nc, block - 100);
+    for (i = 0; i < 100; i++) fputc('1', f);
+    fputc('\0', f);
+    for (i = 0; i < 99; i++) fputc('1', f);
+    fputs(" 9\r\n", f);
+    fclose(f);
+    snprintf(frag, sizeof frag, "line 6, value %ld on the line (grid row 1, column %ld)", k + 1, k + 1);
+    expect_fail("nul_block.asc", NULL, frag, "is not a number");
+}
+
 /* ---------------------------------------------------------------- */
 /* 8. terrain_free                                                   */
 /* ---------------------------------------------------------------- */
@@ -669,6 +791,8 @@ int main(int argc, char **argv)
     test_bad_files();
     test_err_buffer();
     test_odd_but_valid();
+    test_numbers_match_strtod();
+    test_block_boundaries();
     test_free();
 
     remove_fixtures();
