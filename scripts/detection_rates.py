@@ -12,6 +12,13 @@ followed and resumed).
 Run it offline, not in CI: each case costs one diagnose (30-90 s on 2 cores).
 
     .venv/bin/python scripts/detection_rates.py --seeds 20 --json out/detection.json
+
+A diagnose's base fit runs on one core, so two studies side by side with one worker each (other
+seeds) use a 2-core machine better than one with two; --merge tables them together:
+
+    .venv/bin/python scripts/detection_rates.py --seeds 5 --first-seed 3000 --workers 1 --json a.json &
+    .venv/bin/python scripts/detection_rates.py --seeds 5 --first-seed 3005 --workers 1 --json b.json
+    .venv/bin/python scripts/detection_rates.py --merge a.json b.json --json study.json
 """
 
 from __future__ import annotations
@@ -81,7 +88,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-strength", type=float, default=1.0)
     ap.add_argument("--workers", type=int, default=None, help="processes per diagnose (default: cores)")
     ap.add_argument("--json", metavar="FILE", help="every case, as JSON")
+    ap.add_argument("--merge", nargs="+", metavar="STUDY",
+                    help="run nothing: print the table of these studies' cases (--json files, finished or "
+                         ".partial) together, and write them to --json as one study")
     args = ap.parse_args(argv)
+    if args.merge:
+        cases = []
+        for path in args.merge:
+            loaded = json.loads(Path(path).read_text())
+            cases += loaded["cases"] if isinstance(loaded, dict) else loaded
+        print(table(cases))
+        if args.json:
+            atomic_write_text(args.json, json.dumps({"cases": cases, "table": table(cases)}, indent=1))
+        return 0
     partial = Path(args.json + ".partial") if args.json else None
     done = json.loads(partial.read_text()) if partial and partial.exists() else []
     cases = list(done)

@@ -223,7 +223,7 @@ def cmd_synthesize(args) -> int:
 
 def cmd_report(args) -> int:
     from .campaign import load_campaign
-    from .identify import identify_joint, identify_paper
+    from .identify import identify_joint, identify_paper_runs
     from .report import write_report
     from .simulator import JunoFMU
     from .validate import validate_run
@@ -232,10 +232,8 @@ def cmd_report(args) -> int:
     timings: dict[str, float] = {}
     with JunoFMU(args.fmu) as fmu:
         t = time.perf_counter()
-        paper = []
-        for run in campaign.runs_of_kind("drawbar"):
-            say(f"paper-style identification on {run.id}")
-            paper.append(identify_paper(fmu, campaign, run, progress=say))
+        say("paper-style identification of every drawbar run (one task per run, on the cores)")
+        paper = identify_paper_runs(fmu, campaign, progress=say)
         timings["paper-style identification (all runs)"] = time.perf_counter() - t
         t = time.perf_counter()
         say("joint identification")
