@@ -7,7 +7,7 @@ be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths
 [0.7, 1.0] of each effect's documented range (python_harness/juno/effects.py).
 
 Covered: `none` on three seeds (one shared with the effect tests as the no-effect reference),
-three of the six effect ids (found in every case of the detection study), and two effects
+four of the six effect ids (found in every case of the detection study), and two effects
 hidden together (both must be named, the stronger first).  Detection rates per effect are measured offline by scripts/detection_rates.py
 (README, "What the diagnosis finds").
 
@@ -22,7 +22,9 @@ rather than asserted loosely:
 - `terrain_offset`: the 30 s terrain replay over the mound is sensitive to where the rover
   goes: with the true soil and the true registration the held-out error was 12-22 (against
   1.2 with no offset hidden) on 3 of 4 seeds, so a correct registration often cannot prove
-  itself by replay (found in 2 of 3 former failures once the registration used roll).
+  itself by replay.  With roll in the registration it was named in 9 of 10 study cases, but
+  the mound landed 6-23 cm from where it is (at its centre and 1 m either side), so a
+  placement check of 12 cm would fail about half the runs.
 """
 
 from __future__ import annotations
@@ -41,8 +43,8 @@ ROOT = Path(__file__).resolve().parents[2]
 JUNO = [str(ROOT / ".venv" / "bin" / "juno")] if (ROOT / ".venv" / "bin" / "juno").exists() else \
     [sys.executable, "-m", "juno.cli"]
 
-EFFECT_IDS = ("soil_patch", "slip_sinkage", "drivetrain_loss")
-NOT_YET_RELIABLE = ("multipass", "grouser", "terrain_offset")
+EFFECT_IDS = ("soil_patch", "multipass", "slip_sinkage", "drivetrain_loss")
+NOT_YET_RELIABLE = ("grouser", "terrain_offset")
 _rng = random.SystemRandom()
 
 
@@ -116,8 +118,12 @@ def _extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
     elif effect == "grouser":
         rel("grouser.thrustGain", 0.5)
     elif effect == "multipass":
-        if not fitted["multipass.khFactor"] > 1.0:
-            far.append(f"multipass.khFactor {fitted['multipass.khFactor']:.3f}: the rut is not compacted")
+        # The rear wheels follow the whole rut (fraction 1 in the truth) on soil compacted by
+        # 1.5-2.5x; measured fits: rut 0.87-1.0, compaction -18 % to +5 % of the truth.
+        if not abs(fitted["multipass.rutFraction"] - truth["multipass.rutFraction"]) <= 0.25:
+            far.append(f"multipass.rutFraction fitted {fitted['multipass.rutFraction']:.3f}, "
+                       f"truth {truth['multipass.rutFraction']:.3f}")
+        rel("multipass.khFactor", 0.3)
     elif effect == "terrain_offset":
         if abs(fitted["terrain.offsetZ"] - truth["terrain.offsetZ"]) > 0.015:
             far.append(f"offsetZ fitted {fitted['terrain.offsetZ']:.4f}, truth {truth['terrain.offsetZ']:.4f}")
