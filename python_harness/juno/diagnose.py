@@ -735,7 +735,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                            "test_mse": res.test_mse, "rms": after}
         out["gain"] = {"held_out_mse_before": before, "held_out_mse_after": after_mse, "judged_on": judged_on,
                        "relative": (before - after_mse) / before, "z": best["z"],
-                       "steps": [{"cause": c["name"], "relative": c["gain"], "z": c["z"]} for c in steps],
+                       "steps": [{"cause": c["name"], "relative": c["gain"], "z": c["z"],
+                                  "held_out_mse_before": c["held_out_mse_before"],
+                                  "held_out_mse_after": c["held_out_mse_after"]} for c in steps],
                        "per_signal": {k: {"before": before_judged[k], "after": after.get(k, float("nan")),
                                           "relative": 1 - after.get(k, np.nan) / before_judged[k]
                                           if before_judged[k] > 0 else 0.0}
