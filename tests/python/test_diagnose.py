@@ -6,7 +6,7 @@ Strength and seed are drawn at random for every run of the suite and printed, so
 be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths are drawn from
 [0.7, 1.0] of each effect's documented range (python_harness/juno/effects.py).
 
-Covered: `none` on three seeds (one shared with the effect tests as the no-effect reference),
+Covered: `none` on two seeds (one shared with the effect tests as the no-effect reference),
 four of the six effect ids (found in every case of the detection study), and two effects
 hidden together (both must be named, the stronger first).  Detection rates per effect are measured offline by scripts/detection_rates.py
 (README, "What the diagnosis finds").
@@ -74,7 +74,7 @@ def none_case(tmp_path_factory):
     return diagnosis, seed
 
 
-@pytest.mark.parametrize("draw", [1, 2])
+@pytest.mark.parametrize("draw", [1])
 def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
     """With nothing hidden, no cause is named, on further random seeds (the false-cause rate
     over many seeds is measured by scripts/detection_rates.py; README)."""
