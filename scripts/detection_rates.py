@@ -55,7 +55,17 @@ def one_case(effect: str, strength: float, seed: int, workers: int | None) -> di
             "gain": result["gain"]["relative"] if result["cause"] != "none" else 0.0,
             "gain_of_hidden": gains.get(effect), "equally_good": result["equally_good"],
             "extension": result["extended"].get("extension", {}), "truth_extension": truth["extension"],
-            "wall_time": wall}
+            "wall_time": wall,
+            # every candidate's evidence, so other decision rules can be studied offline
+            "candidates": [_evidence(c) for c in result["candidates"]],
+            "second_round": [_evidence(c) for c in result.get("second_round", [])]}
+
+
+def _evidence(candidate: dict) -> dict:
+    """A candidate's held-out gain, z per kind of run and ablation, as the diagnosis judged it."""
+    keep = ("name", "gain", "z", "z_by_kind", "significant", "acts", "ablation", "n_params",
+            "held_out_mse_before", "held_out_mse_after", "train_mse", "test_mse")
+    return {k: candidate[k] for k in keep if k in candidate}
 
 
 def table(cases: list[dict]) -> str:

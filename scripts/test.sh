@@ -7,4 +7,4 @@ bash scripts/checks.sh   # sanitizers, valgrind, fuzzing, win64 (README "Checks"
 echo "== C unit tests (ctest)"
 (cd build && ctest --output-on-failure)
 echo "== Python tests (pytest)"
-.venv/bin/python -m pytest tests/python -q -p no:cacheprovider "$@"
+.venv/bin/python -m pytest tests/python -q -p no:cacheprovider --durations=25 "$@"
