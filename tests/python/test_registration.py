@@ -61,10 +61,14 @@ def _where(offset: np.ndarray, qx: float, qy: float) -> np.ndarray:
     return np.array([offset[0] + c * qx - s * qy, offset[1] + s * qx + c * qy])
 
 
-def test_traverse_along_a_mound_flank_finds_where_the_mound_is():
+@pytest.mark.parametrize("pitch_gain, roll_gain", [(1.0, 1.0), (1.15, 1.05)])
+def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_gain):
     """A rover passing 0.55 m beside the mound's crest, its height, pitch and roll measured with
     the synthetic campaign's noise: the registration puts the mound (centre and +-1 m along the
-    track) within 5 cm of where the true registration puts it, and the height within 5 mm."""
+    track) within 5 cm of where the true registration puts it, and the height within 5 mm.
+    Also when the chassis tilts more than the ground under its wheels, as the FMU's rover does
+    on a slope (measured gains 1.12-1.17 in pitch, 1.00-1.07 in roll): fitted as fixed at 1,
+    such a gain was taken for a turn of the scan."""
     scan = _mound_scan()
     truth = np.array([0.15, -0.12, 0.02, 0.04])
     rng = np.random.default_rng(7)
@@ -78,8 +82,8 @@ def test_traverse_along_a_mound_flank_finds_where_the_mound_is():
     pitch, roll = reg.predicted_attitude(ground, probe)
     h0 = 0.41
     measured = reg.Traverse(x, y, h0 + ground.mean(axis=1) + 0.003 * rng.standard_normal(n), yaw,
-                            pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK,
-                            roll=roll + 0.003 * rng.standard_normal(n))
+                            pitch_gain * pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE,
+                            reg.DEFAULT_TRACK, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
     found = reg.register(scan, measured, h0)
     fitted = np.array([found[k] for k in ("terrain.offsetX", "terrain.offsetY", "terrain.offsetZ",
                                           "terrain.offsetYaw")])
