@@ -105,8 +105,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.merge:
         cases = []
         for path in args.merge:
-            loaded = json.loads(Path(path).read_text())
-            cases += loaded["cases"] if isinstance(loaded, dict) else loaded
+            try:
+                loaded = json.loads(Path(path).read_text())
+                cases += loaded["cases"] if isinstance(loaded, dict) else loaded
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                ap.error(f"--merge {path}: not a study written by --json ({exc})")
         print(table(cases))
         if args.json:
             atomic_write_text(args.json, json.dumps({"cases": cases, "table": table(cases)}, indent=1))
