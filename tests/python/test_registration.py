@@ -61,6 +61,25 @@ def _where(offset: np.ndarray, qx: float, qy: float) -> np.ndarray:
     return np.array([offset[0] + c * qx - s * qy, offset[1] + s * qx + c * qy])
 
 
+def _flank_traverse(scan: Grid, offset: np.ndarray, pitch_gain: float, roll_gain: float, seed: int,
+                    h0: float = 0.41) -> reg.Traverse:
+    """A rover passing 0.55 m beside the mound's crest over ``scan`` registered by ``offset``,
+    tilting ``pitch_gain`` and ``roll_gain`` times the ground's slope; height, pitch and roll
+    measured with 3 mm / 3 mrad noise."""
+    rng = np.random.default_rng(seed)
+    n = 140
+    x = np.linspace(1.0, 6.5, n)
+    y = -0.2 + 0.05 * np.sin(x)
+    yaw = np.arctan(0.05 * np.cos(x))
+    probe = reg.Traverse(x, y, np.zeros(n), yaw, np.zeros(n), reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK,
+                         roll=np.zeros(n))
+    ground = reg.ground_under_wheels(scan, probe, offset)
+    pitch, roll = reg.predicted_attitude(ground, probe)
+    return reg.Traverse(x, y, h0 + ground.mean(axis=1) + 0.003 * rng.standard_normal(n), yaw,
+                        pitch_gain * pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE,
+                        reg.DEFAULT_TRACK, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
+
+
 @pytest.mark.parametrize("pitch_gain, roll_gain", [(1.0, 1.0), (1.15, 1.05)])
 def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_gain):
     """A rover passing 0.55 m beside the mound's crest, its height, pitch and roll measured with
@@ -71,20 +90,7 @@ def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_
     such a gain was taken for a turn of the scan."""
     scan = _mound_scan()
     truth = np.array([0.15, -0.12, 0.02, 0.04])
-    rng = np.random.default_rng(7)
-    n = 140
-    x = np.linspace(1.0, 6.5, n)
-    y = -0.2 + 0.05 * np.sin(x)
-    yaw = np.arctan(0.05 * np.cos(x))
-    probe = reg.Traverse(x, y, np.zeros(n), yaw, np.zeros(n), reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK,
-                         roll=np.zeros(n))
-    ground = reg.ground_under_wheels(scan, probe, truth)
-    pitch, roll = reg.predicted_attitude(ground, probe)
-    h0 = 0.41
-    measured = reg.Traverse(x, y, h0 + ground.mean(axis=1) + 0.003 * rng.standard_normal(n), yaw,
-                            pitch_gain * pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE,
-                            reg.DEFAULT_TRACK, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
-    found = reg.register(scan, measured, h0)
+    found = reg.register(scan, _flank_traverse(scan, truth, pitch_gain, roll_gain, seed=7), 0.41)
     fitted = np.array([found[k] for k in ("terrain.offsetX", "terrain.offsetY", "terrain.offsetZ",
                                           "terrain.offsetYaw")])
     for qx in (3.0, 4.0, 5.0):
@@ -99,19 +105,7 @@ def test_a_scan_in_its_place_is_left_where_it_is():
     but not EVIDENCE_RATIO times better, so the scan is left exactly as it is (on the synthetic
     campaigns such small registrations were named as false causes by the terrain replay)."""
     scan = _mound_scan()
-    rng = np.random.default_rng(11)
-    n = 140
-    x = np.linspace(1.0, 6.5, n)
-    y = -0.2 + 0.05 * np.sin(x)
-    yaw = np.arctan(0.05 * np.cos(x))
-    probe = reg.Traverse(x, y, np.zeros(n), yaw, np.zeros(n), reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK,
-                         roll=np.zeros(n))
-    ground = reg.ground_under_wheels(scan, probe, np.zeros(4))
-    pitch, roll = reg.predicted_attitude(ground, probe)
-    measured = reg.Traverse(x, y, 0.41 + ground.mean(axis=1) + 0.003 * rng.standard_normal(n), yaw,
-                            1.15 * pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE,
-                            reg.DEFAULT_TRACK, roll=1.05 * roll + 0.003 * rng.standard_normal(n))
-    found = reg.register(scan, measured, 0.41)
+    found = reg.register(scan, _flank_traverse(scan, np.zeros(4), 1.15, 1.05, seed=11), 0.41)
     assert found == {"terrain.offsetX": 0.0, "terrain.offsetY": 0.0, "terrain.offsetZ": 0.0,
                      "terrain.offsetYaw": 0.0}
 
