@@ -63,7 +63,7 @@ def one_case(effect: str, strength: float, seed: int, workers: int | None) -> di
 
 def _evidence(candidate: dict) -> dict:
     """A candidate's held-out gain, z per kind of run and ablation, as the diagnosis judged it."""
-    keep = ("name", "gain", "z", "z_by_kind", "significant", "acts", "ablation", "n_params",
+    keep = ("name", "gain", "gain_by_kind", "z", "z_by_kind", "significant", "acts", "ablation", "n_params",
             "held_out_mse_before", "held_out_mse_after", "train_mse", "test_mse")
     return {k: candidate[k] for k in keep if k in candidate}
 

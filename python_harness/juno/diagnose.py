@@ -17,13 +17,15 @@
    extensions are fitted on the drawbar runs only, so the terrain run is a
    validation run for them, as in the paper; the registration is measured
    kinematically (juno.registration) and accepted or rejected on the terrain
-   run's training blocks.  A gain counts as significant only when
-   a paired test over held-out units (run, block, signal; Wilcoxon on the
-   units' mean squared-residual change, so time correlation inside a block is
-   respected) gives z > Z_MIN (Bonferroni-corrected over the kinds of run) on
-   some kind of run and z > -Z_MIN on every kind, the relative gain exceeds
-   GAIN_MIN per parameter the extension adds, and the fitted extension is switched on (not at its neutral
-   setting).  The cause is the significant candidate with the largest gain,
+   run's training blocks.  A gain counts as significant only when, on some
+   kind of run (drawbar, terrain), a paired test over held-out units (run,
+   block, signal; Wilcoxon on the units' mean squared-residual change, so time
+   correlation inside a block is respected) gives z > Z_MIN (Bonferroni-
+   corrected over the kinds) and that kind's relative gain exceeds GAIN_MIN
+   per parameter the extension adds; no kind is significantly worse (z >
+   -Z_MIN); the gain over all held-out data is positive; the fitted extension
+   is switched on (not at its neutral setting); and switching it off loses
+   the gain by the same criteria.  The cause is the significant candidate with the largest gain,
    or ``none``; candidates whose gain is within TIE_RATIO of the best are
    reported as equally good.
 5. Look for a second cause: every other candidate (even one that did not
@@ -574,33 +576,50 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     kinds = _judged_kinds(candidate, run_kind)
     mask = np.isin(run_kind, kinds)
     test = ~problem.train
+
+    def relative_gain(before_r: np.ndarray, after_r: np.ndarray, where: np.ndarray) -> float:
+        """Relative drop of the held-out capped mean squared residual over ``where``."""
+        b = float(np.nanmean(capped_square(before_r[test & where])))
+        a = float(np.mean(capped_square(after_r[test & where])))
+        if not np.isfinite(a):
+            return -np.inf               # the candidate's model failed on some run
+        return (b - a) / b if b > 0 else 0.0
+
     before = float(np.nanmean(capped_square(reference.residuals[test & mask])))
     after = float(np.mean(capped_square(res.residuals[test & mask])))
-    gain = (before - after) / before if np.isfinite(after) else -np.inf
+    gain = relative_gain(reference.residuals, res.residuals, mask)
+    gain_by_kind = {k: relative_gain(reference.residuals, res.residuals, run_kind == k) for k in kinds}
     z_by_kind = {k: paired_z(problem, reference.residuals, res.residuals, run_kind == k) for k in kinds}
     z = max(z_by_kind.values())
-    # Significant: a clear gain overall, significant on some kind of run (Bonferroni over the
-    # kinds: drawbar and terrain runs differ too much for one pooled rank test, where hundreds
-    # of unchanged drawbar units would drown a validation run's gain), and not significantly
-    # worse on any.
     acts = candidate.acts(res.params)
     ablation = None
     if switched_off is not None:
-        off = float(np.mean(capped_square(switched_off.residuals[test & mask])))
         z_off = {k: paired_z(problem, switched_off.residuals, res.residuals, run_kind == k) for k in kinds}
-        ablation = {"gain": float((off - after) / off) if off > 0 else 0.0, "z": float(max(z_off.values())),
-                    "z_by_kind": z_off}
+        ablation = {"gain": relative_gain(switched_off.residuals, res.residuals, mask),
+                    "z": float(max(z_off.values())),
+                    "z_by_kind": z_off,
+                    "gain_by_kind": {k: relative_gain(switched_off.residuals, res.residuals, run_kind == k)
+                                     for k in kinds}}
+
+    # Significant: some kind of run on which the held-out gain is both clear and significant
+    # (Bonferroni over the kinds), no kind significantly worse, and a positive gain over all
+    # held-out data.  The gain is judged per kind because the kinds' errors differ by an order
+    # of magnitude: pooled, the terrain replay's error (mean squared residual 10-20 against 1-2
+    # on the drawbar runs) drowned an extension that was right on the drawbar runs (measured:
+    # a grouser fit with drawbar z 3.6 and ablation gain 76 % had a pooled gain of 0.2 %).
     # The penalty for extra parameters: each must buy GAIN_MIN of held-out mean squared residual
-    # (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first cause by fitting
-    # local residual features, a false second cause in 2 of 24 cases).
-    def passes(g: float, zs: dict[str, float]) -> bool:
-        return bool(g > GAIN_MIN * len(candidate.params)      # its own parameters (CANDIDATES)
-                    and max(zs.values()) > z_threshold(len(kinds)) and min(zs.values()) > -Z_MIN)
-    significant = passes(gain, z_by_kind) and acts and (ablation is None or passes(ablation["gain"],
-                                                                                   ablation["z_by_kind"]))
+    # on that kind (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first
+    # cause by fitting local residual features, a false second cause in 2 of 24 cases).
+    def passes(g: float, gs: dict[str, float], zs: dict[str, float]) -> bool:
+        needed = GAIN_MIN * len(candidate.params)      # its own parameters (CANDIDATES)
+        return bool(g > 0 and min(zs.values()) > -Z_MIN
+                    and any(gs[k] > needed and zs[k] > z_threshold(len(kinds)) for k in kinds))
+    significant = passes(gain, gain_by_kind, z_by_kind) and acts and (
+        ablation is None or passes(ablation["gain"], ablation["gain_by_kind"], ablation["z_by_kind"]))
     own = {e.name for e in candidate.params}
     return {"name": res.name, "cause": candidate.cause, "gain": float(gain), "z": float(z),
-            "z_by_kind": z_by_kind, "acts": acts, "ablation": ablation, "judged_on": list(kinds),
+            "gain_by_kind": gain_by_kind, "z_by_kind": z_by_kind, "acts": acts, "ablation": ablation,
+            "judged_on": list(kinds),
             "held_out_mse_before": before,
             "held_out_mse_after": after, "significant": significant, "test_mse": res.test_mse,
             "train_mse": res.train_mse, "n_params": len(candidate.params),
@@ -782,14 +801,14 @@ def cmd_diagnose(args) -> int:
     print(f"cause: {result['cause']} ({result['explanation']})")
     for c in result["candidates"]:
         mark = "*" if c["significant"] else " "
-        print(f" {mark} {c['name']:16s} held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}")
+        print(f" {mark} {c['name']:16s} held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   {_by_kind(c)}")
     if result["equally_good"]:
         print("equally good: " + ", ".join(result["equally_good"]))
     if result["second_round"]:
         print(f"on top of {result['cause']}:")
         for c in result["second_round"]:
             mark = "*" if c["significant"] else " "
-            print(f" {mark} {c['name']:16s} further held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}")
+            print(f" {mark} {c['name']:16s} further held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   {_by_kind(c)}")
     if len(result["causes"]) > 1:
         print("causes, strongest first: " + ", ".join(result["causes"]))
     print(f"diagnosis took {result['wall_time']:.0f} s", file=sys.stderr)
@@ -853,6 +872,12 @@ def residual_figures(result: dict[str, Any], out: Path) -> list[str]:
     return names
 
 
+def _by_kind(c: dict[str, Any]) -> str:
+    """A candidate's held-out gain and z on each kind of run, e.g. 'drawbar +12.0 % (z 3.1)'."""
+    gains, zs = c.get("gain_by_kind", {}), c.get("z_by_kind", {})
+    return ", ".join(f"{k} {gains[k]:+.1%} (z {zs[k]:.1f})" for k in gains if k in zs) or "-"
+
+
 def report_section(result: dict[str, Any], out: Path) -> list[str]:
     """Markdown lines of the diagnosis for the report (figures written into ``out``)."""
     lines = ["## 5. What the model gets wrong: diagnosis", ""]
@@ -862,9 +887,10 @@ def report_section(result: dict[str, Any], out: Path) -> list[str]:
               f"held-out mean squared scaled residual {b['test_mse']:.3g} (1 = sensor noise).", ""]
     for f in figs:
         lines += [f"![{f}]({f})", ""]
-    lines += ["| candidate extension | physical cause | held-out gain | z | significant |", "|---|---|---|---|---|"]
+    lines += ["| candidate extension | physical cause | held-out gain | per kind of run | significant |",
+              "|---|---|---|---|---|"]
     for c in result["candidates"]:
-        lines.append(f"| {c['name']} | {c['cause']} | {c['gain']:+.1%} | {c['z']:.1f} | "
+        lines.append(f"| {c['name']} | {c['cause']} | {c['gain']:+.1%} | {_by_kind(c)} | "
                      f"{'yes' if c['significant'] else 'no'} |")
     lines.append("")
     if result["cause"] == "none":
@@ -877,9 +903,10 @@ def report_section(result: dict[str, Any], out: Path) -> list[str]:
             lines += ["Explaining the data about as well: " + ", ".join(result["equally_good"]) + ".", ""]
         if result["second_round"]:
             lines += [f"Further causes on top of {result['cause']} (each refitted together with it):", "",
-                      "| candidate extension | further held-out gain | z | significant |", "|---|---|---|---|"]
+                      "| candidate extension | further held-out gain | per kind of run | significant |",
+                      "|---|---|---|---|"]
             for c in result["second_round"]:
-                lines.append(f"| {c['name']} | {c['gain']:+.1%} | {c['z']:.1f} | {'yes' if c['significant'] else 'no'} |")
+                lines.append(f"| {c['name']} | {c['gain']:+.1%} | {_by_kind(c)} | {'yes' if c['significant'] else 'no'} |")
             lines.append("")
             if len(result["causes"]) > 1:
                 lines += [f"**Second cause: {result['causes'][1]}** - {CANDIDATES[result['causes'][1]].cause}. "
