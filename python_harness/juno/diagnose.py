@@ -17,15 +17,15 @@
    extensions are fitted on the drawbar runs only, so the terrain run is a
    validation run for them, as in the paper; the registration is measured
    kinematically (juno.registration) and accepted or rejected on the terrain
-   run's training blocks.  A gain counts as significant only when, on some
-   kind of run (drawbar, terrain), a paired test over held-out units (run,
-   block, signal; Wilcoxon on the units' mean squared-residual change, so time
-   correlation inside a block is respected) gives z > Z_MIN (Bonferroni-
-   corrected over the kinds) and that kind's relative gain exceeds GAIN_MIN
-   per parameter the extension adds; no kind is significantly worse (z >
-   -Z_MIN); the gain over all held-out data is positive; the fitted extension
-   is switched on (not at its neutral setting); and switching it off loses
-   the gain by the same criteria.  The cause is the significant candidate with the largest gain,
+   run's training blocks.  A gain counts as significant only when
+   a paired test over held-out units (run, block, signal; Wilcoxon on the
+   units' mean squared-residual change, so time correlation inside a block is
+   respected) gives z > Z_MIN (Bonferroni-corrected over the kinds of run) on
+   some kind of run and z > -Z_MIN on every kind, the relative gain over all
+   held-out data exceeds GAIN_MIN per parameter the extension adds, the fitted
+   extension is switched on (not at its neutral setting), and switching it off
+   loses the gain by the same criteria.  The gain and z on each kind of run are
+   reported.  The cause is the significant candidate with the largest gain,
    or ``none``; candidates whose gain is within TIE_RATIO of the best are
    reported as equally good.
 5. Look for a second cause: every other candidate (even one that did not
@@ -601,21 +601,22 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
                     "gain_by_kind": {k: relative_gain(switched_off.residuals, res.residuals, run_kind == k)
                                      for k in kinds}}
 
-    # Significant: some kind of run on which the held-out gain is both clear and significant
-    # (Bonferroni over the kinds), no kind significantly worse, and a positive gain over all
-    # held-out data.  The gain is judged per kind because the kinds' errors differ by an order
-    # of magnitude: pooled, the terrain replay's error (mean squared residual 10-20 against 1-2
-    # on the drawbar runs) drowned an extension that was right on the drawbar runs (measured:
-    # a grouser fit with drawbar z 3.6 and ablation gain 76 % had a pooled gain of 0.2 %).
+    # Significant: a clear gain over all held-out data, significant on some kind of run
+    # (Bonferroni over the kinds: drawbar and terrain runs differ too much for one pooled rank
+    # test, where hundreds of unchanged drawbar units would drown a validation run's gain), and
+    # not significantly worse on any.  The gain that must be clear is the pooled one, not the
+    # best kind's: judged per kind (3ce0e72), the open-loop terrain replay alone named false
+    # causes in 2 of 20 no-effect campaigns (a 5-parameter soil patch 4 % stiffer than the rest,
+    # on a 19 % terrain gain at z 2.9), and no hidden effect of 70 was found that the pooled gain
+    # missed (README).  gain_by_kind is reported, not judged.
     # The penalty for extra parameters: each must buy GAIN_MIN of held-out mean squared residual
-    # on that kind (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first
-    # cause by fitting local residual features, a false second cause in 2 of 24 cases).
-    def passes(g: float, gs: dict[str, float], zs: dict[str, float]) -> bool:
-        needed = GAIN_MIN * len(candidate.params)      # its own parameters (CANDIDATES)
-        return bool(g > 0 and min(zs.values()) > -Z_MIN
-                    and any(gs[k] > needed and zs[k] > z_threshold(len(kinds)) for k in kinds))
-    significant = passes(gain, gain_by_kind, z_by_kind) and acts and (
-        ablation is None or passes(ablation["gain"], ablation["gain_by_kind"], ablation["z_by_kind"]))
+    # (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first cause by fitting
+    # local residual features, a false second cause in 2 of 24 cases).
+    def passes(g: float, zs: dict[str, float]) -> bool:
+        return bool(g > GAIN_MIN * len(candidate.params)      # its own parameters (CANDIDATES)
+                    and max(zs.values()) > z_threshold(len(kinds)) and min(zs.values()) > -Z_MIN)
+    significant = passes(gain, z_by_kind) and acts and (ablation is None or passes(ablation["gain"],
+                                                                                   ablation["z_by_kind"]))
     own = {e.name for e in candidate.params}
     return {"name": res.name, "cause": candidate.cause, "gain": float(gain), "z": float(z),
             "gain_by_kind": gain_by_kind, "z_by_kind": z_by_kind, "acts": acts, "ablation": ablation,

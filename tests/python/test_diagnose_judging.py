@@ -2,8 +2,8 @@
 residuals: no simulation, so each rule of the decision is pinned down on its own.
 
 The setting mirrors a real campaign: a drawbar run whose scaled residuals are of order 1 and a
-terrain replay whose residuals are of order 10 (its mean squared residual, capped, is 10-30
-times the drawbar runs'), each split into alternating 4 s training and held-out blocks.
+terrain replay whose residuals are of order 1-10, each split into alternating 4 s training and
+held-out blocks.
 """
 
 from __future__ import annotations
@@ -38,41 +38,58 @@ def _fit(name: str, residuals: np.ndarray, **extension: float) -> FitResult:
     return FitResult(name, {**PAPER_INITIAL, **extension}, 1.0, 1.0, residuals, 1, 0.0)
 
 
+def _reference(run_kind: np.ndarray, terrain_sigma: float, rng: np.random.Generator) -> np.ndarray:
+    return np.where(run_kind == "drawbar", 1.5, terrain_sigma) * rng.standard_normal(len(run_kind))
+
+
 @pytest.fixture
 def setting():
     """(problem, run kind per residual, the reference's residuals, a random generator)."""
     problem, run_kind = _problem()
     rng = np.random.default_rng(7)
-    reference = np.where(run_kind == "drawbar", 1.5, 12.0) * rng.standard_normal(len(run_kind))
-    return problem, run_kind, reference, rng
+    return problem, run_kind, _reference(run_kind, 12.0, rng), rng
 
 
-def test_an_extension_right_on_the_drawbar_runs_is_named_though_the_terrain_error_dilutes_it(setting):
-    """The drawbar residuals shrink to 60 % (64 % less mean squared residual there); the terrain
-    replay is unchanged.  Pooled over both kinds the gain is about 2 %, below the 3 % one
-    parameter must buy; on the drawbar runs it is clear and significant, and that decides."""
-    problem, run_kind, reference, rng = setting
-    extended = np.where(run_kind == "drawbar", 0.6 * reference, reference)
-    switched_off = reference + 0.01 * rng.standard_normal(len(reference))
+def test_the_gain_that_must_be_clear_is_the_pooled_one_not_the_best_kinds():
+    """As measured on a no-effect campaign (seed 4004): a soil patch (5 parameters, so 15 % of
+    held-out mean squared residual needed) that changes nothing on the drawbar runs and gains
+    19 % on the terrain replay, significantly by the rank test.  Pooled over all held-out data
+    the gain is 12 %: not a cause.  Judged per kind it would have been one, a false cause."""
+    problem, run_kind = _problem()
+    reference = _reference(run_kind, 2.0, np.random.default_rng(7))
+    extended = np.where(run_kind == "drawbar", reference, 0.9 * reference)
+    switched_off = reference.copy()
     verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("grouser", extended, **{"grouser.thrustGain": 0.3}),
-                     _fit("grouser", switched_off, **{"grouser.thrustGain": 0.0}))
-    assert 0 < verdict["gain"] < 0.03
-    assert verdict["gain_by_kind"]["drawbar"] == pytest.approx(0.64, abs=1e-9)
-    assert verdict["gain_by_kind"]["terrain"] == pytest.approx(0.0, abs=1e-12)
-    assert verdict["z_by_kind"]["drawbar"] > z_threshold(2)
+                     _fit("soil_patch", extended, **{"soilPatch.khFactor": 1.04, "soilPatch.strengthFactor": 1.0}),
+                     _fit("soil_patch", switched_off, **{"soilPatch.khFactor": 1.0, "soilPatch.strengthFactor": 1.0}))
+    assert verdict["gain_by_kind"]["terrain"] == pytest.approx(0.19, abs=1e-9)
+    assert verdict["gain_by_kind"]["drawbar"] == 0.0
+    assert verdict["z_by_kind"]["terrain"] > z_threshold(2)
+    assert 0.03 < verdict["gain"] < 0.15
+    assert not verdict["significant"]
+    # The same residuals from a one-parameter extension (3 % needed) are a cause.
+    verdict = _judge(problem, run_kind, _fit("base", reference),
+                     _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}),
+                     _fit("drivetrain_loss", switched_off, **{"drive.lossFraction": 0.0}))
     assert verdict["significant"]
 
 
-def test_a_gain_on_one_kind_does_not_count_if_another_kind_gets_significantly_worse(setting):
-    problem, run_kind, reference, _ = setting
-    # The drawbar runs gain as above; the terrain replay's residuals grow by 30 % everywhere.
-    extended = np.where(run_kind == "drawbar", 0.6 * reference, 1.3 * reference)
+def test_a_gain_does_not_count_if_another_kind_of_run_gets_significantly_worse():
+    """The drawbar runs gain 64 % and the pooled gain is clear, but every held-out unit of the
+    terrain replay gets 10 % worse."""
+    problem, run_kind = _problem()
+    reference = _reference(run_kind, 2.0, np.random.default_rng(7))
+    extended = np.where(run_kind == "drawbar", 0.6 * reference, np.sqrt(1.1) * reference)
     verdict = _judge(problem, run_kind, _fit("base", reference),
                      _fit("grouser", extended, **{"grouser.thrustGain": 0.3}))
-    assert verdict["gain_by_kind"]["drawbar"] > 0.5
+    assert verdict["gain"] > 0.1 and verdict["z_by_kind"]["drawbar"] > z_threshold(2)
     assert verdict["z_by_kind"]["terrain"] < -2.5
     assert not verdict["significant"]
+    # Without the terrain replay's loss it is a cause.
+    verdict = _judge(problem, run_kind, _fit("base", reference),
+                     _fit("grouser", np.where(run_kind == "drawbar", extended, reference),
+                          **{"grouser.thrustGain": 0.3}))
+    assert verdict["significant"]
 
 
 def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
