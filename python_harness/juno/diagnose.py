@@ -607,8 +607,8 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     # not significantly worse on any.  The gain that must be clear is the pooled one, not the
     # best kind's: judged per kind (3ce0e72), the open-loop terrain replay alone named false
     # causes in 2 of 20 no-effect campaigns (a 5-parameter soil patch 4 % stiffer than the rest,
-    # on a 19 % terrain gain at z 2.9), and no hidden effect of 70 was found that the pooled gain
-    # missed (README).  gain_by_kind is reported, not judged.
+    # on a 19 % terrain gain at z 2.9), and it found none of the 70 hidden effects that the
+    # pooled gain missed (README).  gain_by_kind is reported, not judged.
     # The penalty for extra parameters: each must buy GAIN_MIN of held-out mean squared residual
     # (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first cause by fitting
     # local residual features, a false second cause in 2 of 24 cases).
