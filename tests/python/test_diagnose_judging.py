@@ -93,8 +93,8 @@ def test_a_gain_does_not_count_if_another_kind_of_run_gets_significantly_worse()
 
 
 def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
-    """A soil patch has 5 parameters, so it must buy 15 % on the kind where it is significant;
-    10 % everywhere (significant by the rank test) is not enough."""
+    """A soil patch has 5 parameters, so it must buy 15 % of the held-out mean squared residual
+    over all runs; 10 % everywhere (significant by the rank test) is not enough."""
     problem, run_kind, reference, _ = setting
     extended = np.sqrt(0.9) * reference
     verdict = _judge(problem, run_kind, _fit("base", reference),
