@@ -10,7 +10,11 @@
    training blocks.  Each starts at the base optimum; the physical ones with
    few parameters are also started from the paper's initial soil, and the
    better fit by training error is kept (the base fit bends the soil to absorb
-   the hidden effect, and the extension's fit can stay in that basin).
+   the hidden effect, and the extension's fit can stay in that basin).  Every
+   fit minimises a soft-L1 loss of the scaled residuals (fit_loss): squares
+   up to about FIT_LOSS_SCALE sigma, linear beyond, so that the few seconds
+   where a spin-following replay is on a knife edge (a rear wheel dropping
+   into the rut, a wheel digging in at high slip) do not bend the soil.
 4. Compare candidates on the held-out blocks of every run (the same data for
    all): the gain is the drop of the mean squared scaled residual (each
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
@@ -57,6 +61,7 @@ BLOCK = 4.0          # s, length of the alternating training / held-out blocks
 Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
 GAIN_MIN = 0.03      # and at least 3 % less held-out mean squared residual
 RESIDUAL_CAP = 10.0  # scaled residuals beyond this count as this when candidates are judged
+FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the data about as well
 OUTPUT_INTERVAL = 0.05
 #: Integration step of the diagnosis (s).  The base model and every candidate share it, so the
@@ -303,8 +308,9 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
                 return np.full(n_train, 30.0) if r is None else r[train]
             lo = np.concatenate([SOIL_SEARCH_BOUNDS[0], [e.lower for e in ext]])[free]
             hi = np.concatenate([SOIL_SEARCH_BOUNDS[1], [e.upper for e in ext]])[free]
+            robust = {"loss": "soft_l1", "f_scale": FIT_LOSS_SCALE} if FIT_LOSS_SCALE else {}
             ls = least_squares(train_residuals, np.clip(x_start[free], lo, hi), method="trf", diff_step=1e-3,
-                               bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8)
+                               bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8, **robust)
             x = x_start.copy()
             x[free] = ls.x
             return x
@@ -334,7 +340,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
                     trial = fit(trial, kinds, free_all, candidate.short_fits)
                 count[0] += 1
                 r = residuals_for(fmu, problem, unpack(trial), kinds)
-                cost = np.inf if r is None else float(np.mean(r[mask] ** 2))
+                cost = np.inf if r is None else fit_loss(r[mask])
                 if cost < best_cost:
                     best_x, best_cost = trial, cost
             x = best_x
@@ -504,6 +510,15 @@ def _run_jobs(jobs: list, workers: int | None, scheduler: str | None,
                                                   f"({res.evaluations} evaluations, {res.wall_time:.0f} s)"))
 
 
+def fit_loss(r: np.ndarray) -> float:
+    """The mean loss the fits minimise over scaled residuals ``r``: r^2 where |r| is well below
+    FIT_LOSS_SCALE, growing only linearly beyond it (soft L1, scipy's ``loss="soft_l1"``)."""
+    if not FIT_LOSS_SCALE:
+        return float(np.mean(r * r))
+    f2 = FIT_LOSS_SCALE ** 2
+    return float(np.mean(2.0 * f2 * (np.sqrt(1.0 + r * r / f2) - 1.0)))
+
+
 def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> float:
     """What a physical candidate's fit minimises: the mean squared residual of the drawbar runs'
     training blocks (infinite for a failed fit).  Chooses between fits from different starts
@@ -513,7 +528,7 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
     mask = problem.train & (run_kind == "drawbar")
     if not np.any(mask):
         mask = problem.train
-    value = float(np.mean(res.residuals[mask] ** 2))
+    value = fit_loss(res.residuals[mask])
     return value if np.isfinite(value) else np.inf
 
 
