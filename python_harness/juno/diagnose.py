@@ -521,8 +521,8 @@ def fit_loss(r: np.ndarray) -> float:
 
 def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> float:
     """What a physical candidate's fit minimises: the mean fit_loss of the drawbar runs' scaled
-    residuals on the training blocks (infinite for a failed fit).  Chooses between fits from different starts
-    without looking at the held-out blocks."""
+    residuals on the training blocks (infinite for a failed fit).  Chooses between fits from
+    different starts without looking at the held-out blocks."""
     if res.error or res.residuals.size == 0:
         return np.inf
     mask = problem.train & (run_kind == "drawbar")
