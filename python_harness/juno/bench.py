@@ -258,6 +258,8 @@ def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) ->
     s0 = cf["sinkage_m"]
     rep.line(f"sinkage for 779 N (rolling, rear half rebounded, gamma = lambda = {d['gamma']:.4f}, zero slip):")
     for x in d["models"]:
+        if x["key"] == "closed_form_forces":
+            continue                      # the closed form again, timed without the shear Jacobian
         rel = x["sinkage_m"] / s0 - 1
         name = x["name"] + (f" (x {x['modulus_factor']:.3f})" if x["key"] == "wr_matched" else "")
         match = "" if x["key"] == "closed_form" else (
@@ -269,6 +271,9 @@ def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) ->
              f"(CPU share {share:.0%}):")
     rep.figure("contact_closed_form_ns", "volumetric closed form (patch + shear)", cf["ns_median"], "ns",
                note=f"min {cf['ns_min']:.0f}")
+    forces = m["closed_form_forces"]
+    rep.figure("contact_closed_form_forces_ns", "volumetric closed form, forces only", forces["ns_median"], "ns",
+               note=f"min {forces['ns_min']:.0f}; no shear Jacobian")
     rep.figure("contact_quadrature_ns", "volumetric quadrature (64-point Gauss)", q["ns_median"], "ns",
                note=f"min {q['ns_min']:.0f}; {q['ns_median'] / cf['ns_median']:.1f}x the closed form")
     for key in ("wr_matched", "wr_dry", "wr_dry_lambda0", "wr_toyoura", "wr_toyoura_lambda0"):
@@ -278,11 +283,23 @@ def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) ->
         rep.figure(f"contact_{key}_ns", label, x["ns_median"], "ns",
                    note=f"min {x['ns_min']:.0f}; {x['ns_median'] / cf['ns_median']:.1f}x the closed form; "
                         f"sinkage {x['sinkage_m'] / s0 - 1:+.1%}")
-    speed = wr["ns_median"] / cf["ns_median"]
+    fmu_wr = m["wr_matched_fmu"]
+    rep.figure("contact_wr_matched_fmu_ns", "Wong-Reece as the FMU uses it (3 calls)", fmu_wr["ns_median"], "ns",
+               note=f"min {fmu_wr['ns_min']:.0f}; forces and differences in slip and sinkage")
+    # Like for like, the target's comparison: forces alone on both sides (one wong_reece_forces
+    # call gives no derivatives), and what an implicit step needs on both sides.
     mismatch = wr["sinkage_m"] / s0 - 1
-    rep.figure("contact_speedup", "speed-up, closed form vs Wong-Reece (matched)", speed, "x",
-               target=">= 30x", met=bool(speed >= TARGETS["contact_speedup"] and abs(mismatch) <= 0.05),
-               note=f"sinkage {mismatch:+.2%} (within 5 %: {'yes' if abs(mismatch) <= 0.05 else 'no'})")
+    matched = abs(mismatch) <= TARGETS["sinkage_match"]
+    speed_forces = wr["ns_median"] / forces["ns_median"]
+    rep.figure("contact_speedup_forces", "speed-up, forces only, vs Wong-Reece (matched)", speed_forces, "x",
+               target=">= 30x", met=bool(speed_forces >= TARGETS["contact_speedup"] and matched),
+               note=f"like for like; sinkage {mismatch:+.2%} (within 5 %: {'yes' if matched else 'no'})")
+    speed_step = fmu_wr["ns_median"] / cf["ns_median"]
+    rep.figure("contact_speedup_step", "speed-up, forces + derivatives, as the FMU uses them", speed_step, "x",
+               note="closed form with its shear Jacobian vs Wong-Reece's 3 calls")
+    speed = wr["ns_median"] / cf["ns_median"]
+    rep.figure("contact_speedup", "closed form with shear Jacobian vs Wong-Reece forces", speed, "x",
+               note="not like for like: only the closed form includes derivatives")
     published = [m[k] for k in ("wr_dry", "wr_toyoura")]
     best = min(published, key=lambda x: abs(x["sinkage_m"] / s0 - 1))
     rep.figure("contact_speedup_published", "speed-up vs nearest published set", best["ns_median"] / cf["ns_median"],
