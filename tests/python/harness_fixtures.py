@@ -15,8 +15,11 @@ shared across files, so each expensive step runs once per session:
 The end-to-end main job (``bash scripts/main.sh`` in a fresh ``git clone``) takes about two
 minutes, most of it creating the clone's venv and building its FMU.  When test_main_job is
 selected, it is started in the background as soon as collection finishes, so it runs on the
-second core while the other tests run; ``main_job`` waits for it.  It is killed (by its own
-process group id) if the session ends first.
+second core while the other tests run; ``main_job`` waits for it.  Under pytest-xdist (the
+README's test command runs two workers) every worker collects every test, so none starts it at
+collection: the worker that runs test_main_job starts it when the test asks for it, while the
+other worker goes on with its own tests.  It is killed (by its own process group id) if the
+session ends first.
 
 Run with ``-s`` to see the measured numbers (estimates against truth, z-scores, RMS errors,
 wall times).  (PYTEST_DONT_REWRITE: no asserts here; the test modules import helpers from this
@@ -114,8 +117,8 @@ def pytest_collection_modifyitems(session, config, items) -> None:
 
 def pytest_collection_finish(session) -> None:
     """Starts the main job in the background when its test is selected (see the module docstring)."""
-    if session.config.option.collectonly:
-        return
+    if session.config.option.collectonly or hasattr(session.config, "workerinput"):
+        return   # an xdist worker: the test may run on another worker, so main_job starts it
     if any(Path(str(item.fspath)).name == MAIN_JOB_FILE for item in session.items):
         _start_main_job()
 
