@@ -146,7 +146,13 @@ typedef struct {
     double sinkage[TABLE], slip[TABLE];
 } Workload;
 
-static void run_volumetric(const Workload *w, long n)
+/* A batch of volumetric evaluations: contact_patch, then contact_shear with
+ * its Jacobian if with_jacobian, else the forces alone.  The forces alone
+ * are the like-for-like counterpart of one wong_reece_forces call, which
+ * gives no derivatives either (contact_patch's dFn/dz is a by-product of
+ * its volumes and stays).  Inlined with a constant flag, each runner below
+ * is its own loop. */
+static inline void volumetric_batch(const Workload *w, long n, int with_jacobian)
 {
     const ContactModel *cm = w->cm;
     const double v = 0.15;                   /* hub speed, m/s */
@@ -156,34 +162,17 @@ static void run_volumetric(const Workload *w, long n)
         const double s = w->sinkage[k];
         ContactPatch p;
         contact_patch(cm, s, 0.0, (1.0 - cm->gamma) * s, &p);
-        double F_long, F_lat, jac[6];
+        double F_long, F_lat, jac[6] = {0};
         /* omega R such that the slip is w->slip[k]; a little lateral slip */
-        contact_shear(cm, p.Fn, p.area, v, 0.002, v / (1.0 - w->slip[k]), &F_long, &F_lat, jac);
-        acc += p.Fn * p.cos_alpha + p.dFn_dz + F_long + jac[0];
+        contact_shear(cm, p.Fn, p.area, v, 0.002, v / (1.0 - w->slip[k]), &F_long, &F_lat,
+                      with_jacobian ? jac : NULL);
+        acc += p.Fn * p.cos_alpha + p.dFn_dz + F_long + F_lat + jac[0];
     }
     sink = acc;
 }
 
-/* The volumetric closed form's forces alone (no shear Jacobian): the
- * like-for-like counterpart of one wong_reece_forces call, which gives
- * forces and no derivatives either.  contact_patch's dFn/dz is a by-product
- * of its volumes and stays. */
-static void run_volumetric_forces(const Workload *w, long n)
-{
-    const ContactModel *cm = w->cm;
-    const double v = 0.15;                   /* hub speed, m/s */
-    double acc = 0.0;
-    for (long i = 0; i < n; ++i) {
-        const int k = (int)(i & (TABLE - 1));
-        const double s = w->sinkage[k];
-        ContactPatch p;
-        contact_patch(cm, s, 0.0, (1.0 - cm->gamma) * s, &p);
-        double F_long, F_lat;
-        contact_shear(cm, p.Fn, p.area, v, 0.002, v / (1.0 - w->slip[k]), &F_long, &F_lat, NULL);
-        acc += p.Fn * p.cos_alpha + F_long + F_lat;
-    }
-    sink = acc;
-}
+static void run_volumetric(const Workload *w, long n) { volumetric_batch(w, n, 1); }
+static void run_volumetric_forces(const Workload *w, long n) { volumetric_batch(w, n, 0); }
 
 /* Wong-Reece as rover.c's wong_reece_contact calls it in a matrices
  * evaluation at speed: the forces, then a slip step and a sinkage step. */
