@@ -7,7 +7,7 @@ bash scripts/checks.sh   # sanitizers, valgrind, fuzzing, win64 (README "Checks"
 echo "== C unit tests (ctest)"
 (cd build && ctest --output-on-failure)
 echo "== Python tests (pytest)"
-# Two or more workers (pytest-xdist, one per core), a test file per worker: a diagnose test keeps
+# One worker per core (pytest-xdist), a test file per worker: a diagnose test keeps
 # both cores busy only part of the time (its base fit and judging are serial), and the other files
 # fill the gaps.
 .venv/bin/python -m pytest tests/python -q -p no:cacheprovider --durations=25 -n auto --dist loadfile "$@"
