@@ -29,9 +29,9 @@
    held-out data exceeds GAIN_MIN per parameter the extension adds, the fitted
    extension is switched on (not at its neutral setting), and switching it off
    loses the gain by the same criteria.  The gain and z on each kind of run are
-   reported.  The cause is the significant candidate with the largest gain,
-   or ``none``; candidates whose gain is within TIE_RATIO of the best are
-   reported as equally good.
+   reported.  The cause is the significant candidate with the largest gain
+   less GAIN_MIN per parameter (penalised_gain), or ``none``; candidates whose
+   gain is within TIE_RATIO of the best are reported as equally good.
 5. Look for a second cause: every other candidate (even one that did not
    help on its own: an unmodelled first cause can hide it) is refitted
    together with the first cause and judged against it by the same
@@ -566,6 +566,22 @@ def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
     return best, switched_off
 
 
+def penalised_gain(judged: dict[str, Any]) -> float:
+    """A candidate's held-out relative gain less GAIN_MIN per parameter it adds: the ranking of
+    candidates, so that of two that explain the data about as well the one with fewer parameters
+    is named.  Measured: a soil patch (5 parameters) grown to 3.6 m radius, strength x 1.29 all
+    over the test area, is a uniform F_taumax scale, which is what a grouser's thrust gain (1
+    parameter) is; it took 77.0 % against the grouser's 76.7 % on a grouser campaign, and was
+    named.  On the 140 cases of the 20-seed study (README) the penalised ranking names the same
+    causes as the plain one."""
+    return float(judged["gain"]) - GAIN_MIN * int(judged.get("n_params", 0))
+
+
+def ranked(judged: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Judged candidates (_judge) best first, by penalised_gain."""
+    return sorted(judged, key=lambda c: -penalised_gain(c))
+
+
 def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]:
     """Where a candidate is judged: on the held-out blocks of every run, the same data for every
     candidate so their gains compare.  A physical extension is fitted on the drawbar runs only,
@@ -690,7 +706,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                 results[i] = again
         base, switched_off = best_reference(problem, run_kind, base, results, "base")
         cands = [_judge(problem, run_kind, base, res, switched_off.get(res.name)) for res in results]
-        cands.sort(key=lambda c: -c["gain"])
+        cands = ranked(cands)
         significant = [c for c in cands if c["significant"]]
         best = significant[0] if significant else None
         equally_good = [c["name"] for c in significant[1:] if best and c["gain"] >= TIE_RATIO * best["gain"]]
@@ -728,7 +744,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                 reference, switched_off2 = best_reference(problem, run_kind, reference, results2, first_res.name)
                 second_round = [_judge(problem, run_kind, reference, res, switched_off2.get(res.name))
                                 for res in results2]
-                second_round.sort(key=lambda c: -c["gain"])
+                second_round = ranked(second_round)
                 if second_round and second_round[0]["significant"]:
                     chosen.append(next(r for r in results2 if r.name == second_round[0]["name"]))
 
