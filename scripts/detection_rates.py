@@ -39,18 +39,18 @@ from juno.effects import EFFECTS
 from juno.synthesize import synthesize
 
 
-def one_case(effect: str, strength: float, seed: int, workers: int | None) -> dict:
+def one_case(effect: str, strength: float, seed: int, workers: int | None, heavy_run: bool = False) -> dict:
     """Synthesize with ``effect`` hidden, diagnose without the truth, and summarise."""
     with tempfile.TemporaryDirectory(prefix="juno-detect-") as tmp:
         campaign = Path(tmp) / "campaign"
-        synthesize(campaign, effect=effect, strength=strength, seed=seed)
+        synthesize(campaign, effect=effect, strength=strength, seed=seed, heavy_run=heavy_run)
         truth = json.loads((campaign / "truth.json").read_text())
         shutil.move(str(campaign / "truth.json"), Path(tmp) / "truth.json")
         t0 = time.perf_counter()
         result = diagnose(campaign, workers=workers)
         wall = time.perf_counter() - t0
     gains = {c["name"]: c["gain"] for c in result["candidates"]}
-    return {"effect": effect, "strength": strength, "seed": seed, "cause": result["cause"],
+    return {"effect": effect, "strength": strength, "seed": seed, "heavy_run": heavy_run, "cause": result["cause"],
             "causes": result["causes"], "correct": result["cause"] == effect,
             "gain": result["gain"]["relative"] if result["cause"] != "none" else 0.0,
             "gain_of_hidden": gains.get(effect), "equally_good": result["equally_good"],
@@ -97,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-strength", type=float, default=0.7)
     ap.add_argument("--max-strength", type=float, default=1.0)
     ap.add_argument("--workers", type=int, default=None, help="processes per diagnose (default: cores)")
+    ap.add_argument("--heavy-run", action="store_true",
+                    help="campaigns with a heavy drawbar run (juno synthesize --heavy-run)")
     ap.add_argument("--json", metavar="FILE", help="every case, as JSON")
     ap.add_argument("--merge", nargs="+", metavar="STUDY",
                     help="run nothing: print the table of these studies' cases (--json files, finished or "
@@ -128,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
             strength = 1.0 if effect == "none" else round(float(rng.uniform(args.min_strength, args.max_strength)), 3)
             if any(c["effect"] == effect and c["seed"] == seed for c in done):
                 continue
-            case = one_case(effect, strength, seed, args.workers)
+            case = one_case(effect, strength, seed, args.workers, args.heavy_run)
             cases.append(case)
             print(f"{effect:16s} seed {seed} strength {strength:.3f}: named {case['cause']:16s} "
                   f"({'right' if case['correct'] else 'WRONG'}, {case['wall_time']:.0f} s)", flush=True)

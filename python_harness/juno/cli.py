@@ -215,7 +215,8 @@ def cmd_synthesize(args) -> int:
     say = _progress(args.quiet)
     path = synthesize(args.out, effect=args.effect or ["none"], strength=args.strength or [1.0], seed=args.seed,
                       noise=args.noise,
-                      time_scale=args.time_scale, overwrite=args.overwrite, progress=say)
+                      time_scale=args.time_scale, overwrite=args.overwrite, progress=say,
+                      heavy_run=args.heavy_run)
     print(f"wrote campaign {path} (effect hidden: see {path}/truth.json only)")
     _write_json(args.json, {"campaign": str(path)})
     return 0
@@ -324,6 +325,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--noise", type=float, default=1.0, help="sensor noise scale (0 = exact)")
     p.add_argument("--time-scale", type=float, default=1.0, help="shorten runs (< 1) for quick tests")
+    p.add_argument("--heavy-run", action="store_true",
+                   help="one drawbar run held at about 70 %% slip at 80 %% throttle (instead of the "
+                        "720 N one; the others 320 and 620 N): separates grouser thrust from K_vx")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
     common(p)
     p.set_defaults(func=cmd_synthesize)

@@ -8,7 +8,8 @@ Specification (README, interfaces.md sections 2 and 3):
   cell depends on it (two seeds; "none" against every other supported effect);
 * the same seed gives byte-identical files;
 * an existing non-empty OUT is refused without --overwrite and left unchanged;
-* an unknown --effect is refused with a message.
+* an unknown --effect is refused with a message;
+* ``--heavy-run`` holds one drawbar run at a high slip whatever the soil's traction.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from juno.campaign import REQUIRED_COLUMNS, load_campaign, read_run, read_terrai
 from juno.effects import EFFECTS
 from juno.simulator import SOIL_PARAMETERS
 from juno.synthesize import TERRAIN_X, TERRAIN_Y, synthesize
+
+WHEEL_RADIUS = 0.2794   # m, the FMU's wheel.radius (model-notes section 4)
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -277,3 +280,38 @@ def test_inconsistent_effect_lists_are_refused(tmp_path, args, needle):
     proc = run_juno("synthesize", out, *args, "--time-scale", SMALL_TIME_SCALE, "--quiet")
     one_line_error(proc, needle)
     assert not out.exists()
+
+
+def _steady_slips(root: Path) -> dict[str, tuple[float, float]]:
+    """Per drawbar run: (slip, median drawbar force N) over the run's second half, as measured:
+    slip = 1 - v / (omega R), v from the total station's x, omega the mean of the encoders."""
+    c = load_campaign(root)
+    out = {}
+    for run in c.runs_of_kind("drawbar"):
+        d = read_run(c, run)
+        t, x = d.samples("pos_x")
+        half = t > t[-1] / 2
+        v = (x[half][-1] - x[half][0]) / (t[half][-1] - t[half][0])
+        tw, wl = d.samples("omega_left")
+        _, wr = d.samples("omega_right")
+        omega = float(np.mean((wl + wr)[tw > t[-1] / 2]) / 2)
+        tf, f = d.samples("drawbar_force")
+        out[run.id] = (1.0 - v / (omega * WHEEL_RADIUS), float(np.median(f[tf > t[-1] / 2])))
+    return out
+
+
+def test_a_heavy_run_pushes_a_grouser_truth_to_high_slip(tmp_path, harness_fmu):
+    """`--heavy-run`: the operator pulls one run until the rover settles at about 70 % slip.  On a
+    grouser truth (lugs: more traction) the default loads leave every run below 0.6 slip, where a
+    thrust gain and a lower K_vx look alike; the heavy run needs a larger force and gets there."""
+    runs = {}
+    for heavy in (False, True):
+        out = tmp_path / f"heavy-{heavy}"
+        synthesize(out, effect="grouser", strength=1.0, seed=31, fmu=harness_fmu, time_scale=0.5,
+                   heavy_run=heavy)
+        runs[heavy] = _steady_slips(out)
+    say(f"slip, drawbar force per run: default {runs[False]}, heavy {runs[True]}")
+    assert max(s for s, _f in runs[False].values()) < 0.6
+    slip, force = max(runs[True].values())
+    assert 0.6 < slip < 0.85, runs[True]
+    assert force > max(f for _s, f in runs[False].values()) + 100.0, "the heavy run should need a larger force"
