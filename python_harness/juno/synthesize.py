@@ -35,7 +35,7 @@ import numpy as np
 
 from .campaign import write_campaign
 from .pointcloud import Grid, write_esri_ascii
-from .simulator import InputSignals, JunoFMU, SimulationError
+from .simulator import WHEELS, InputSignals, JunoFMU, SimulationError
 
 #: The paper's Table 2 values, the centre of the synthetic truth.
 TABLE2 = {"soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx": 0.819}
@@ -105,7 +105,7 @@ def steady_slip(fmu: JunoFMU, params: dict[str, object], load: float, throttle: 
     t = np.arange(0.0, 16.0 + 1e-9, 0.05)     # inputs are held between samples: a fine staircase
     inputs = InputSignals(t, {"drawbarForce": load * np.clip(t / 4.0, 0.0, 1.0),
                               "throttleLeft": np.full(len(t), throttle), "throttleRight": np.full(len(t), throttle)})
-    wheels = tuple(f"wheel{w}.slip" for w in ("FL", "RL", "FR", "RR"))
+    wheels = tuple(f"wheel{w}.slip" for w in WHEELS)
     try:
         sim = fmu.simulate(params, inputs, 16.0, 0.05, outputs=wheels + ("vx",))
     except SimulationError:

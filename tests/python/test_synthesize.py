@@ -25,9 +25,8 @@ from harness_fixtures import (NOISY_TIME_SCALE, PAPER_WINDOWS, RUN_LENGTHS, SMAL
 from juno.campaign import REQUIRED_COLUMNS, load_campaign, read_run, read_terrain_points
 from juno.effects import EFFECTS
 from juno.simulator import SOIL_PARAMETERS
+from juno.identify import WHEEL_RADIUS
 from juno.synthesize import TERRAIN_X, TERRAIN_Y, synthesize
-
-WHEEL_RADIUS = 0.2794   # m, the FMU's wheel.radius (model-notes section 4)
 
 pytest_plugins = ["harness_fixtures"]
 
