@@ -24,9 +24,10 @@
    run's training blocks.  A gain counts as significant only when
    a paired test over held-out units (run, block, signal; Wilcoxon on the
    units' mean squared-residual change, so time correlation inside a block is
-   respected; changes under NEGLIGIBLE_CHANGE are ties) gives z > Z_MIN (Bonferroni-corrected over the kinds of run) on
-   some kind of run and z > -Z_MIN on every kind, the relative gain over all
-   held-out data exceeds GAIN_MIN per parameter the extension adds, the fitted
+   respected; changes under NEGLIGIBLE_CHANGE are ties) gives z > Z_MIN
+   (Bonferroni-corrected over the kinds of run) on some kind of run and
+   z > -Z_MIN on every kind, the relative gain over all held-out data
+   exceeds GAIN_MIN per parameter the extension adds, the fitted
    extension is switched on (not at its neutral setting), and switching it off
    loses the gain by the same criteria.  The gain and z on each kind of run are
    reported.  The cause is the significant candidate with the largest gain
