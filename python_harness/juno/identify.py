@@ -267,29 +267,6 @@ def _column_signal(data: RunData, name: str, grid: np.ndarray) -> np.ndarray:
     return np.interp(grid, t, v)
 
 
-#: The heading the replay starts with is a straight-line fit to the measured yaw over this many
-#: seconds at the start of the run, taken at the first sample (rad).  The first sample alone
-#: carries the IMU's noise (5 mrad on the synthetic campaigns), and over a mound the replay's
-#: heading error grows about 8 times: measured on a terrain run (seed 4014, true soil and terrain,
-#: noise-free inputs), a start 5 mrad off left the heading 0.027 rad RMS and 0.041 rad at the end
-#: off the measured one, against 0.0013 and 0.0008 from the true start; sideways, that is
-#: centimetres of path and a different line over the mound.  A 100 Hz IMU gives 100 samples in
-#: the first second, so the fit's start is good to about a fifth of the noise.
-START_HEADING_WINDOW = 1.0
-
-
-def start_heading(t: np.ndarray, yaw: np.ndarray) -> float:
-    """The heading (rad) at the first sample: a least-squares line through the unwrapped yaw
-    samples of the first START_HEADING_WINDOW seconds (the first sample itself if there are
-    fewer than 3)."""
-    yaw = np.unwrap(yaw)
-    early = t <= t[0] + START_HEADING_WINDOW
-    if np.count_nonzero(early) < 3:
-        return float(yaw[0])
-    slope, intercept = np.polyfit(t[early] - t[0], yaw[early], 1)
-    return float(intercept)
-
-
 def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
                 terrain_file: str | None = None, stride: int = 1) -> PreparedRun:
     """Inputs and comparison targets of a measured run.
@@ -302,15 +279,14 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     balances the load, as the real one did; the torque the model needs is
     then compared with the measured one.  Drawbar runs are on flat ground
     with the measured drawbar force; terrain runs on ``terrain_file``.  The
-    rover starts at rest at the first measured position, heading as a line
-    fitted to the first second of yaw says (start_heading).
+    rover starts at rest at the first measured pose.
     """
     data = data or read_run(campaign, run)
     t = data.time
     grid = np.arange(t[0], t[-1] + 1e-9, 0.01)
     start_pose = {"init.x": float(data.samples("pos_x")[1][0]), "init.y": float(data.samples("pos_y")[1][0])}
     if data.has("yaw"):
-        start_pose["init.yaw"] = start_heading(*data.samples("yaw"))
+        start_pose["init.yaw"] = float(data.samples("yaw")[1][0])
     params: dict[str, object] = {**base_parameters(campaign), **start_pose, "solver.step": IDENTIFY_STEP,
                                  "drive.mode": 1, **SPIN_TRACKER}
     drawbar = (_column_signal(data, "drawbar_force", grid) if run.kind == "drawbar" and data.has("drawbar_force")
