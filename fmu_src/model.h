@@ -44,7 +44,7 @@ typedef struct {
     /* extensions (model-notes section 7), off at their defaults */
     double patch_x, patch_y, patch_radius, patch_khFactor, patch_strengthFactor;
     double multipass_rutFraction, multipass_khFactor;
-    double slipSinkage_coefficient, grouser_thrustGain, drive_lossFraction;
+    double slipSinkage_coefficient, grouser_thrustGain, grouser_lugHeight, drive_lossFraction;
     double terrain_offsetX, terrain_offsetY, terrain_offsetZ, terrain_offsetYaw;
 } Params;
 

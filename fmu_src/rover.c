@@ -499,15 +499,25 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
             ca = cos(alpha);
         }
     }
+    /* Grouser lugs (grouser.lugHeight h, volumetric law only): the soil
+     * between the lugs turns with the wheel, so the shear surface is the
+     * lug tips' circle, h beyond the rim the normal law presses on.  The
+     * shear's slip velocity is omega (R + h) - v and its moment about the
+     * axle (R + h) F_t: more torque per unit of thrust, and thrust already
+     * at omega R = v.  Assumption: the pressure (Fn, its tilt, the
+     * contact area) stays that of the rim of radius R.  With h = 0,
+     * shear_radius is R exactly and nothing changes. */
+    const double shear_radius = wong_reece ? R : R + p->grouser_lugHeight;
+    const double omega_shear = wong_reece ? omega_r : shear_radius * v3_dot(wheel_omega, ev->e);
     double nvec[3], t[3], r_rim[3];
     for (int i = 0; i < 3; ++i) {
         nvec[i] = -sa * f[i] + ca * np[i];             /* Eqn 6: from the centroid towards the hub */
         t[i] = ca * f[i] + sa * np[i];                 /* tangential direction of Eqns 8-9 */
-        r_rim[i] = -R * nvec[i];                       /* rim point on the centroid ray */
+        r_rim[i] = -shear_radius * nvec[i];            /* rim (or lug tip) point on the centroid ray */
     }
     /* The shear acts on the rim where the centroid ray meets it, so its
-     * moment about the axle is exactly -R F_t and the normal force passes
-     * through the hub. */
+     * moment about the axle is exactly -R F_t (-(R + h) F_t with lugs) and
+     * the normal force passes through the hub. */
     double Jp[3][NU];
     memcpy(Jp, Jh, sizeof Jp);
     add_wheel_offset(Jp, Jw, r_rim, sp);
@@ -515,7 +525,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     for (int i = 0; i < 3; ++i) v_rim[i] = point_row_dot(Jp, i, u, sp);
     const double v_lat = v3_dot(l, v_rim);
     double F_long, F_lat, jac[6];
-    contact_shear(cm, support, area, wc->v_long, v_lat, omega_r, &F_long, &F_lat, matrices ? jac : NULL);
+    contact_shear(cm, support, area, wc->v_long, v_lat, omega_shear, &F_long, &F_lat, matrices ? jac : NULL);
     if (shear_factor != 1.0) {           /* soil patch strength, grouser thrust: F_taumax scales */
         F_long *= shear_factor;
         F_lat *= shear_factor;
@@ -545,7 +555,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
     point_vec_times_jac(g_long, f, Jh, sp);
     point_vec_times_jac(g_lat, l, Jp, sp);
     angular_vec_times_jac(e_row, ev->e, Jw, sp);
-    for (int k = 0; k < NU; ++k) g_spin[k] = R * e_row[k];
+    for (int k = 0; k < NU; ++k) g_spin[k] = shear_radius * e_row[k];
     point_vec_times_jac(a_t, t, Jp, sp);
     double dFl[NU], dFy[NU];
     for (int k = 0; k < NU; ++k) {

@@ -95,6 +95,7 @@
     REAL(196, "multipass.khFactor", PARAM, "1",  1.0, 0.05, 20, p.multipass_khFactor, "k_h of soil compacted by the front wheel, relative to virgin soil (1 = off)") \
     REAL(197, "slipSinkage.coefficient", PARAM, "1", 0.0, 0, 50, p.slipSinkage_coefficient, "Slip-sinkage: k_h / (1 + c |slip|) (0 = off)") \
     REAL(198, "grouser.thrustGain", PARAM, "1", 0.0, 0, 5, p.grouser_thrustGain, "Grouser/lug thrust beyond Mohr-Coulomb: F_taumax (1 + g) (0 = off)") \
+    REAL(189, "grouser.lugHeight", PARAM, "m", 0.0, 0, 0.1, p.grouser_lugHeight, "Grouser/lug height: the lugs shear the soil at R + h, h beyond the rim the normal law presses on (0 = off; volumetric law only)") \
     REAL(199, "drive.lossFraction", PARAM, "1", 0.0, 0, 0.9, p.drive_lossFraction, "Fraction of the drive torque (motor side, as measured from the current) lost in gears and chain") \
     REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
     REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
