@@ -12,7 +12,8 @@ soil_patch        a patch of weaker soil (Gaussian, sigma 0.6-0.9 m, centre   k_
 multipass         rear wheels roll in the front wheels' rut on compacted      k_h x 1.75 .. 2.5
                   soil: k_h x (1 + 1.5 S)
 slip_sinkage      the soil yields under a slipping wheel: k_h / (1 + 1.5 S s)  c = 0.75 .. 1.5
-grouser           lugs add thrust beyond Mohr-Coulomb: F_taumax x (1 + 0.35 S) gain 0.18 .. 0.35
+grouser           lugs shear the soil at a larger radius and add thrust beyond    gain 0.18 .. 0.35,
+                  Mohr-Coulomb: F_taumax x (1 + 0.35 S), shear at R + 25 S mm  lugs 12.5 .. 25 mm
 drivetrain_loss   the motor-current torque over-reads the wheel torque:       loss 12.5 .. 25 %
                   the wheels get (1 - 0.25 S) of it
 terrain_offset    the LIDAR scan is misregistered by 0.25 S m in a random     0.12 .. 0.25 m,
@@ -38,7 +39,7 @@ EFFECTS: dict[str, str] = {
     "soil_patch": "soil stiffness and strength vary over the test area (a weaker patch)",
     "multipass": "rear wheels roll in the front wheels' rut, on compacted soil",
     "slip_sinkage": "sinkage grows with slip as the wheel digs in",
-    "grouser": "lugged tyres gain thrust beyond the Mohr-Coulomb limit of a smooth rim",
+    "grouser": "lugged tyres shear the soil at a larger radius and gain thrust beyond the Mohr-Coulomb limit",
     "drivetrain_loss": "the torque from the motor current is larger than the torque at the wheels",
     "terrain_offset": "the scanned terrain is shifted and rotated relative to the real one",
 }
@@ -68,7 +69,10 @@ def effect_parameters(effect: str, strength: float, rng: np.random.Generator) ->
     elif effect == "slip_sinkage":
         ext = {"slipSinkage.coefficient": 1.5 * s}
     elif effect == "grouser":
-        ext = {"grouser.thrustGain": 0.35 * s}
+        # Both of model-notes' lug signatures: more thrust (the gain) and shear at the lug tips,
+        # beyond the rim the soil's pressure acts on (more torque per unit of thrust, and
+        # thrust already where the rim speed equals the hub's).
+        ext = {"grouser.thrustGain": 0.35 * s, "grouser.lugHeight": 0.025 * s}
     elif effect == "drivetrain_loss":
         ext = {"drive.lossFraction": 0.25 * s}
     elif effect == "terrain_offset":
