@@ -19,7 +19,7 @@ rather than asserted loosely:
   (`--strength 0.796 --seed 8724`) named grouser: multipass, with the right parameters, gained
   10.5 % at z 2.4, below the threshold, grouser 5.2 % at z 3.3 on the terrain replay alone;
 - `grouser`: the truth's lugs add thrust (F_max x (1 + g)) and shear at R + h (more torque per
-  unit of thrust).  A drivetrain loss of about h / R explains nearly as much with one parameter:
+  unit of thrust).  A drivetrain loss of h / (R + h) explains nearly as much with one parameter:
   on seeds 4000-4009, 4011, 4013 and 4015, grouser was named in 8 of 13, a drivetrain loss in 5
   (grouser listed as equally good).  With the thrust gain alone (before the lugs), `none` was named in 17
   of 20: a lower K_vx bends the tanh law alike over the slips a drawbar test reaches;
