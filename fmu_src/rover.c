@@ -453,7 +453,8 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
 
     double wheel_omega[3];
     for (int i = 0; i < 3; ++i) wheel_omega[i] = angular_row_dot(Jw, i, u, sp);
-    const double omega_r = R * v3_dot(wheel_omega, ev->e);
+    const double spin = v3_dot(wheel_omega, ev->e);   /* rad/s about the axle */
+    const double omega_r = R * spin;
     const double den = fmax(fmax(fabs(omega_r), fabs(wc->v_long)), cm->slip_v_eps);
     wc->slip = (omega_r - wc->v_long) / den;
     if (p->slipSinkage_coefficient > 0)       /* the soil under a slipping wheel yields: it digs in */
@@ -508,7 +509,7 @@ static void wheel_contact(const Model *m, Eval *ev, int w, double Jh[3][NU], dou
      * contact area) stays that of the rim of radius R.  With h = 0,
      * shear_radius is R exactly and nothing changes. */
     const double shear_radius = wong_reece ? R : R + p->grouser_lugHeight;
-    const double omega_shear = wong_reece ? omega_r : shear_radius * v3_dot(wheel_omega, ev->e);
+    const double omega_shear = shear_radius * spin;
     double nvec[3], t[3], r_rim[3];
     for (int i = 0; i < 3; ++i) {
         nvec[i] = -sa * f[i] + ca * np[i];             /* Eqn 6: from the centroid towards the hub */
