@@ -596,6 +596,17 @@ def ranked(judged: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return sorted(judged, key=lambda c: -penalised_gain(c))
 
 
+def relative_gain(problem: Problem, before_r: np.ndarray, after_r: np.ndarray, where: np.ndarray) -> float:
+    """Relative drop of the held-out capped mean squared residual over ``where``, from the
+    residuals ``before_r`` to ``after_r``; -inf if the model behind ``after_r`` failed on a run."""
+    test = ~problem.train
+    b = float(np.nanmean(capped_square(before_r[test & where])))
+    a = float(np.mean(capped_square(after_r[test & where])))
+    if not np.isfinite(a):
+        return -np.inf
+    return (b - a) / b if b > 0 else 0.0
+
+
 def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, challenger: FitResult
                  ) -> dict[str, Any]:
     """Whether ``challenger`` (a significant candidate with more parameters and a larger raw gain
@@ -608,15 +619,13 @@ def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, chal
     unit by unit.  Measured (README): on grouser campaigns (thrust gain and lugs, 2 parameters) a
     drivetrain loss of h / (R + h) mimics the lugs with one, and in 4 of 13 the grouser's raw
     held-out gain beat the loss's by 0.9-2.2 points and lost the penalised ranking."""
-    test = ~problem.train
     z_by_kind = {k: paired_z(problem, leader.residuals, challenger.residuals, run_kind == k)
                  for k in sorted(set(run_kind.tolist()))}
-    a = float(np.mean(capped_square(leader.residuals[test])))
-    b = float(np.mean(capped_square(challenger.residuals[test])))
+    gain = relative_gain(problem, leader.residuals, challenger.residuals, np.ones(len(run_kind), bool))
     better = bool(max(z_by_kind.values()) > z_threshold(len(z_by_kind)) and min(z_by_kind.values()) > -Z_MIN
-                  and b < a)
+                  and gain > 0)
     return {"leader": leader.name, "challenger": challenger.name, "z_by_kind": z_by_kind,
-            "gain": (a - b) / a if a > 0 else 0.0, "challenger_better": better}
+            "gain": gain, "challenger_better": better}
 
 
 def leader_after_head_to_head(problem: Problem, run_kind: np.ndarray, significant: list[dict[str, Any]],
@@ -664,28 +673,20 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     mask = np.isin(run_kind, kinds)
     test = ~problem.train
 
-    def relative_gain(before_r: np.ndarray, after_r: np.ndarray, where: np.ndarray) -> float:
-        """Relative drop of the held-out capped mean squared residual over ``where``."""
-        b = float(np.nanmean(capped_square(before_r[test & where])))
-        a = float(np.mean(capped_square(after_r[test & where])))
-        if not np.isfinite(a):
-            return -np.inf               # the candidate's model failed on some run
-        return (b - a) / b if b > 0 else 0.0
-
     before = float(np.nanmean(capped_square(reference.residuals[test & mask])))
     after = float(np.mean(capped_square(res.residuals[test & mask])))
-    gain = relative_gain(reference.residuals, res.residuals, mask)
-    gain_by_kind = {k: relative_gain(reference.residuals, res.residuals, run_kind == k) for k in kinds}
+    gain = relative_gain(problem, reference.residuals, res.residuals, mask)
+    gain_by_kind = {k: relative_gain(problem, reference.residuals, res.residuals, run_kind == k) for k in kinds}
     z_by_kind = {k: paired_z(problem, reference.residuals, res.residuals, run_kind == k) for k in kinds}
     z = max(z_by_kind.values())
     acts = candidate.acts(res.params)
     ablation = None
     if switched_off is not None:
         z_off = {k: paired_z(problem, switched_off.residuals, res.residuals, run_kind == k) for k in kinds}
-        ablation = {"gain": relative_gain(switched_off.residuals, res.residuals, mask),
+        ablation = {"gain": relative_gain(problem, switched_off.residuals, res.residuals, mask),
                     "z": float(max(z_off.values())),
                     "z_by_kind": z_off,
-                    "gain_by_kind": {k: relative_gain(switched_off.residuals, res.residuals, run_kind == k)
+                    "gain_by_kind": {k: relative_gain(problem, switched_off.residuals, res.residuals, run_kind == k)
                                      for k in kinds}}
 
     # Significant: a clear gain over all held-out data, significant on some kind of run
