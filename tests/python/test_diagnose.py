@@ -27,9 +27,10 @@ rather than asserted loosely:
   With the thrust gain alone (before the lugs), `none` was named in 17
   of 20: a lower K_vx bends the tanh law alike over the slips a drawbar test reaches;
 - `terrain_offset`: the 30 s terrain replay over the mound is sensitive to where the rover
-  goes: with the true soil and the true registration the held-out error was 12-22 (against
-  1.2 with no offset hidden) on 3 of 4 seeds, so a correct registration often cannot prove
-  itself by replay.  Named in 17 of 20 study cases (the mound placed within 2-10 cm).
+  goes, so a correct registration often cannot prove itself by replay.  At the diagnosis'
+  5 ms step the replay at the true soil and registration ended 0.3-0.5 m off the measured
+  path on seeds 4005 and 4008 (3-12 cm at 1 ms; a 1 ms terrain replay, tried, traded one
+  found offset for three lost grousers: README).  Named in 14 of 20 on seeds 4000-4019.
 """
 
 from __future__ import annotations
