@@ -15,22 +15,23 @@ offline by scripts/detection_rates.py (README, "What the diagnosis finds").
 Left out, because the analysis does not find them reliably yet (issue 4 stays open for them),
 rather than asserted loosely:
 - `multipass`: 19 of 20 in the detection study (19 of 20 at the current code), its parameters
-  near the truth in 17; a CI draw
-  (`--strength 0.796 --seed 8724`) named grouser: multipass, with the right parameters, gained
-  10.5 % at z 2.4, below the threshold, grouser 5.2 % at z 3.3 on the terrain replay alone;
+  near the truth in 17; a CI draw (`--strength 0.796 --seed 8724`) named grouser: multipass,
+  with the right parameters, gained 10.5 % at z 2.4, below the threshold, grouser 5.2 % at
+  z 3.3 on the terrain replay alone;
 - `grouser`: the truth's lugs add thrust (F_max x (1 + g)) and shear at R + h (more torque per
   unit of thrust).  A drivetrain loss of h / (R + h) explains nearly as much with one parameter:
   on seeds 4000-4019, grouser was named in 17 of 20 (with the head-to-head test between a
   leader and a runner-up with more parameters; 8 of 13 without it), a drivetrain loss in 3
   (grouser listed as equally good); the 17 fits put the lugs -10 % to -3 % from the truth but
-  the thrust gain -49 % to +4 % (the lugs absorb part of it).
-  With the thrust gain alone (before the lugs), `none` was named in 17
-  of 20: a lower K_vx bends the tanh law alike over the slips a drawbar test reaches;
+  the thrust gain -49 % to +4 % (the lugs absorb part of it).  With the thrust gain alone
+  (before the lugs), `none` was named in 17 of 20: a lower K_vx bends the tanh law alike over
+  the slips a drawbar test reaches;
 - `terrain_offset`: the 30 s terrain replay over the mound is sensitive to where the rover
   goes, so a correct registration often cannot prove itself by replay.  At the diagnosis'
   5 ms step the replay at the true soil and registration ended 0.3-0.5 m off the measured
-  path on seeds 4005 and 4008 (3-12 cm at 1 ms; a 1 ms terrain replay, tried, traded one
-  found offset for three lost grousers: README).  Named in 14 of 20 on seeds 4000-4019.
+  path on seeds 4005 and 4008 (3-12 cm at 1 ms; a 1 ms terrain replay, tried and not landed,
+  found one more offset and one more grouser but lost three grousers: README).  Named in 14
+  of 20 on seeds 4000-4019.
 """
 
 from __future__ import annotations
