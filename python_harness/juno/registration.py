@@ -1,36 +1,56 @@
 """Registration of a LIDAR scan against a measured traverse, without simulating the rover.
 
 A misregistered scan puts the terrain's features (the mound) in the wrong place, and the
-rover's measured height and pitch along its measured path show where they really are.  The
-chassis reference point rides at a nearly constant height above the mean ground under its four
-wheels, and its pitch follows the ground's slope between the axles, so for a trial registration
-(offset o = (ox, oy) m, raise oz m, yaw psi rad: grid point q appears at o + Rz(psi) q, as the
-FMU's ``terrain.offset*`` parameters place it) the predicted measurements are
+rover's measured height, pitch and roll along its measured path show where they really are.
+For a trial registration (offset o = (ox, oy) m, raise oz m, yaw psi rad: grid point q appears
+at o + Rz(psi) q, as the FMU's ``terrain.offset*`` parameters place it) the rover is posed on
+the scanned ground at every measured position and heading: the chassis height z, roll, pitch
+and rocker angle beta are solved so that each of the four wheels rests on the ground,
 
-    z(t)     = h0 + mean over wheels of [G(Rz(-psi) (p_w(t) - o)) + oz]
-    pitch(t) = a_p atan((mean rear ground - mean front ground) / wheelbase)   (positive nose down)
-    roll(t)  = a_r atan((mean left ground - mean right ground) / track)       (positive left side up)
+    hub_z,w(z, roll, pitch, beta) = W(hub_xy,w) + h0 - pivot height     (w = FL, RL, FR, RR)
 
-with p_w the wheel positions from the measured pose and the rover's geometry, G the gridded
-scan, and h0 the chassis height above flat ground (the mean measured height on the drawbar
-runs, which are on flat ground at z = 0).  The attitude gains a_p and a_r are nuisance
-parameters, fitted with the offsets and then dropped: the chassis tilts more than the ground
-between its wheels, because on a slope the load moves to the downhill wheels, which sink
-deeper.  Measured on synthetic campaigns (the FMU as the truth), a_p is 1.12-1.17 and a_r
-1.00-1.07.  With a_p fixed at 1, the search turned the scan by up to its 7 deg bound, which
-makes the mound steeper along the path to match the larger measured pitch. On 7 misregistered
-campaigns that put the mound 10-16 cm from where it is; with the gains fitted, 2-12 cm
-(median 5.5 cm).  Least squares over the four offsets and the two gains from a grid of starts
-gives the registration; it is kept only if it explains the measurements EVIDENCE_RATIO times
-better than the scan as it is.  Cheap (no FMU): about 0.2 s for a 30 s run.
+with the FMU's geometry (rover.c: rocker pivots at +-track/2 beside the chassis reference
+point, the hubs +-wheelbase/2 along each rocker and the pivot height below it, the rockers
+turned by +beta and -beta by the differential), W the height at which a rigid wheel of the
+FMU's radius, rolling along the heading, touches the gridded scan (the highest point of the
+scan under the wheel's circle, less the radius), and h0 the chassis height above flat ground
+(the mean measured height on the drawbar runs, which are on flat ground at z = 0: it carries
+the wheel radius less the sinkage).  The residuals are the measured height, pitch and roll
+against the posed rover's, pitch and roll scaled by the attitude gains a_p and a_r: nuisance
+parameters, fitted with the offsets and then dropped.  The chassis tilts more than the ground
+between its wheels, because on a slope the load moves to the downhill wheels, which sink deeper
+(at the true registration of 40 synthetic campaigns climbing the mound, a_p 1.10-1.19 and a_r
+0.94-1.04).
 
-Assumptions, named: sinkage is the same on the mound as on the flat (it changes by millimetres
-with the load transfer); the rocker follows the ground so the four-wheel mean is what the
-chassis rides on, the differential makes the chassis pitch the mean of the two rockers', and
-the chassis rolls with the difference of the two sides' mean heights.  Roll is what pins the
-sideways offset: a traverse along one flank of a mound sees its lateral slope only in roll (on
-a 30 s synthetic run, the truth registration leaves 0.008 rad RMS roll residual against
-0.11 rad RMS roll; without roll the fit put the scan 0.37 m off sideways).
+Why the exact pose: the earlier model took the ground directly below nominal wheel points, pitch
+and roll as the slopes between them, and the height as their mean.  On the mound's 0.2-0.35
+slopes a wheel of 0.28 m radius rests up to 1.6 cm above the point below its hub, the hubs sit
+0.15 m below the pivots (so they move fore and aft as the chassis pitches), and the measured
+angles are Euler angles of a tilted chassis, not slopes.  Measured at the true registration of
+the same 40 campaigns (terrain_offset and none, seeds 4000-4019; sensor noise 3 mm and 3 mrad),
+the RMS model error was
+
+    height 4.3-6.5 mm, pitch 6.5-11.7 mrad, roll 5.5-11.9 mrad    (earlier model)
+    height 3.2-4.2 mm, pitch 5.9-9.8 mrad,  roll 3.6-8.6 mrad     (exact pose)
+
+and the fit had spent that error on a sideways shift traded against a turn: on the 20
+terrain_offset campaigns (the scan 9-40 cm off along the path) the registration left the path
+2.7-10.4 cm (median 7.2 cm) from where the true one puts it; with the exact pose, 1.7-15.2 cm
+(median 4.0 cm; 12 of 20 within 5 cm, against 5).  A shift along y and a turn about the scan's
+origin still trade against each other: the worst case (15.2 cm) is 0.3 m off in y and 0.09 rad
+in yaw, and puts the mound's centre 4.3 cm from where it is.  The FMU's own contact geometry (a plane through
+the scan point below the hub, along its normal) instead of the wheel's circle did as well
+(median 3.8 cm, worst 10.6 cm).
+
+Least squares over the four offsets and the two gains from a grid of starts gives the
+registration; it is kept only if it explains the measurements EVIDENCE_RATIO times better than
+the scan as it is.  No FMU is needed.
+
+Assumptions, named: the sinkage is the same everywhere (it changes by millimetres with the
+load transfer, which the attitude gains absorb); each wheel is a rigid circle in the vertical
+plane of the chassis heading (the tyre's width and the wheel's lean with the chassis roll are
+ignored); the rover is at rest in each pose (no dynamics: pitching oscillations and the
+chassis's lag behind the ground are model error).
 """
 
 from __future__ import annotations
@@ -57,21 +77,31 @@ LIMITS = np.array([0.6, 0.6, 0.1, 0.12])
 #: How much better than the unshifted scan a registration must explain the measurements (ratio
 #: of the two least-squares costs, each with its best attitude gains) to be taken as evidence of
 #: a misregistration.  The kinematic model's own error leaves room for any registration to
-#: improve a little: on 20 synthetic campaigns with nothing misregistered the ratio was 1.10-2.58,
-#: and in the detection studies such small registrations were named as false causes by the
-#: terrain replay (which a 5 cm move of the mound can change by half): 2 of those 20 campaigns
-#: before the tilt gains, 1 after (ratio 1.10).  Set from that null distribution (1.5 times its
-#: largest value), not from the misregistered campaigns (ratios 5.3-74).
+#: improve a little: on 20 synthetic campaigns with nothing misregistered the ratio was 1.10-2.58
+#: with the earlier kinematic model (module docstring), and in the detection studies such small
+#: registrations were named as false causes by the terrain replay (which a 5 cm move of the mound
+#: can change by half): 2 of those 20 campaigns before the tilt gains, 1 after (ratio 1.10).  Set
+#: from that null distribution (1.5 times its largest value), not from the misregistered
+#: campaigns (ratios 5.3-74).  With the exact pose: 1.06-1.52 on those 20, 1.02-1.59 on 80 with
+#: a soil effect that leaves the sinkage uniform, 1.18-8.71 on 20 with a weak soil patch (over 4
+#: on two: the patch's deeper sinkage looks like a lower scan), 8.4-173 on 20 misregistered.
 EVIDENCE_RATIO = 4.0
-#: Bounds of the attitude gains (pitch, roll): the chassis tilts by 0.7-1.5 times the ground's
-#: slope between its wheels (measured 1.00-1.17 on the synthetic campaigns).
+#: Bounds of the attitude gains (pitch, roll): the chassis tilts by 0.7-1.5 times the posed
+#: rover's attitude (measured 1.10-1.19 in pitch, 0.94-1.04 in roll on the synthetic campaigns).
 GAIN_LIMITS = (0.7, 1.5)
+
+#: The FMU's defaults (modelDescription), used when the campaign does not override them (m).
+DEFAULT_WHEELBASE = 0.82
+DEFAULT_TRACK = 1.35
+DEFAULT_PIVOT_HEIGHT = 0.15
+DEFAULT_WHEEL_RADIUS = 0.2794
 
 
 @dataclass(frozen=True)
 class Traverse:
     """A measured terrain run at the total station's sample times: position (m), yaw, pitch
-    and roll (rad, interpolated from the IMU), and the rover's wheelbase and track (m)."""
+    and roll (rad, interpolated from the IMU), and the rover's geometry (m): wheelbase and track
+    (between wheel centres), the rocker pivots' height above the axles, the wheel radius."""
 
     x: np.ndarray
     y: np.ndarray
@@ -81,47 +111,103 @@ class Traverse:
     wheelbase: float
     track: float
     roll: np.ndarray | None = None
+    pivot_height: float = DEFAULT_PIVOT_HEIGHT
+    wheel_radius: float = DEFAULT_WHEEL_RADIUS
 
 
-def wheel_points(tr: Traverse) -> tuple[np.ndarray, np.ndarray]:
-    """World x, y (m) of the four wheels below their hubs, shape (n, 4): FL, RL, FR, RR."""
-    c, s = np.cos(tr.yaw), np.sin(tr.yaw)
-    half_l, half_w = tr.wheelbase / 2, tr.track / 2
-    fx = np.array([half_l, -half_l, half_l, -half_l])
-    fy = np.array([half_w, half_w, -half_w, -half_w])
-    px = tr.x[:, None] + c[:, None] * fx - s[:, None] * fy
-    py = tr.y[:, None] + s[:, None] * fx + c[:, None] * fy
-    return px, py
+#: Points across a wheel's circle (fractions of its radius) where the scan is sampled to find
+#: the height at which the wheel touches it.
+ENVELOPE_POINTS = np.linspace(-1.0, 1.0, 13) * 0.999
+#: The pose solve stops when every wheel rests on the ground to this (m), or after POSE_ITERATIONS
+#: (the registration's finite-difference steps of 1e-6 move the residuals by about 3e-4 of their
+#: sigma, so this leaves the differences exact to 0.1 %).
+POSE_TOLERANCE = 1e-10
+POSE_ITERATIONS = 30
+#: Wheel order of the pose arrays: FL, RL, FR, RR (the FMU's).  Side: +1 left, -1 right.
+_SIDE = np.array([1.0, 1.0, -1.0, -1.0])
+_FORE = np.array([1.0, -1.0, 1.0, -1.0])
 
 
-def ground_under_wheels(grid: Grid, tr: Traverse, offset: np.ndarray) -> np.ndarray:
-    """Ground height (m) under each wheel, shape (n, 4), for offset (ox, oy, oz, yaw)."""
+def hub_positions(tr: Traverse, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World x, y, z (m) of the four hubs, each of shape (n, 4) (FL, RL, FR, RR), for the chassis
+    at the measured x, y and yaw with ``pose`` (n, 4) = (z m, roll, pitch, beta rad), as rover.c
+    places them: pivot (0, +-track/2, 0) in the chassis frame, hub (+-wheelbase/2, 0, -pivot
+    height) in the rocker frame, which is turned about the chassis y axis by +beta on the left and
+    -beta on the right; the chassis rotation is Rz(yaw) Ry(pitch) Rx(roll)."""
+    z, roll, pitch, beta = (pose[:, i:i + 1] for i in range(4))
+    b = _SIDE * beta
+    cb, sb = np.cos(b), np.sin(b)
+    half = tr.wheelbase / 2
+    x1 = cb * _FORE * half - sb * tr.pivot_height          # in the chassis frame
+    y1 = _SIDE * tr.track / 2 + 0.0 * x1
+    z1 = -sb * _FORE * half - cb * tr.pivot_height
+    cr, sr = np.cos(roll), np.sin(roll)
+    y2, z2 = cr * y1 - sr * z1, sr * y1 + cr * z1          # Rx(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    x3, z3 = cp * x1 + sp * z2, -sp * x1 + cp * z2         # Ry(pitch)
+    cy, sy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
+    return tr.x[:, None] + cy * x3 - sy * y2, tr.y[:, None] + sy * x3 + cy * y2, z + z3
+
+
+def wheel_ground(grid: Grid, tr: Traverse, x: np.ndarray, y: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The ground height (m) a wheel with its hub above world (x, y) rests on, for registration
+    ``offset`` (ox, oy, oz, yaw): the highest point of the scan under the wheel's circle (radius
+    tr.wheel_radius, in the vertical plane of the chassis heading), less the radius.  On flat
+    ground it is the ground; on a 0.3 slope, 1.2 cm above the point below the hub."""
     ox, oy, oz, yaw = offset
-    px, py = wheel_points(tr)
-    dx, dy = px - ox, py - oy
     c, s = np.cos(yaw), np.sin(yaw)
-    return grid.height(c * dx + s * dy, -s * dx + c * dy) + oz
+    hx, hy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
+    radius = tr.wheel_radius
+    samples = np.stack([grid.height(c * (x + f * radius * hx - ox) + s * (y + f * radius * hy - oy),
+                                    -s * (x + f * radius * hx - ox) + c * (y + f * radius * hy - oy))
+                        + radius * (np.sqrt(1.0 - f * f) - 1.0) for f in ENVELOPE_POINTS])
+    # The highest sample, refined by the parabola through it and its neighbours: the samples are
+    # R/6 apart, which alone leaves the height up to 1 mm low on a slope.
+    top = np.argmax(samples, axis=0)
+    k = np.clip(top, 1, len(ENVELOPE_POINTS) - 2)
+    before, best, after = (np.take_along_axis(samples, (k + d)[None], axis=0)[0] for d in (-1, 0, 1))
+    curvature = before - 2.0 * best + after
+    inside = (top == k) & (curvature < 0.0)
+    vertex = best - (after - before) ** 2 / (8.0 * np.where(inside, curvature, -1.0))
+    return np.where(inside, vertex, samples.max(axis=0)) + oz
 
 
-def predicted_attitude(ground: np.ndarray, tr: Traverse) -> tuple[np.ndarray, np.ndarray]:
-    """Chassis pitch and roll (rad) that the ground under the wheels (m, shape (n, 4): FL, RL,
-    FR, RR) gives: pitch positive nose down (the FMU's convention), roll positive left side up."""
-    slope = ((ground[:, 1] + ground[:, 3]) - (ground[:, 0] + ground[:, 2])) / (2 * tr.wheelbase)
-    side_slope = ((ground[:, 0] + ground[:, 1]) - (ground[:, 2] + ground[:, 3])) / (2 * tr.track)
-    return np.arctan(slope), np.arctan(side_slope)
+def pose_on_ground(grid: Grid, tr: Traverse, offset: np.ndarray, h0: float) -> np.ndarray:
+    """The rover's pose (n, 4): chassis height z (m), roll, pitch (rad, the FMU's conventions:
+    roll positive left side up, pitch positive nose down) and rocker angle beta (rad), with all
+    four wheels resting on the scanned ground (registered by ``offset``) at the measured x, y and
+    yaw; h0 is the chassis height above flat ground.  Newton's method with the Jacobian of the
+    hub heights with the ground held (the hubs move sideways by millimetres per iteration, so it
+    converges by a factor of about ten an iteration)."""
+    n = len(tr.x)
+    clearance = h0 - tr.pivot_height          # hub height above the ground it rests on
+    q = np.zeros((n, 4))
+    q[:, 0] = h0 + wheel_ground(grid, tr, tr.x[:, None], tr.y[:, None], offset)[:, 0]
+    step = 1e-6
+    for _ in range(POSE_ITERATIONS):
+        x, y, z = hub_positions(tr, q)
+        gap = z - (wheel_ground(grid, tr, x, y, offset) + clearance)
+        if np.max(np.abs(gap)) < POSE_TOLERANCE:
+            break
+        jac = np.empty((n, 4, 4))
+        for j in range(4):
+            moved = q.copy()
+            moved[:, j] += step
+            jac[:, :, j] = (hub_positions(tr, moved)[2] - z) / step
+        q -= np.linalg.solve(jac, gap[:, :, None])[:, :, 0]
+    return q
 
 
 def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
               gains: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
     """Scaled residuals of height (and pitch and roll, if measured) for a trial registration,
-    with the chassis tilting ``gains`` (pitch, roll) times the ground's slope."""
-    g = ground_under_wheels(grid, tr, offset)
-    r = [(tr.z - h0 - g.mean(axis=1)) / SIGMA_Z]
-    pitch, roll = predicted_attitude(g, tr)
+    with the chassis tilting ``gains`` (pitch, roll) times the posed rover's attitude."""
+    pose = pose_on_ground(grid, tr, np.asarray(offset, dtype=float), h0)
+    r = [(tr.z - pose[:, 0]) / SIGMA_Z]
     if tr.pitch is not None:
-        r.append((tr.pitch - gains[0] * pitch) / SIGMA_PITCH)
+        r.append((tr.pitch - gains[0] * pose[:, 2]) / SIGMA_PITCH)
     if tr.roll is not None:
-        r.append((tr.roll - gains[1] * roll) / SIGMA_ROLL)
+        r.append((tr.roll - gains[1] * pose[:, 1]) / SIGMA_ROLL)
     return np.concatenate(r)
 
 
@@ -150,6 +236,7 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
     best = None
     for i in np.argsort(costs)[:4]:
         fit = least_squares(res, starts[i], x_scale=np.array([0.1, 0.1, 0.01, 0.02, 0.1, 0.1]), max_nfev=300,
+                            diff_step=1e-6,
                             bounds=(lower, upper))
         if best is None or fit.cost < best.cost:
             best = fit
@@ -162,9 +249,6 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
             "terrain.offsetZ": float(oz) if fit_z else 0.0, "terrain.offsetYaw": float(yaw)}
 
 
-#: The FMU's defaults (modelDescription), used when the campaign does not override them.
-DEFAULT_WHEELBASE = 0.82
-DEFAULT_TRACK = 1.35
 SETTLING = 2.0   # s at the start of a run left out (the rover starts from rest)
 
 
@@ -189,7 +273,9 @@ def traverse_of(campaign, run) -> Traverse:
             attitude[name] = np.interp(t, ta, a)
     rover = campaign.rover or {}
     return Traverse(x, y, z, yaw, attitude.get("pitch"), float(rover.get("rover.wheelbase", DEFAULT_WHEELBASE)),
-                    float(rover.get("rover.track", DEFAULT_TRACK)), roll=attitude.get("roll"))
+                    float(rover.get("rover.track", DEFAULT_TRACK)), roll=attitude.get("roll"),
+                    pivot_height=float(rover.get("rover.pivotHeight", DEFAULT_PIVOT_HEIGHT)),
+                    wheel_radius=float(rover.get("wheel.radius", DEFAULT_WHEEL_RADIUS)))
 
 
 def flat_height(campaign) -> float | None:
