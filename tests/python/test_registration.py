@@ -141,9 +141,9 @@ def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_
     """A rover passing 0.55 m beside the mound's crest, its height, pitch and roll measured with
     the synthetic campaign's noise: the registration puts the mound (centre and +-1 m along the
     track) within 5 cm of where the true registration puts it, and the height within 5 mm.
-    Also when the chassis tilts more than the ground under its wheels, as the FMU's rover does
-    on a slope (measured over the posed rover: 1.10-1.19 in pitch, 0.94-1.04 in roll): fitted as fixed at 1,
-    such a gain was taken for a turn of the scan."""
+    Also when the chassis tilts more than the posed rover, as the FMU's rover does on a slope
+    (measured 1.10-1.19 times in pitch, 0.94-1.04 in roll): fitted as fixed at 1, such a gain
+    was taken for a turn of the scan."""
     scan = _mound_scan()
     truth = np.array([0.15, -0.12, 0.02, 0.04])
     found = reg.register(scan, _flank_traverse(scan, truth, pitch_gain, roll_gain, seed=7), 0.41)
