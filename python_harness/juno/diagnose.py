@@ -40,6 +40,9 @@
    help on its own: an unmodelled first cause can hide it) is refitted
    together with the first cause and judged against it by the same
    criteria; the causes are listed strongest (largest held-out gain) first.
+   The model with both causes is then refitted once more from the paper's
+   initial soil, and the better fit by training objective is reported
+   (_refit_from_paper_soil).
 
 It never reads ``truth.json``.
 """
@@ -717,6 +720,30 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
             "evaluations": res.evaluations, "wall_time": res.wall_time}
 
 
+def _refit_from_paper_soil(problem: Problem, run_kind: np.ndarray, first: Candidate, both_fit: FitResult,
+                           workers: int | None, scheduler: str | None, say: Callable[[str], None]) -> FitResult:
+    """The model with both named causes, refitted once more from the paper's initial soil with
+    both extensions at their starts; the better of the two fits by training objective is
+    reported.  Only the reported model changes: the causes are already named.
+
+    Why: the second round starts from the first cause's optimum, where the soil has been bent to
+    absorb the second cause too, and the joint fit can stay in that basin, as a single
+    candidate's can (Candidate.soil_restart).  Measured (a drivetrain loss of 0.18 and
+    slip-sinkage of 1.40 hidden together, CI seed 597): the second round reported a loss of
+    0.252 and slip-sinkage 1.26 at a training objective of 1.392; refitted from the paper's
+    soil, 0.180 and 1.13 at 1.230.  Only for two causes that both restart from the paper's soil
+    (a soil patch needs its own search to be found at all)."""
+    second = CANDIDATES[both_fit.name]
+    if not (first.soil_restart and second.soil_restart):
+        return both_fit
+    say(f"refitting {first.name} + {second.name} from the paper's initial soil")
+    job = (problem, combined(first, replace(second, grid=())), dict(PAPER_INITIAL), None, 3 * CANDIDATE_ITERATIONS)
+    again = _run_jobs([job], workers, scheduler, say)[0]
+    kept, other = fit_objective(problem, run_kind, both_fit), fit_objective(problem, run_kind, again)
+    say(f"  training objective {kept:.4g} from the first cause's optimum, {other:.4g} from the paper's soil")
+    return again if other < kept else both_fit
+
+
 def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
              candidates: Sequence[str] | None = None,
              progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> dict[str, Any]:
@@ -806,6 +833,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                 second_round = ranked(second_round)
                 if second_round and second_round[0]["significant"]:
                     chosen.append(next(r for r in results2 if r.name == second_round[0]["name"]))
+                    chosen[-1] = _refit_from_paper_soil(problem, run_kind, first, chosen[-1], workers, scheduler, say)
 
     causes = [r.name for r in chosen]
     baseline = {"soil": {k: base.params[k] for k in SOIL_PARAMETERS}, "test_mse": base.test_mse,
