@@ -136,7 +136,7 @@ if [ -n "$wine" ]; then
   # A driver's last line is its summary ("N passed, M failed").  Output without one means wine
   # itself did not run the program (seen once in CI: no output at all, exit 1, and never again in
   # 4 fresh-prefix runs under load); that, and only that, is retried once on a restarted
-  # wineserver, and the log is shown either way.
+  # wineserver.  On a failure the whole log is shown.
   run_under_wine() {
     local log="build-win64/$(basename "$1" .exe).log" attempt
     for attempt in 1 2; do
@@ -144,7 +144,7 @@ if [ -n "$wine" ]; then
       if grep -q '^[0-9]* passed, [0-9]* failed$' "$log"; then cat "$log" >&2; return 1; fi
       echo "checks: wine gave no summary for $1 (attempt $attempt); its output:" >&2
       cat "$log" >&2
-      /usr/lib/wine/wineserver -k 2>/dev/null || true
+      "$(dirname "$wine")/wineserver" -k 2>/dev/null || true
     done
     return 1
   }
