@@ -139,7 +139,7 @@ def hub_positions(tr: Traverse, pose: np.ndarray) -> tuple[np.ndarray, np.ndarra
     cb, sb = np.cos(b), np.sin(b)
     half = tr.wheelbase / 2
     x1 = cb * _FORE * half - sb * tr.pivot_height          # in the chassis frame
-    y1 = _SIDE * tr.track / 2 + 0.0 * x1
+    y1 = np.broadcast_to(_SIDE * tr.track / 2, x1.shape)
     z1 = -sb * _FORE * half - cb * tr.pivot_height
     cr, sr = np.cos(roll), np.sin(roll)
     y2, z2 = cr * y1 - sr * z1, sr * y1 + cr * z1          # Rx(roll)
@@ -158,9 +158,11 @@ def wheel_ground(grid: Grid, tr: Traverse, x: np.ndarray, y: np.ndarray, offset:
     c, s = np.cos(yaw), np.sin(yaw)
     hx, hy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
     radius = tr.wheel_radius
-    samples = np.stack([grid.height(c * (x + f * radius * hx - ox) + s * (y + f * radius * hy - oy),
-                                    -s * (x + f * radius * hx - ox) + c * (y + f * radius * hy - oy))
-                        + radius * (np.sqrt(1.0 - f * f) - 1.0) for f in ENVELOPE_POINTS])
+    samples = []
+    for f in ENVELOPE_POINTS:
+        dx, dy = x + f * radius * hx - ox, y + f * radius * hy - oy      # from the scan's origin
+        samples.append(grid.height(c * dx + s * dy, -s * dx + c * dy) + radius * (np.sqrt(1.0 - f * f) - 1.0))
+    samples = np.stack(samples)
     # The highest sample, refined by the parabola through it and its neighbours: the samples are
     # R/6 apart, which alone leaves the height up to 1 mm low on a slope.
     top = np.argmax(samples, axis=0)

@@ -186,7 +186,11 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     """A drivetrain loss and slip-sinkage together.  Hidden alone at these strengths, the loss
     changes the held-out data far more than slip-sinkage does (held-out gains 83-94 % against
     13-31 %, README "What the diagnosis finds"), so it is the stronger: it must be named first,
-    slip-sinkage second, each with its parameter near the truth."""
+    slip-sinkage second, each with its parameter near the truth.
+
+    A known weakness, not fixed (README, "Two effects at once"): in 3 of 8 offline draws the
+    head-to-head test put a grouser (two parameters) ahead of the loss, and this test fails on
+    such a draw."""
     pairs = [("drivetrain_loss", round(_rng.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(_rng.uniform(0.7, 1.0), 3))]
     seed = _rng.randrange(10_000)
     replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"
