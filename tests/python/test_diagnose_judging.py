@@ -254,3 +254,39 @@ def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to
         order, duels = diagnose.leader_after_head_to_head(
             problem, run_kind, [_significant("drivetrain_loss", 0.25, 1), challenger], fits)
         assert order[0]["name"] == "drivetrain_loss" and duels == []
+
+
+def test_of_two_alternative_first_causes_the_final_model_that_explains_more_is_reported():
+    """As on a drivetrain loss hidden with slip-sinkage: the grouser (two parameters) beat the
+    loss head to head as one-cause models, but found no second cause, while the loss with
+    slip-sinkage on top explains the held-out data better than the grouser alone with as many
+    parameters.  The loss branch is reported."""
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(5)
+    base = _fit("base", _reference(run_kind, 2.0, rng))
+    grouser = _fit("grouser", 0.6 * base.residuals)
+    loss, loss_slip = _fit("drivetrain_loss", 0.7 * base.residuals), _fit("slip_sinkage", 0.4 * base.residuals)
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser], [loss, loss_slip]])
+    assert pick == 1 and duels == []
+
+
+def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_head_to_head():
+    """grouser + slip-sinkage (three parameters) against loss + slip-sinkage (two): a raw gain a
+    little larger by noise alone does not make the larger model the explanation; a paired
+    improvement in every held-out block does."""
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(5)
+    base = _fit("base", _reference(run_kind, 2.0, rng))
+    loss = _fit("drivetrain_loss", 0.7 * base.residuals)
+    loss_slip = _fit("slip_sinkage", 0.4 * base.residuals)
+    noisy = _fit("slip_sinkage", loss_slip.residuals * (1.0 + 0.05 * rng.standard_normal(len(run_kind))))
+    grouser = _fit("grouser", 0.6 * base.residuals)
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, noisy], [loss, loss_slip]])
+    if duels:   # the noisy model's raw gain came out larger: it was put to the test, and lost
+        assert duels[0]["challenger"] == "grouser+slip_sinkage" and not duels[0]["challenger_better"]
+        assert duels[0]["stage"] == "final models"
+    assert pick == 1
+    better = _fit("slip_sinkage", 0.95 * loss_slip.residuals)   # 1.6 points of raw gain, under GAIN_MIN
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, better], [loss, loss_slip]])
+    assert pick == 0 and len(duels) == 1 and duels[0]["challenger_better"]
+    assert duels[0]["leader"] == "drivetrain_loss+slip_sinkage"
