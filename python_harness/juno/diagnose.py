@@ -389,15 +389,6 @@ def _fit_job(args):
                          start_ext=start_ext)
 
 
-def _first_stage_job(job):
-    """One task of diagnose's first stage: ("base", problem) fits the base model,
-    ("registration", (campaign, grid)) registers the scan (registration_start)."""
-    kind, args = job
-    if kind == "base":
-        return fit_candidate(args, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
-    return registration_start(*args)
-
-
 def patch_start(campaign: Campaign, problem: Problem, r: np.ndarray) -> dict[str, float]:
     """Where to start the soil-patch search: the place where the base model's drive-torque
     residuals are largest (the centroid of their squares over the measured positions)."""
@@ -858,12 +849,8 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         else:
             names = [n for n in names if not CANDIDATES[n].needs_terrain]
         problem = build_problem(campaign, fmu_path, grid_file)
-        say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)"
-            + (" and registering the scan" if grid is not None else ""))
-        # The kinematic registration (about 12 s) needs no simulation: it runs beside the base
-        # fit, on the other core, and both are ready before the candidates start.
-        first_stage = [("base", problem)] + ([("registration", (campaign, grid))] if grid is not None else [])
-        base, *registered = map_tasks(_first_stage_job, first_stage, workers=workers, scheduler=scheduler)
+        say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
+        base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
         if base.error:
             raise SimulationError("the base model could not be fitted", [base.error])
         say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
@@ -871,7 +858,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         # neutral setting, i.e. at the base model: least squares accepts only improving steps,
         # so a nested extension can never end worse than the base on the training data.
         start_soil = {k: base.params[k] for k in SOIL_PARAMETERS}
-        registration = registered[0] if registered else {}
+        registration = registration_start(campaign, grid) if grid is not None else {}
         first_starts = {"soil_patch": patch_start(campaign, problem, base.residuals), "terrain_offset": registration}
         searched = {"soil_patch": replace(CANDIDATES["soil_patch"], grid=patch_grid(campaign))}
         jobs = [(problem, searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)) for n in names]
