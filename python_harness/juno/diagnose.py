@@ -760,7 +760,9 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     Measured (a drivetrain loss of 0.221 and slip-sinkage of 1.47 hidden together, seed 3346):
     the loss, fitted alone, bent the soil and came out 0.151; from there loss + slip-sinkage
     ended 4 % worse on held-out data than the loss alone, and no second cause was named.  From
-    the paper's soil the pair gained 68 % (loss 0.222, slip-sinkage 1.33).  Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
+    the paper's soil the pair gained 68 % (loss 0.222, slip-sinkage 1.33).
+
+    Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
     ``[first_res, model with both causes]`` when the best of the round is significant."""
     first = CANDIDATES[first_res.name]
     if not more:
