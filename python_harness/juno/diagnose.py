@@ -40,8 +40,6 @@
    help on its own: an unmodelled first cause can hide it) is refitted
    together with the first cause and judged against it by the same
    criteria; the causes are listed strongest (largest held-out gain) first.
-   Where both causes restart (Candidate.soil_restart), the pair is also fitted
-   from the paper's initial soil, the better by training objective kept.
    The model with both causes is then refitted once more from the paper's
    initial soil, and the better fit by training objective is reported
    (_refit_from_paper_soil).  When the head-to-head test overturned the
@@ -754,15 +752,8 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
                   ) -> tuple[list[dict[str, Any]], list[FitResult]]:
     """Is there a further cause on top of ``first_res``?  Each candidate named in ``more`` (even
     one that did not help on its own: an unmodelled first cause can hide it) is refitted
-    together with the first cause (starting at its optimum, and from the paper's soil too where
-    both restart) and judged against it with the same criteria.
-
-    Measured (a drivetrain loss of 0.221 and slip-sinkage of 1.47 hidden together, seed 3346):
-    the loss, fitted alone, bent the soil and came out 0.151; from there loss + slip-sinkage
-    ended 4 % worse on held-out data than the loss alone, and no second cause was named.  From
-    the paper's soil the pair gained 68 % (loss 0.222, slip-sinkage 1.33).
-
-    Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
+    together with the first cause (starting at its optimum) and judged against it with the same
+    criteria.  Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
     ``[first_res, model with both causes]`` when the best of the round is significant."""
     first = CANDIDATES[first_res.name]
     if not more:
@@ -780,19 +771,8 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     # about three candidate budgets; measured, on that budget a patch "on top" finished an
     # unconverged slip-sinkage fit (coefficient 0.56 of 1.2) and was named a second cause.
     jobs2.append((problem, replace(first, grid=()), start_soil2, start_ext2, 3 * CANDIDATE_ITERATIONS))
-    # As in the first round, two causes that both restart are also fitted from the paper's
-    # soil, the better by training objective kept: from the first cause's optimum, where the
-    # soil was bent to absorb the second effect too, the joint fit can stay in that basin.
-    restarts = [n for n in more if first.soil_restart and CANDIDATES[n].soil_restart]
-    jobs2 += [(problem, combined(first, CANDIDATES[n]), dict(PAPER_INITIAL), None) for n in restarts]
     results2 = _run_jobs(jobs2, workers, scheduler, say)
-    again = results2[len(more) + 1:]
-    continued = results2[len(more)]
-    results2 = results2[:len(more)]
-    for n, res in zip(restarts, again):
-        i = more.index(n)
-        if fit_objective(problem, run_kind, res) < fit_objective(problem, run_kind, results2[i]):
-            results2[i] = res
+    continued = results2.pop()
     reference = continued if fit_objective(problem, run_kind, continued) <= \
         fit_objective(problem, run_kind, first_res) else first_res
     reference, switched_off2 = best_reference(problem, run_kind, reference, results2, first_res.name)
