@@ -864,7 +864,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         cands = significant + [c for c in cands if not c["significant"]]
         best = significant[0] if significant else None
         equally_good = [c["name"] for c in significant[1:] if best and c["gain"] >= TIE_RATIO * best["gain"]]
-        chosen = [next(r for r in results if r.name == best["name"])] if best else []
+        chosen: list[FitResult] = []     # the first cause's fit, then the model with both (second round)
 
         # Second round: is there a further cause on top of the first?  When the head-to-head
         # test put a candidate with more parameters ahead of the penalised ranking's leader, the
