@@ -800,7 +800,7 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
     for chosen in branches:
         label = "+".join(r.name for r in chosen)
         final = replace(chosen[-1], name=label)
-        n_params = len(CANDIDATES[chosen[0].name].params) + sum(len(CANDIDATES[r.name].params) for r in chosen[1:])
+        n_params = sum(len(CANDIDATES[r.name].params) for r in chosen)   # a two-cause fit is named after its second
         summaries.append({"name": label, "n_params": n_params, "significant": True,
                           "gain": relative_gain(problem, base.residuals, final.residuals,
                                                 np.ones(len(run_kind), bool))})
