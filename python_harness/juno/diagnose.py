@@ -40,6 +40,9 @@
    help on its own: an unmodelled first cause can hide it) is refitted
    together with the first cause and judged against it by the same
    criteria; the causes are listed strongest (largest held-out gain) first.
+   Two causes that both restart from the paper's soil are fitted together
+   from there as well, and the fit with the lower training loss over every
+   run is kept (training_objective).
    The model with both causes is then refitted once more from the paper's
    initial soil, and the better fit by training objective is reported
    (_refit_from_paper_soil).  When the head-to-head test overturned the
@@ -551,6 +554,22 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
     return value if np.isfinite(value) else np.inf
 
 
+def training_objective(problem: Problem, res: FitResult) -> float:
+    """The mean fit_loss of every run's scaled residuals on the training blocks, drawbar and
+    terrain alike (infinite for a failed fit).  Chooses between two fits of the same model from
+    different starts where fit_objective (drawbar only) is blind to one failure: a soil that
+    fits the drawbar runs a little better but loses the rover on the terrain replay.
+
+    Measured (a drivetrain loss of 0.249 and slip-sinkage of 1.43 hidden together, draw 3199):
+    the pair refitted from the paper's soil won on the drawbar objective (1.17 against 1.35)
+    and took the terrain replay off the measured path (held-out error x12.5 there); on every
+    run's training blocks it lost (4.56 against 1.49)."""
+    if res.error or res.residuals.size == 0:
+        return np.inf
+    value = fit_loss(res.residuals[problem.train])
+    return value if np.isfinite(value) else np.inf
+
+
 def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
                    fits: Sequence[FitResult], name: str) -> tuple[FitResult, dict[str, FitResult]]:
     """The reference a candidate must beat: ``reference``, or a candidate's fit with that
@@ -771,8 +790,24 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     # about three candidate budgets; measured, on that budget a patch "on top" finished an
     # unconverged slip-sinkage fit (coefficient 0.56 of 1.2) and was named a second cause.
     jobs2.append((problem, replace(first, grid=()), start_soil2, start_ext2, 3 * CANDIDATE_ITERATIONS))
+    # Two causes that both restart from the paper's soil (Candidate.soil_restart) are also
+    # fitted together from there: the first cause's optimum has its soil bent to absorb the
+    # second cause as well, and a joint fit started in that basin can stay in it and judge the
+    # right second cause too weak.  Measured (drivetrain loss and slip-sinkage hidden together,
+    # 16 draws): from the first optimum alone, draw 3346 named the loss only (slip-sinkage's
+    # gain on top fell short); with this restart, both.  The better fit of each pair is chosen
+    # by training_objective, not the drawbar-only fit_objective (why: its docstring).
+    restarts = [n for n in more if first.soil_restart and CANDIDATES[n].soil_restart]
+    jobs2 += [(problem, combined(first, CANDIDATES[n]), dict(PAPER_INITIAL), None) for n in restarts]
     results2 = _run_jobs(jobs2, workers, scheduler, say)
-    continued = results2.pop()
+    from_paper = results2[len(more) + 1:]
+    continued = results2[len(more)]
+    results2 = results2[:len(more)]
+    for n, again in zip(restarts, from_paper):
+        i = more.index(n)
+        if training_objective(problem, again) < training_objective(problem, results2[i]):
+            say(f"  {first.name} + {n}: the fit from the paper's soil is kept (lower training loss on every run)")
+            results2[i] = again
     reference = continued if fit_objective(problem, run_kind, continued) <= \
         fit_objective(problem, run_kind, first_res) else first_res
     reference, switched_off2 = best_reference(problem, run_kind, reference, results2, first_res.name)
