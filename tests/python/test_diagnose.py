@@ -8,9 +8,11 @@ be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths
 
 Covered: `none` on two seeds (one shared with the effect tests as the no-effect reference),
 three of the six effect ids (found in 20 of 20 cases each in the first 20-seed detection study;
-at the current code, on seeds 4000-4019, 20 of 20 each: README), and two effects hidden
-together (both must be named, the stronger first).  Detection rates per effect are measured
-offline by scripts/detection_rates.py (README, "What the diagnosis finds").
+at the current code, on seeds 4000-4019, 20 of 20 each: README), a grouser (named in 18 of 20 on
+seeds 4000-4019, and reported tied with the drivetrain loss it mimics in the other 2: its own
+test says why that tie is the right answer), and two effects hidden together (both must be
+named, the stronger first).  Detection rates per effect are measured offline by
+scripts/detection_rates.py (README, "What the diagnosis finds").
 
 Left out, because the analysis does not find them reliably yet (issue 4 stays open for them),
 rather than asserted loosely:
@@ -18,15 +20,6 @@ rather than asserted loosely:
   near the truth in 17; a CI draw (`--strength 0.796 --seed 8724`) named grouser: multipass,
   with the right parameters, gained 10.5 % at z 2.4, below the threshold, grouser 5.2 % at
   z 3.3 on the terrain replay alone;
-- `grouser`: the truth's lugs add thrust (F_max x (1 + g)) and shear at R + h (more torque per
-  unit of thrust).  A drivetrain loss of h / (R + h) explains nearly as much with one parameter:
-  on seeds 4000-4019, grouser was named in 18 of 20 (with the head-to-head test between a
-  leader and a runner-up with more parameters, and the final models compared; 17 before the
-  latter, 8 of 13 without either), a drivetrain loss in 2 (grouser listed as equally good);
-  the 18 fits put the lugs -11 % to -2 % from the truth but the thrust gain -49 % to +6 % (the
-  lugs absorb part of it).  With the thrust gain alone
-  (before the lugs), `none` was named in 17 of 20: a lower K_vx bends the tanh law alike over
-  the slips a drawbar test reaches;
 - `terrain_offset`: the 30 s terrain replay over the mound is sensitive to where the rover
   goes, so a correct registration often cannot prove itself by replay.  At the diagnosis'
   5 ms step the replay at the true soil and registration ended 0.3-0.5 m off the measured
@@ -53,7 +46,10 @@ JUNO = [str(ROOT / ".venv" / "bin" / "juno")] if (ROOT / ".venv" / "bin" / "juno
     [sys.executable, "-m", "juno.cli"]
 
 EFFECT_IDS = ("soil_patch", "slip_sinkage", "drivetrain_loss")
-NOT_YET_RELIABLE = ("multipass", "grouser", "terrain_offset")
+#: Effects that another candidate can mimic so closely that the data cannot tell them apart:
+#: each has its own test below, which accepts that tie only where the diagnosis reports it.
+MIMICKED = {"grouser": "drivetrain_loss"}
+NOT_YET_RELIABLE = ("multipass", "terrain_offset")
 _rng = random.SystemRandom()
 
 
@@ -125,7 +121,8 @@ def _extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
         if not fitted["soilPatch.khFactor"] < 1.0:
             far.append(f"soilPatch.khFactor {fitted['soilPatch.khFactor']:.3f} is not a weaker patch")
     elif effect == "grouser":
-        rel("grouser.thrustGain", 0.5)
+        # measured fits: lugs -11 % to -2 %, thrust gain -49 % to +6 % (the lugs take up part of it)
+        rel("grouser.thrustGain", 0.6)
         rel("grouser.lugHeight", 0.3)
     elif effect == "multipass":
         # The rear wheels follow the whole rut (fraction 1 in the truth) on soil compacted by
@@ -196,7 +193,11 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     effects at once").  One draw (seed 3346) named the loss alone, its fit having bent the soil
     (0.151 against 0.221); now the pair is also fitted from the paper's soil, the better fit by
     the training loss over every run (diagnose.training_objective).  At this code, 16 of 16
-    offline draws name both, the loss within -5 % to +3 % of the truth."""
+    offline draws name both, the loss within -5 % to +3 % of the truth.  A known weakness, not
+    fixed: a CI draw (`--strength 0.979 ... --strength 0.955 --seed 177`) named the loss alone,
+    before this change and after it: the 5 ms terrain replay loses the rover at the true
+    parameters there, and slip-sinkage's 39.5 % drawbar gain was outweighed (README, "Two
+    effects at once").  This test fails on such a draw."""
     pairs = [("drivetrain_loss", round(_rng.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(_rng.uniform(0.7, 1.0), 3))]
     seed = _rng.randrange(10_000)
     replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"
@@ -216,6 +217,39 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
         assert not far, f"[{replay}] fitted extension far from the truth: {far}"
 
 
+def test_a_hidden_grouser_is_named_or_reported_tied_with_the_loss_it_mimics(tmp_path, none_case):
+    """A grouser's lugs shear the soil at R + h: the same thrust needs more torque, as if a
+    fraction h / (R + h) of it were lost in the drivetrain.  Where the drawbar runs do not reach
+    the slips at which its thrust gain shows, the data cannot tell the two apart.  Measured
+    (seeds 4005 and 4008 of the 20-seed study, README "What the diagnosis finds"): at the true
+    soil and grouser, the held-out mean squared residual of the drawbar runs is 1.085 and 1.069;
+    a drivetrain loss fitted on the true soil gets 1.084 and 1.071.  Those two campaigns name the
+    loss and report the grouser as explaining the data about as well (``equally_good``, within
+    TIE_RATIO of the gain); the other 18 name the grouser.
+
+    So the grouser must be named, or the loss named with the grouser reported tied with it, and
+    in either case the grouser's fit must have the right lugs (-11 % to -2 % of the truth in the
+    study) and a thrust gain of the right size (-49 % to +6 %: the lugs take up part of the
+    thrust, so it is the weaker-pinned of the two)."""
+    effect = "grouser"
+    strength = round(_rng.uniform(0.7, 1.0), 3)
+    seed = _rng.randrange(10_000)
+    replay = f"juno synthesize OUT --effect {effect} --strength {strength} --seed {seed}"
+    print(f"\n[diagnose] {replay}")
+    diagnosis, truth = _hide_and_diagnose(tmp_path, effect, strength, seed)
+    summary = ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis["candidates"])
+    named = diagnosis["cause"] == effect
+    tied = diagnosis["cause"] == MIMICKED[effect] and effect in diagnosis["equally_good"]
+    assert named or tied, f"[{replay}] named {diagnosis['cause']}, equally good {diagnosis['equally_good']}: {summary}"
+    gain = diagnosis["gain"]["relative"]
+    none_gain = max((c["gain"] for c in none_case[0]["candidates"] if c["name"] == effect), default=0.0)
+    assert gain > 0 and gain > none_gain, f"[{replay}] held-out gain {gain:.1%} vs {none_gain:.1%} with no effect"
+    fitted = diagnosis["extended"]["extension"] if named else \
+        next(c for c in diagnosis["candidates"] if c["name"] == effect)["extension"]
+    far = _extension_close(effect, fitted, truth["extension"])
+    assert not far, f"[{replay}] the grouser's fitted extension is far from the truth: {far}"
+
+
 def test_every_effect_id_is_tested_or_listed_as_not_yet_reliable():
     from juno.effects import EFFECTS
-    assert set(EFFECT_IDS) | set(NOT_YET_RELIABLE) == set(EFFECTS) - {"none"}
+    assert set(EFFECT_IDS) | set(MIMICKED) | set(NOT_YET_RELIABLE) == set(EFFECTS) - {"none"}
