@@ -221,13 +221,17 @@ class Problem:
     meta: dict[str, np.ndarray] = field(default_factory=dict)   # per residual: run, signal, time, block
 
 
-def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | None) -> Problem:
-    """Prepares every run and labels each residual with its run, signal, time and block."""
+def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | None,
+                  terrain_segment: float | None = None) -> Problem:
+    """Prepares every run and labels each residual with its run, signal, time and block.
+    ``terrain_segment`` (s): replay terrain runs in segments restarted at the measured pose
+    (identify.prepare_run; experimental, off by default)."""
     prepared = []
     for run in campaign.runs:
         if run.kind == "terrain" and grid_file is None:
             continue
-        prepared.append(prepare_run(campaign, run, terrain_file=grid_file if run.kind == "terrain" else None))
+        prepared.append(prepare_run(campaign, run, terrain_file=grid_file if run.kind == "terrain" else None,
+                                    segment=terrain_segment))
     runs, signals, times = [], [], []
     for p in prepared:
         for column, (ts, _vs, _out, _sigma, _lag) in p.targets.items():
@@ -848,8 +852,11 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
 
 def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
              candidates: Sequence[str] | None = None,
-             progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> dict[str, Any]:
-    """Runs the whole analysis (module docstring) and returns the ``diagnose`` JSON as a dict."""
+             progress: Callable[[str], None] | None = None, scheduler: str | None = None,
+             terrain_segment: float | None = None) -> dict[str, Any]:
+    """Runs the whole analysis (module docstring) and returns the ``diagnose`` JSON as a dict.
+    ``terrain_segment`` (s, experimental): replay the terrain run in segments of that length,
+    each restarted at the measured pose and speed (build_problem); None: one whole replay."""
     say = progress or (lambda m: None)
     t_start = time.perf_counter()
     campaign = load_campaign(campaign) if not isinstance(campaign, Campaign) else campaign
@@ -865,7 +872,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
             grid_file = str(path)
         else:
             names = [n for n in names if not CANDIDATES[n].needs_terrain]
-        problem = build_problem(campaign, fmu_path, grid_file)
+        problem = build_problem(campaign, fmu_path, grid_file, terrain_segment)
         say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
         base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
         if base.error:
@@ -937,6 +944,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         "second_round": second_round,
         "baseline": baseline,
         "criteria": {"block_s": BLOCK, "z_min": Z_MIN, "gain_min": GAIN_MIN, "tie_ratio": TIE_RATIO,
+                     "terrain_segment_s": terrain_segment,
                      "negligible_change": NEGLIGIBLE_CHANGE},
         "residual_analysis": residual_analysis(problem, base.residuals),
     }
@@ -984,6 +992,9 @@ def add_arguments(p) -> None:
                         "workers need the FMU and the campaign folder at the same paths as here")
     p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
     p.add_argument("--plots", metavar="DIR", help="write residual plots to DIR")
+    p.add_argument("--terrain-segments", type=float, metavar="SECONDS",
+                   help="experimental: replay the terrain run in pieces of SECONDS, each restarted at the "
+                        "measured pose and speed (needs a 'yaw' column), so that a heading drift cannot grow")
     p.set_defaults(func=cmd_diagnose)
 
 
@@ -999,7 +1010,8 @@ def cmd_diagnose(args) -> int:
     from .cli import _progress, _to_jsonable
     say = _progress(args.quiet)
     result = diagnose(args.campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
-                      candidates=args.candidates, progress=say, scheduler=args.scheduler)
+                      candidates=args.candidates, progress=say, scheduler=args.scheduler,
+                      terrain_segment=args.terrain_segments)
     if args.plots:
         from .atomic import atomic_directory
         with atomic_directory(args.plots, overwrite=True) as tmp:
