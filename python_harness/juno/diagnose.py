@@ -549,11 +549,14 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
     """What a physical candidate's fit minimises: the mean fit_loss of the drawbar runs' scaled
     residuals on the training blocks (infinite for a failed fit).  Chooses between fits from
     different starts without looking at the held-out blocks."""
+    mask = problem.train & (run_kind == "drawbar")
+    return _loss_on(res, mask if np.any(mask) else problem.train)
+
+
+def _loss_on(res: FitResult, mask: np.ndarray) -> float:
+    """The mean fit_loss of a fit's residuals where ``mask`` holds; infinite for a failed fit."""
     if res.error or res.residuals.size == 0:
         return np.inf
-    mask = problem.train & (run_kind == "drawbar")
-    if not np.any(mask):
-        mask = problem.train
     value = fit_loss(res.residuals[mask])
     return value if np.isfinite(value) else np.inf
 
@@ -568,10 +571,7 @@ def training_objective(problem: Problem, res: FitResult) -> float:
     the pair refitted from the paper's soil won on the drawbar objective (1.17 against 1.35)
     and took the terrain replay off the measured path (held-out error x12.5 there); on every
     run's training blocks it lost (4.56 against 1.49)."""
-    if res.error or res.residuals.size == 0:
-        return np.inf
-    value = fit_loss(res.residuals[problem.train])
-    return value if np.isfinite(value) else np.inf
+    return _loss_on(res, problem.train)
 
 
 def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
@@ -775,8 +775,8 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
                   ) -> tuple[list[dict[str, Any]], list[FitResult]]:
     """Is there a further cause on top of ``first_res``?  Each candidate named in ``more`` (even
     one that did not help on its own: an unmodelled first cause can hide it) is refitted
-    together with the first cause (starting at its optimum) and judged against it with the same
-    criteria.  Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
+    together with the first cause (starting at its optimum, and from the paper's soil too where
+    both restart) and judged against it with the same criteria.  Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
     ``[first_res, model with both causes]`` when the best of the round is significant."""
     first = CANDIDATES[first_res.name]
     if not more:
