@@ -11,7 +11,8 @@ processes took the CPU and the wall-clock figure is inflated):
 * ``fmu-c``    - real-time factor of the FMU from C (``bench_fmu``): a 30 s
   drawbar run (defaults) and a 60 s run on a synthetic mound grid, both
   through ``model_do_step`` and through the FMI functions of the shared
-  library; for context (no target) the same runs at ``solver.step`` 10 ms.
+  library; and the same runs through ``model_do_step`` at ``solver.step``
+  20 ms, where the results are within 0.22 % of a 0.25 ms reference.
 * ``fmpy``     - the same two runs through fmpy (:meth:`JunoFMU.simulate`).
 * ``cost``     - cost-function evaluations per second: the joint fit's
   residuals (:func:`juno.identify.run_residuals` over the three drawbar runs
@@ -327,16 +328,19 @@ def bench_fmu_c(rep: Report, exe: Path, fmu_dir: Path, grid: Path, repeats: int,
                    note=f"{r['total_s']:.3f} s; stepping only {r['duration'] / r['stepping_s']:.0f}x, "
                         f"{r['stepping_s'] / steps * 1e6:.1f} us/substep; CPU {r['cpu_share']:.0%}; "
                         f"end x {r['final_x']:.1f} m", wall_s=r["total_s"], stepping_s=r["stepping_s"])
-    # Context, not a target: the largest internal step the 10 ms communication step allows
-    # (README: the integrator is stable up to 20 ms; accuracy at 10 ms is not checked here).
+    # The same runs at solver.step 20 ms (communication step 20 ms): since the stiffness fix
+    # (README, "Solver step against accuracy") 20 ms is within 0.22 % of a 0.25 ms reference on
+    # these runs in slip, torque and sinkage, so the real-time target is judged here too.
     coarse = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(repeats),
-                     "--solver-step", "0.01", "--only", "direct"], say)
+                     "--solver-step", "0.02", "--comm-step", "0.02", "--only", "direct"], say)
     for r in coarse["runs"]:
         if r["ok"]:
-            rep.figure(f"rtf_c_{r['scenario']}_direct_10ms", f"{r['scenario']} {r['duration']:.0f} s, model_do_step, "
-                       "solver.step 10 ms", r["duration"] / r["total_s"], "x RT",
-                       note=f"context only; stepping only {r['duration'] / r['stepping_s']:.0f}x, "
-                            f"{r['stepping_s'] / (r['duration'] / 0.01) * 1e6:.1f} us/substep; "
+            rtf = r["duration"] / r["total_s"]
+            target, met = (">= 5000x", bool(rtf >= TARGETS["rtf_c_terrain"])) if r["scenario"] == "terrain" else ("", None)
+            rep.figure(f"rtf_c_{r['scenario']}_direct_20ms", f"{r['scenario']} {r['duration']:.0f} s, model_do_step, "
+                       "solver.step 20 ms", rtf, "x RT", target=target, met=met,
+                       note=f"stepping only {r['duration'] / r['stepping_s']:.0f}x, "
+                            f"{r['stepping_s'] / (r['duration'] / 0.02) * 1e6:.1f} us/substep; "
                             f"CPU {r['cpu_share']:.0%}", wall_s=r["total_s"])
     return max(d["maxrss_mb"], coarse["maxrss_mb"])
 
