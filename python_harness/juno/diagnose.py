@@ -85,8 +85,12 @@ TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the da
 #: null distribution.
 NEGLIGIBLE_CHANGE = 0.01
 OUTPUT_INTERVAL = 0.05
-#: Integration step of the diagnosis (s).  The base model and every candidate share it, so the
-#: integrator's slip error (0.5 % at 5 ms) cancels in the comparison; 2.5 times faster than 2 ms.
+#: Integration step of the diagnosis (s).  The base model and every candidate share it; its error
+#: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run (README,
+#: "Solver step against accuracy").  A 2 ms terrain replay was tried after the stiffness fix and
+#: not kept: at the true parameters it replays terrain_offset seed 4005 to the noise (1.01
+#: against 14.1), but loss + slip-sinkage campaigns 3-10 times worse (seed 3199: 24.4 against
+#: 8.6), and it named both causes in 13 of the 16 two-effect draws (README).
 DIAGNOSE_STEP = 5e-3
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
 BASE_ITERATIONS = 15
@@ -608,6 +612,35 @@ def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
     return best, switched_off
 
 
+def on_reference_soil(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult) -> FitResult:
+    """A registration-only candidate (terrain_offset: no physical parameter, the soil held at the
+    base optimum) moved onto ``reference``'s soil, when best_reference chose a better one.  The
+    registration is kept if it lowers the terrain run's training loss on that soil, otherwise
+    the candidate falls back to its neutral setting, as its own fit decides.
+
+    Why: the other candidates refit the soil, and when one of their fits with its extension
+    switched off becomes the reference, a registration judged on the base soil is charged for
+    the soil it was not allowed to change.  Measured (terrain_offset seed 4015): the registration
+    gained 93 % on the terrain run's held-out blocks (z 3.9), but the drawbar runs, which it
+    cannot change, came out 1.5 % worse than the reference's soil at z -3.6, and no cause was named."""
+    candidate = CANDIDATES.get(res.name)
+    if (res.error or candidate is None or any(not e.name.startswith("terrain.") for e in candidate.params)
+            or all(res.params[k] == reference.params[k] for k in SOIL_PARAMETERS)):
+        return res
+    params = {**res.params, **{k: reference.params[k] for k in SOIL_PARAMETERS}}
+    fmu = JunoFMU(problem.fmu_path)
+    try:
+        r = all_residuals(fmu, problem, params)
+    finally:
+        fmu.close()
+    on_terrain = problem.train & (run_kind == "terrain")
+    if not (np.all(np.isfinite(r)) and np.any(on_terrain)
+            and fit_loss(r[on_terrain]) < fit_loss(reference.residuals[on_terrain])):
+        params, r = candidate.switched_off(params), reference.residuals.copy()
+    return FitResult(res.name, params, float(np.mean(r[problem.train] ** 2)), float(np.mean(r[~problem.train] ** 2)),
+                     r, res.evaluations + 1, res.wall_time)
+
+
 def penalised_gain(judged: dict[str, Any]) -> float:
     """A candidate's held-out relative gain less GAIN_MIN per parameter it adds: the ranking of
     candidates, so that of two that explain the data about as well the one with fewer parameters
@@ -816,7 +849,36 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
         fit_objective(problem, run_kind, first_res) else first_res
     reference, switched_off2 = best_reference(problem, run_kind, reference, results2, first_res.name)
     judged = ranked([_judge(problem, run_kind, reference, res, switched_off2.get(res.name)) for res in results2])
-    chosen = [first_res]
+    # A second cause must survive its own removal with the first cause refitted: the winner's
+    # fit with its extension switched off is the start of one more fit of the first cause
+    # alone, and that fit becomes the reference if it fits the training data better.  Why: the
+    # extra parameter can merely carry the fit out of a local optimum of the first cause.
+    # Measured (slip-sinkage 1.15 hidden, seed 4011, before the FMU's stiffness fix):
+    # slip-sinkage alone, from the base optimum and from the paper's soil, stopped at 1.03 with
+    # a drawbar training loss of 1.48; with a drivetrain loss beside it the fit reached 1.13 at
+    # 1.17, and the loss, 0.006, was named a second cause (at the true soil such a loss makes
+    # the held-out error 4 % worse).  Refitted from there, slip-sinkage alone reached 1.12 at
+    # 1.23, and the loss's gain on top was no longer significant.
+    refitted: set[str] = set()
+    adopted: FitResult | None = None
+    while judged and judged[0]["significant"] and judged[0]["name"] not in refitted:
+        top = judged[0]["name"]
+        refitted.add(top)
+        top_fit = next(r for r in results2 if r.name == top)
+        start = CANDIDATES[top].switched_off(top_fit.params)
+        own = {e.name for e in first.params}
+        say(f"  {first.name} alone, refitted from the {first.name} + {top} optimum with {top} switched off")
+        alone = _run_jobs([(problem, replace(first, grid=()), {k: start[k] for k in SOIL_PARAMETERS},
+                            {k: v for k, v in start.items() if k in own}, 3 * CANDIDATE_ITERATIONS)],
+                          workers, scheduler, say)[0]
+        if fit_objective(problem, run_kind, alone) >= fit_objective(problem, run_kind, reference):
+            break
+        say(f"  it fits the drawbar runs' training blocks better ({fit_objective(problem, run_kind, alone):.4g} "
+            f"against {fit_objective(problem, run_kind, reference):.4g}): it is the reference now")
+        reference = adopted = replace(alone, name=first_res.name)
+        judged = ranked([_judge(problem, run_kind, reference, res, switched_off2.get(res.name)) for res in results2])
+    # With no second cause, a first-cause fit that this refit improved is the model reported.
+    chosen = [adopted if adopted is not None and not (judged and judged[0]["significant"]) else first_res]
     if judged and judged[0]["significant"]:
         both = next(r for r in results2 if r.name == judged[0]["name"])
         chosen.append(_refit_from_paper_soil(problem, run_kind, first, both, workers, scheduler, say))
@@ -898,6 +960,11 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
             if fit_objective(problem, run_kind, again) < fit_objective(problem, run_kind, results[i]):
                 results[i] = again
         base, switched_off = best_reference(problem, run_kind, base, results, "base")
+        moved = [on_reference_soil(problem, run_kind, base, res) for res in results]
+        for old_fit, res in zip(results, moved):
+            if res is not old_fit:          # its extension switched off is now the reference itself
+                switched_off[res.name] = base
+        results = moved
         cands = [_judge(problem, run_kind, base, res, switched_off.get(res.name)) for res in results]
         cands = ranked(cands)
         significant = [c for c in cands if c["significant"]]
