@@ -208,8 +208,9 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     (0.151 against 0.221); now the pair is also fitted from the paper's soil, the better fit by
     the training loss over every run (diagnose.training_objective).  With the FMU's stiffness
     fix (session 17), 15 of the 16 offline draws name both, loss first.  A known weakness, not fixed:
-    seed 3199 (loss 0.249, slip-sinkage 1.43), and a CI draw (`--strength 0.979 ...
-    --strength 0.955 --seed 177`), name the loss alone.  At the true parameters the terrain
+    seed 3199 (loss 0.249, slip-sinkage 1.43), and CI draws (`--strength 0.979 ...
+    --strength 0.955 --seed 177`; `0.888 ... 0.736 --seed 8998`, where slip-sinkage gained
+    29.3 % at z 2.6), name the loss alone.  At the true parameters the terrain
     replay of such campaigns misfits the drive torques where the rover climbs the mound, so
     slip-sinkage's drawbar gain is outweighed there (README, "Session 17").  This test fails on
     such a draw."""
