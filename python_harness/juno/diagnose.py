@@ -578,6 +578,13 @@ def training_objective(problem: Problem, res: FitResult) -> float:
     return _loss_on(res, problem.train)
 
 
+def _replayed(problem: Problem, name: str, params: dict[str, object], r: np.ndarray,
+              evaluations: int = 1, wall_time: float = 0.0) -> FitResult:
+    """A FitResult for ``params`` from its replayed residuals ``r`` (no fit of its own)."""
+    return FitResult(name, params, float(np.mean(r[problem.train] ** 2)), float(np.mean(r[~problem.train] ** 2)),
+                     r, evaluations, wall_time)
+
+
 def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
                    fits: Sequence[FitResult], name: str) -> tuple[FitResult, dict[str, FitResult]]:
     """The reference a candidate must beat: ``reference``, or a candidate's fit with that
@@ -601,8 +608,7 @@ def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
             r = all_residuals(fmu, problem, params)
             if not np.all(np.isfinite(r)):
                 continue
-            stripped = FitResult(name, params, float(np.mean(r[problem.train] ** 2)),
-                                 float(np.mean(r[~problem.train] ** 2)), r, 1, 0.0)
+            stripped = _replayed(problem, name, params, r)
             switched_off[res.name] = stripped
             cost = fit_objective(problem, run_kind, stripped)
             if cost < best_cost:
@@ -637,8 +643,7 @@ def on_reference_soil(problem: Problem, run_kind: np.ndarray, reference: FitResu
     if not (np.all(np.isfinite(r)) and np.any(on_terrain)
             and fit_loss(r[on_terrain]) < fit_loss(reference.residuals[on_terrain])):
         params, r = candidate.switched_off(params), reference.residuals.copy()
-    return FitResult(res.name, params, float(np.mean(r[problem.train] ** 2)), float(np.mean(r[~problem.train] ** 2)),
-                     r, res.evaluations + 1, res.wall_time)
+    return _replayed(problem, res.name, params, r, res.evaluations + 1, res.wall_time)
 
 
 def penalised_gain(judged: dict[str, Any]) -> float:
@@ -809,7 +814,8 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     """Is there a further cause on top of ``first_res``?  Each candidate named in ``more`` (even
     one that did not help on its own: an unmodelled first cause can hide it) is refitted
     together with the first cause (starting at its optimum, and from the paper's soil too where
-    both restart) and judged against it with the same criteria.  Returns the judged second round (ranked) and the chosen fits: ``[first_res]``, or
+    both restart) and judged against it with the same criteria.  Returns the judged second round
+    (ranked) and the chosen fits: ``[first_res]``, or
     ``[first_res, model with both causes]`` when the best of the round is significant."""
     first = CANDIDATES[first_res.name]
     if not more:
@@ -861,20 +867,22 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     # 1.23, and the loss's gain on top was no longer significant.
     refitted: set[str] = set()
     adopted: FitResult | None = None
+    own = {e.name for e in first.params}
     while judged and judged[0]["significant"] and judged[0]["name"] not in refitted:
         top = judged[0]["name"]
         refitted.add(top)
         top_fit = next(r for r in results2 if r.name == top)
         start = CANDIDATES[top].switched_off(top_fit.params)
-        own = {e.name for e in first.params}
         say(f"  {first.name} alone, refitted from the {first.name} + {top} optimum with {top} switched off")
         alone = _run_jobs([(problem, replace(first, grid=()), {k: start[k] for k in SOIL_PARAMETERS},
                             {k: v for k, v in start.items() if k in own}, 3 * CANDIDATE_ITERATIONS)],
                           workers, scheduler, say)[0]
-        if fit_objective(problem, run_kind, alone) >= fit_objective(problem, run_kind, reference):
+        cost_alone = fit_objective(problem, run_kind, alone)
+        cost_reference = fit_objective(problem, run_kind, reference)
+        if cost_alone >= cost_reference:
             break
-        say(f"  it fits the drawbar runs' training blocks better ({fit_objective(problem, run_kind, alone):.4g} "
-            f"against {fit_objective(problem, run_kind, reference):.4g}): it is the reference now")
+        say(f"  it fits the drawbar runs' training blocks better ({cost_alone:.4g} against {cost_reference:.4g}): "
+            "it is the reference now")
         reference = adopted = replace(alone, name=first_res.name)
         judged = ranked([_judge(problem, run_kind, reference, res, switched_off2.get(res.name)) for res in results2])
     # With no second cause, a first-cause fit that this refit improved is the model reported.
