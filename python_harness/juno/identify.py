@@ -248,6 +248,41 @@ SPIN_TRACKER = {"drive.Kp": 2000.0, "drive.Ki": 2.0e4, "drive.torqueMax": 2000.0
 POSITION_LAG = 1.0     # s
 SETTLING_TIME = 2.0    # s: residuals start after the PID has caught the measured spins
 
+#: How a replay drives the wheels (prepare_run's ``drive``):
+#: - ``"spin"``: the stiff PID (SPIN_TRACKER) imposes the measured wheel spins; the model's drive
+#:   torque is compared with the measured one.
+#: - ``"torque"``: the measured drive torque drives each side, and a damping on the spin error,
+#:   K (omega_measured - omega) with K = REPLAY_SPIN_DAMPING, keeps the spins on the measured
+#:   ones, as a DC motor's back-EMF does at a constant throttle.  It is done with the FMU's own
+#:   DC motor (``drive.mode = 2``, REPLAY_MOTOR) at the throttle that makes its torque
+#:   T_measured + K (omega_measured - omega) exactly (torque_replay_throttle): what the rover's
+#:   controller did.  The compared torque is then K (omega - omega_measured) off the measured
+#:   one, so the torque residual still says how much more or less torque the model needs.
+#:   Why: imposing the spins is ill-conditioned where the rover climbs a mound at high slip.
+#:   Measured on a noise-free synthetic terrain run (drivetrain loss 0.25 and slip-sinkage 1.43,
+#:   seed 3199): replayed with the spins imposed, even at the truth's own 1 ms step, a front wheel
+#:   lifted off for 10 s and the torque was 60 N m rms off (5 ms: 10 N m); replayed by torque it
+#:   is exact at 1 ms and 3.2 N m rms off at 5 ms.  On drawbar runs the spin replay is the better
+#:   conditioned one (at slips of 0.6 the traction hardly changes with spin, so a small traction
+#:   error moves a torque-driven wheel's spin a lot: 6.9 N m rms at 5 ms against 0.85 N m).
+REPLAY_DRIVES = ("spin", "torque")
+#: The DC motor the torque replay runs through (the FMU's assumed Juno motor, with a supply
+#: voltage ten times the real one, so that the throttle stays well inside [-1, 1] up to about
+#: 6000 N m per side; the voltage does not enter K).  K = efficiency gearRatio^2 kt^2 / resistance.
+REPLAY_MOTOR = {"motor.voltage": 240.0, "motor.kt": 0.0465, "motor.resistance": 0.2,
+                "motor.gearRatio": 129.0, "motor.efficiency": 0.85}
+REPLAY_SPIN_DAMPING = (REPLAY_MOTOR["motor.efficiency"] * (REPLAY_MOTOR["motor.gearRatio"] * REPLAY_MOTOR["motor.kt"]) ** 2
+                       / REPLAY_MOTOR["motor.resistance"])   # N m s/rad, about 153
+
+
+def torque_replay_throttle(torque: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Throttle of REPLAY_MOTOR at which its torque is ``torque`` (N m per side, the measured
+    drive torque) when the wheels spin at ``omega`` (rad/s, the measured spin), so that at any
+    other spin w it gives torque + REPLAY_SPIN_DAMPING (omega - w)."""
+    m = REPLAY_MOTOR
+    per_volt = m["motor.efficiency"] * m["motor.gearRatio"] * m["motor.kt"] / m["motor.resistance"]
+    return (torque / per_volt + m["motor.kt"] * m["motor.gearRatio"] * omega) / m["motor.voltage"]
+
 
 #: A run replayed in segments (prepare_run's ``segment``) is not compared for this long after
 #: each restart: the spin tracker catches the measured spins and the suspension settles.  At
@@ -320,7 +355,8 @@ def restart_segments(data: RunData, duration: float, length: float) -> list[Segm
 
 
 def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
-                terrain_file: str | None = None, stride: int = 1, segment: float | None = None) -> PreparedRun:
+                terrain_file: str | None = None, stride: int = 1, segment: float | None = None,
+                drive: str = "spin") -> PreparedRun:
     """Inputs and comparison targets of a measured run.
 
     Why the spins drive the model: with both drive torque and drawbar force
@@ -341,7 +377,13 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     a mound; measured, at the true parameters the 30 s replay of some
     synthetic campaigns ended 0.3-0.5 m off the measured path (README,
     "terrain run replayed in segments").
+
+    ``drive``: ``"spin"`` (the spins imposed, as above) or ``"torque"`` (the
+    measured torque drives the wheels, damped towards the measured spins;
+    REPLAY_DRIVES says when each is the better conditioned).
     """
+    if drive not in REPLAY_DRIVES:
+        raise ValueError(f"run '{run.id}': unknown replay drive '{drive}' (one of {', '.join(REPLAY_DRIVES)})")
     data = data or read_run(campaign, run)
     t = data.time
     grid = np.arange(t[0], t[-1] + 1e-9, 0.01)
@@ -352,9 +394,22 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
                                  "drive.mode": 1, **SPIN_TRACKER}
     drawbar = (_column_signal(data, "drawbar_force", grid) if run.kind == "drawbar" and data.has("drawbar_force")
                else np.zeros(len(grid)))
-    inputs = InputSignals(grid - t[0], {"drawbarForce": drawbar,
-                                        "omegaRefLeft": _column_signal(data, "omega_left", grid),
-                                        "omegaRefRight": _column_signal(data, "omega_right", grid)})
+    omega_left, omega_right = _column_signal(data, "omega_left", grid), _column_signal(data, "omega_right", grid)
+    inputs = InputSignals(grid - t[0], {"drawbarForce": drawbar, "omegaRefLeft": omega_left,
+                                        "omegaRefRight": omega_right})
+    if drive == "torque":
+        for side, omega in (("left", omega_left), ("right", omega_right)):
+            if not data.has(f"torque_{side}"):
+                raise ValueError(f"run '{run.id}': a torque-driven replay needs the measured drive torque "
+                                 f"(column 'torque_{side}'), and it has none")
+            throttle = torque_replay_throttle(_column_signal(data, f"torque_{side}", grid), omega)
+            worst = int(np.argmax(np.abs(throttle)))
+            if abs(throttle[worst]) > 1.0:
+                raise ValueError(f"run '{run.id}': at t = {grid[worst] - t[0]:.2f} s the measured torque_{side} and "
+                                 f"omega_{side} are beyond what the torque replay's motor can give "
+                                 f"(throttle {throttle[worst]:.2f})")
+            inputs.values[f"throttle{side.capitalize()}"] = throttle
+        params.update({"drive.mode": 2, **REPLAY_MOTOR})
     duration = float(t[-1] - t[0])
     segments = restart_segments(data, duration, segment) if segment is not None and run.kind == "terrain" else []
     if run.kind == "drawbar":
