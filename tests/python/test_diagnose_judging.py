@@ -290,3 +290,23 @@ def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_h
     pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, better], [loss, loss_slip]])
     assert pick == 0 and len(duels) == 1 and duels[0]["challenger_better"]
     assert duels[0]["leader"] == "drivetrain_loss+slip_sinkage"
+
+
+def test_a_runner_up_trailing_by_less_than_one_parameters_charge_gets_its_own_second_round():
+    """As on loss + slip-sinkage seed 3346: a grouser (2 parameters, raw gain 63.7 %) led a
+    drivetrain loss (1 parameter, 60.7 %) by 0.0005 after the charge.  Both are first causes
+    worth a second round; a runner-up further behind is not, and only the closest one joins."""
+    grouser = _significant("grouser", 0.6375, 2)         # 0.5775 after the charge
+    loss = _significant("drivetrain_loss", 0.607, 1)     # 0.577
+    patch = _significant("soil_patch", 0.70, 5)          # 0.55: 0.0275 behind, within NEAR_TIE too
+    far = _significant("multipass", 0.57, 2)             # 0.51: too far behind
+    ranking = ranked([far, patch, loss, grouser])
+    assert [c["name"] for c in ranking] == ["grouser", "drivetrain_loss", "soil_patch", "multipass"]
+    assert [b["name"] for b in diagnose.first_cause_branches(ranking[0], ranking[0], ranking)] == \
+        ["grouser", "drivetrain_loss"]
+    assert [b["name"] for b in diagnose.first_cause_branches(grouser, grouser, [grouser, far])] == ["grouser"]
+    # The head-to-head winner and the ranking's leader it overturned both go on, and the
+    # closest other one within NEAR_TIE of the better of them.
+    winner = _significant("grouser", 0.62, 2)            # 0.56, won its duel against the loss
+    assert [b["name"] for b in diagnose.first_cause_branches(winner, loss, ranked([loss, winner, patch, far]))] == \
+        ["grouser", "drivetrain_loss", "soil_patch"]
