@@ -361,8 +361,8 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
 
     Why the spins drive the model: with both drive torque and drawbar force
     imposed, any imbalance integrates into a speed drift (1 % of the drawbar
-    force is 0.5 m/s after 30 s), so a torque-driven replay diverges even at
-    the true parameters.  With the measured wheel spins imposed by the PID
+    force is 0.5 m/s after 30 s), so a replay driven by the torque alone
+    diverges even at the true parameters.  With the measured wheel spins imposed by the PID
     (``drive.mode = 1``), the rover settles at the slip where traction
     balances the load, as the real one did; the torque the model needs is
     then compared with the measured one.  Drawbar runs are on flat ground
@@ -379,8 +379,9 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     "terrain run replayed in segments").
 
     ``drive``: ``"spin"`` (the spins imposed, as above) or ``"torque"`` (the
-    measured torque drives the wheels, damped towards the measured spins;
-    REPLAY_DRIVES says when each is the better conditioned).
+    measured torque drives the wheels, and a damping towards the measured
+    spins, as a DC motor's, keeps them from drifting; REPLAY_DRIVES says when
+    each is the better conditioned).
     """
     if drive not in REPLAY_DRIVES:
         raise ValueError(f"run '{run.id}': unknown replay drive '{drive}' (one of {', '.join(REPLAY_DRIVES)})")

@@ -206,14 +206,16 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     (diagnose.choose_branch); those three draws name the loss, then slip-sinkage (README, "Two
     effects at once").  One draw (seed 3346) named the loss alone, its fit having bent the soil
     (0.151 against 0.221); now the pair is also fitted from the paper's soil, the better fit by
-    the training loss over every run (diagnose.training_objective).  With the FMU's stiffness
-    fix (session 17), 15 of the 16 offline draws name both, loss first.  A known weakness, not fixed:
-    seed 3199 (loss 0.249, slip-sinkage 1.43), and CI draws (`--strength 0.979 ...
-    --strength 0.955 --seed 177`; `0.888 ... 0.736 --seed 8998`, where slip-sinkage gained
-    29.3 % at z 2.6), name the loss alone.  At the true parameters the terrain
-    replay of such campaigns misfits the drive torques where the rover climbs the mound, so
-    slip-sinkage's drawbar gain is outweighed there (README, "Session 17").  This test fails on
-    such a draw."""
+    the training loss over every run (diagnose.training_objective).
+
+    With the FMU's stiffness fix (session 17), seed 3199 and CI draws 177 and 8998 (`--strength
+    0.888 ... 0.736 --seed 8998`) named the loss alone: the spin-following terrain replay missed
+    the torques where the rover climbs the mound at high slip, even at the true parameters.
+    The terrain run is now replayed by torque (identify.REPLAY_DRIVES), and those three name
+    both.  Seed 3346 then named grouser + slip-sinkage, the grouser's lugs leading the loss by
+    0.0005 after the charge for its second parameter; a runner-up that close gets its own second
+    round (diagnose.first_cause_branches), and it names the loss, then slip-sinkage (README,
+    "Session 18")."""
     pairs = [("drivetrain_loss", round(_rng.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(_rng.uniform(0.7, 1.0), 3))]
     seed = _rng.randrange(10_000)
     replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"
