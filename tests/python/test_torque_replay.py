@@ -100,3 +100,26 @@ def test_a_torque_replay_names_what_it_cannot_use(climbing_at_high_slip):
         prepare_run(campaign, run, data=huge, terrain_file=grid, drive="torque")
     # The spin replay needs no torque column at all.
     assert prepare_run(campaign, run, data=no_torque, terrain_file=grid).params["drive.mode"] == 1
+
+
+def test_the_diagnosis_replays_the_terrain_run_by_the_drive_that_fits_its_training_blocks_better(
+        climbing_at_high_slip, harness_fmu):
+    """diagnose.choose_terrain_drive, blind: at the base model, each drive's replay of the terrain
+    run is scored on the training blocks only, and the better one is used for every candidate.
+    Here (climbing at high slip, the model at the truth) that is the torque replay."""
+    from juno import diagnose
+    campaign, _run, grid, truth = climbing_at_high_slip
+    problem = diagnose.build_problem(campaign, str(harness_fmu.fmu_path), grid)
+    params = {**truth["soil"], **truth["extension"]}
+    at_truth = diagnose._replayed(problem, "base", params, diagnose.all_residuals(harness_fmu, problem, params))
+    chosen, base, drive, losses = diagnose.choose_terrain_drive(campaign, problem, at_truth)
+    assert set(losses) == set(diagnose.TERRAIN_REPLAY_DRIVES)
+    assert drive == min(losses, key=losses.get) == "torque", losses
+    assert losses["spin"] > 1.5 * losses["torque"], losses
+    terrain = next(p for p in chosen.prepared if p.kind == "terrain")
+    assert terrain.params["drive.mode"] == 2
+    assert all(p.params["drive.mode"] == 1 for p in chosen.prepared if p.kind == "drawbar")
+    # The base model's residuals are those of the chosen replay; the drawbar runs' are unchanged.
+    np.testing.assert_array_equal(base.residuals, diagnose.all_residuals(harness_fmu, chosen, params))
+    drawbar = np.isin(problem.meta["run"], [p.run_id for p in problem.prepared if p.kind == "drawbar"])
+    np.testing.assert_array_equal(base.residuals[drawbar], at_truth.residuals[drawbar])
