@@ -19,7 +19,9 @@
    all): the gain is the drop of the mean squared scaled residual (each
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
    extensions are fitted on the drawbar runs only, so the terrain run is a
-   validation run for them, as in the paper; the registration is measured
+   validation run for them, as in the paper (replayed following the measured
+   spins or driven by the measured torque, whichever fits its training blocks
+   better at the base model: choose_terrain_drive); the registration is measured
    kinematically (juno.registration) and accepted or rejected on the terrain
    run's training blocks.  A gain counts as significant only when
    a paired test over held-out units (run, block, signal; Wilcoxon on the
@@ -611,8 +613,9 @@ def choose_terrain_drive(campaign: Campaign, problem: Problem, base: FitResult,
                          ) -> tuple[Problem, FitResult, str, dict[str, float]]:
     """The problem (and the base model's FitResult on it) with the terrain run replayed by the
     drive of TERRAIN_REPLAY_DRIVES whose replay at the base model has the lower fit_loss on the
-    terrain run's training blocks; that drive; and that loss for each drive.  The base fit uses the drawbar
-    runs only, so it is the same for every drive; the held-out blocks are not looked at."""
+    terrain run's training blocks; that drive; and that loss for each drive.  The base fit uses
+    the drawbar runs only, so it is the same for every drive; the held-out blocks are not looked
+    at."""
     fmu = JunoFMU(problem.fmu_path)
     try:
         options = {}

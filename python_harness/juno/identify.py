@@ -271,7 +271,8 @@ REPLAY_DRIVES = ("spin", "torque")
 #: 6000 N m per side; the voltage does not enter K).  K = efficiency gearRatio^2 kt^2 / resistance.
 REPLAY_MOTOR = {"motor.voltage": 240.0, "motor.kt": 0.0465, "motor.resistance": 0.2,
                 "motor.gearRatio": 129.0, "motor.efficiency": 0.85}
-REPLAY_SPIN_DAMPING = (REPLAY_MOTOR["motor.efficiency"] * (REPLAY_MOTOR["motor.gearRatio"] * REPLAY_MOTOR["motor.kt"]) ** 2
+REPLAY_SPIN_DAMPING = (REPLAY_MOTOR["motor.efficiency"]
+                       * (REPLAY_MOTOR["motor.gearRatio"] * REPLAY_MOTOR["motor.kt"]) ** 2
                        / REPLAY_MOTOR["motor.resistance"])   # N m s/rad, about 153
 
 
