@@ -68,7 +68,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from .campaign import Campaign, load_campaign
-from .identify import PAPER_INITIAL, PreparedRun, from_search, prepare_run, to_search
+from .identify import PAPER_INITIAL, REPLAY_DRIVES, PreparedRun, from_search, prepare_run, to_search
 from .parallel import map_tasks
 from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 
@@ -101,7 +101,7 @@ OUTPUT_INTERVAL = 0.05
 #: against 14.1), but loss + slip-sinkage campaigns 3-10 times worse (seed 3199: 24.4 against
 #: 8.6), and it named both causes in 13 of the 16 two-effect draws (README).
 DIAGNOSE_STEP = 5e-3
-#: How the terrain run may be replayed (identify.REPLAY_DRIVES); drawbar runs always follow the
+#: How the terrain run is replayed: one of identify.REPLAY_DRIVES; drawbar runs always follow the
 #: measured spins.  choose_terrain_drive picks one per campaign, blind: the one whose replay at
 #: the base model fits the terrain run's training blocks better.  Neither is right everywhere.
 #: Measured at the true parameters (held-out mean squared scaled residual of the terrain run at
@@ -112,7 +112,6 @@ DIAGNOSE_STEP = 5e-3
 #: where a soil patch beyond the drawbar runs' track then gained 41 % on the terrain run and was
 #: named.  At the base model the training-block choice picks the better of the two at the truth
 #: on all four of none 4004, 3199, 177 and terrain_offset 4005.
-TERRAIN_REPLAY_DRIVES = ("spin", "torque")
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
 BASE_ITERATIONS = 15
 CANDIDATE_ITERATIONS = 15
@@ -612,18 +611,23 @@ def choose_terrain_drive(campaign: Campaign, problem: Problem, base: FitResult,
                          terrain_segment: float | None = None
                          ) -> tuple[Problem, FitResult, str, dict[str, float]]:
     """The problem (and the base model's FitResult on it) with the terrain run replayed by the
-    drive of TERRAIN_REPLAY_DRIVES whose replay at the base model has the lower fit_loss on the
-    terrain run's training blocks; that drive; and that loss for each drive.  The base fit uses
-    the drawbar runs only, so it is the same for every drive; the held-out blocks are not looked
-    at."""
+    drive of identify.REPLAY_DRIVES whose replay at the base model has the lower fit_loss on the
+    terrain run's training blocks; that drive; and that loss for each drive.  ``problem`` and
+    ``base`` are those of the spin replay (build_problem's default).  The base fit uses the
+    drawbar runs only, so it is the same for every drive, and so are the drawbar runs'
+    residuals: only the terrain runs are replayed.  The held-out blocks are not looked at."""
+    kinds = {p.run_id: p.kind for p in problem.prepared}
+    terrain = np.array([kinds[r] == "terrain" for r in problem.meta["run"]])
     fmu = JunoFMU(problem.fmu_path)
     try:
         options = {}
-        for drive in TERRAIN_REPLAY_DRIVES:
-            candidate = build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive)
-            kinds = {p.run_id: p.kind for p in candidate.prepared}
-            terrain = np.array([kinds[r] == "terrain" for r in candidate.meta["run"]])
-            r = all_residuals(fmu, candidate, base.params)
+        for drive in REPLAY_DRIVES:
+            candidate = problem if drive == "spin" else \
+                build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive)
+            r = base.residuals.copy()
+            if drive != "spin":
+                replayed = residuals_for(fmu, candidate, base.params, ("terrain",))
+                r[terrain] = np.nan if replayed is None else replayed
             options[drive] = (fit_loss(r[candidate.train & terrain]), candidate, r)
     finally:
         fmu.close()

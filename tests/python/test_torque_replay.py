@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from juno.campaign import RunData, load_campaign, read_run
-from juno.identify import (REPLAY_MOTOR, REPLAY_SPIN_DAMPING, prepare_run, run_residuals,
+from juno.identify import (REPLAY_DRIVES, REPLAY_MOTOR, REPLAY_SPIN_DAMPING, prepare_run, run_residuals,
                            torque_replay_throttle)
 from juno.simulator import SOIL_PARAMETERS, InputSignals, JunoFMU
 from juno.synthesize import synthesize
@@ -113,7 +113,7 @@ def test_the_diagnosis_replays_the_terrain_run_by_the_drive_that_fits_its_traini
     params = {**truth["soil"], **truth["extension"]}
     at_truth = diagnose._replayed(problem, "base", params, diagnose.all_residuals(harness_fmu, problem, params))
     chosen, base, drive, losses = diagnose.choose_terrain_drive(campaign, problem, at_truth)
-    assert set(losses) == set(diagnose.TERRAIN_REPLAY_DRIVES)
+    assert set(losses) == set(REPLAY_DRIVES)
     assert drive == min(losses, key=losses.get) == "torque", losses
     assert losses["spin"] > 1.5 * losses["torque"], losses
     terrain = next(p for p in chosen.prepared if p.kind == "terrain")
