@@ -213,8 +213,9 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     With the FMU's stiffness fix (session 17), seed 3199 and CI draws 177 and 8998 (`--strength
     0.888 ... 0.736 --seed 8998`) named the loss alone: the spin-following terrain replay missed
     the torques where the rover climbs the mound at high slip, even at the true parameters.
-    The terrain run is now replayed by torque (identify.REPLAY_DRIVES), and those three name
-    both.  Seed 3346 then named grouser + slip-sinkage, the grouser's lugs leading the loss by
+    The terrain run is now replayed by spin or by torque (identify.REPLAY_DRIVES), whichever
+    fits its training blocks better at the base model (diagnose.choose_terrain_drive), and those
+    three name both.  Seed 3346 then named grouser + slip-sinkage, the grouser's lugs leading the loss by
     0.0005 after the charge for its second parameter; a runner-up that close gets its own second
     round (diagnose.first_cause_branches), and it names the loss, then slip-sinkage (README,
     "Session 18")."""

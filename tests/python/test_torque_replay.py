@@ -1,6 +1,7 @@
 """The torque-driven replay (identify.prepare_run's ``drive="torque"``): the measured drive torque
 drives each side, damped towards the measured spin as a DC motor's back-EMF does at a constant
-throttle.  The diagnosis replays the terrain run this way (diagnose.TERRAIN_REPLAY_DRIVE).
+throttle.  The diagnosis replays the terrain run this way where it fits the training blocks
+better than the spin replay (diagnose.choose_terrain_drive).
 
 Why it exists: where the rover climbs a mound at high slip, imposing the measured spins is
 ill-conditioned.  On a noise-free synthetic terrain run with a drivetrain loss and slip-sinkage
