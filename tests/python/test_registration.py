@@ -166,6 +166,59 @@ def test_a_scan_in_its_place_is_left_where_it_is():
                      "terrain.offsetYaw": 0.0}
 
 
+def _alternate_blocks(n: int, block: int = 20) -> np.ndarray:
+    """Training mask of alternating blocks of ``block`` samples, as the diagnosis splits a run."""
+    return (np.arange(n) // block) % 2 == 0
+
+
+def test_a_misregistered_scan_explains_the_held_out_pose_much_better_once_registered():
+    """Fitted on the training blocks only, the registration explains the held-out blocks'
+    height, pitch and roll far more than HELD_OUT_RATIO times better than the scan as it is,
+    and the registration fitted on the whole traverse puts the mound within 5 cm."""
+    scan = _mound_scan()
+    truth = np.array([0.15, -0.12, 0.02, 0.04])
+    tr = _flank_traverse(scan, truth, 1.15, 1.05, seed=7)
+    evidence = reg.held_out_evidence(scan, tr, 0.41, _alternate_blocks(len(tr.x)))
+    assert evidence.significant and evidence.ratio > 3 * reg.HELD_OUT_RATIO, evidence
+    assert 0.0 < evidence.gain < 1.0
+    fitted = np.array([evidence.offsets_all[k] for k in ("terrain.offsetX", "terrain.offsetY",
+                                                          "terrain.offsetZ", "terrain.offsetYaw")])
+    for qx in (3.0, 4.0, 5.0):
+        assert np.hypot(*(_where(fitted, qx, 0.35) - _where(truth, qx, 0.35))) < 0.05
+
+
+def test_a_scan_in_its_place_gains_nothing_on_the_held_out_pose():
+    """Nothing misregistered: whatever the training blocks' fit takes from the noise does not
+    carry over to the held-out blocks, so the evidence is far below HELD_OUT_RATIO."""
+    scan = _mound_scan()
+    tr = _flank_traverse(scan, np.zeros(4), 1.15, 1.05, seed=11)
+    evidence = reg.held_out_evidence(scan, tr, 0.41, _alternate_blocks(len(tr.x)))
+    assert not evidence.significant and evidence.ratio < 0.5 * reg.HELD_OUT_RATIO, evidence
+
+
+@pytest.mark.parametrize("train", ["all", "none", "short"])
+def test_held_out_evidence_needs_both_kinds_of_block(train):
+    """A training mask that leaves no held-out (or no training) sample, or does not match the
+    traverse, is refused with a message, not judged."""
+    scan = _mound_scan()
+    tr = _flank_traverse(scan, np.zeros(4), 1.0, 1.0, seed=3)
+    mask = {"all": np.ones(len(tr.x), bool), "none": np.zeros(len(tr.x), bool),
+            "short": _alternate_blocks(len(tr.x) - 1)}[train]
+    with pytest.raises(ValueError, match="training and held-out"):
+        reg.held_out_evidence(scan, tr, 0.41, mask)
+
+
+def test_a_traverse_subset_keeps_every_per_sample_array_aligned():
+    scan = _mound_scan()
+    tr = reg.Traverse(**{**_flank_traverse(scan, np.zeros(4), 1.0, 1.0, seed=5).__dict__,
+                         "t": np.arange(140) * 0.1})
+    keep = _alternate_blocks(len(tr.x))
+    part = tr.subset(keep)
+    for name in ("x", "y", "z", "yaw", "pitch", "roll", "t"):
+        np.testing.assert_array_equal(getattr(part, name), getattr(tr, name)[keep])
+    assert part.wheelbase == tr.wheelbase and part.track == tr.track
+
+
 def test_flat_traverse_leaves_the_registration_near_neutral():
     """On flat ground nothing can be registered but the height: the search, bounded, must not
     wander off (a traverse that crosses no feature once gave a 2 m, 29 deg 'registration')."""
