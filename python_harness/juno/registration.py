@@ -286,8 +286,9 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
 #: explain the held-out samples (ratio of their mean squared scaled residuals of height, pitch
 #: and roll, each with the attitude gains fitted on the training samples) to count as evidence
 #: of a misregistration.  Measured on synthetic campaigns (seeds 4000-4019, blocks of 4 s):
-#: 0.61-1.36 with nothing hidden, 0.54-1.12 with multi-pass, 6.5-158 misregistered; 3.0 is
-#: near the geometric middle of 1.36 and 6.5.  A soft soil patch reached 9.8: its deeper
+#: 0.61-1.36 with nothing hidden, 0.54-1.50 with multi-pass, slip-sinkage or a grouser,
+#: 6.5-158 misregistered; 3.0 is near the geometric middle of 1.5 and 6.5.  (README, "Session
+#: 19": measured with the roll gain free to 0.7-1.5.)  A soft soil patch reached 9.8: its deeper
 #: sinkage looks like a lowered scan, which this kinematic model cannot tell apart, so the
 #: diagnosis uses the evidence only where no other cause explains more (diagnose._judge).
 HELD_OUT_RATIO = 3.0

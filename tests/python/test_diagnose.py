@@ -8,8 +8,9 @@ be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths
 
 Covered: `none` on two seeds (one shared with the effect tests as the no-effect reference),
 four of the six effect ids (soil_patch, slip_sinkage and drivetrain_loss found in 20 of 20 cases
-each in the first 20-seed detection study and at the code of session 16; terrain_offset since
-session 19, where the registration is judged on the measured pose: README), a grouser (named in 18 of 20 on seeds 4000-4019, and reported tied with the
+each in the first 20-seed detection study and at the code of session 16; terrain_offset in 20
+of 20 on seeds 4000-4019 since session 19, where the registration is judged on the measured
+pose: README), a grouser (named in 18 of 20 on seeds 4000-4019, and reported tied with the
 drivetrain loss it mimics in the other 2: its own test says why that tie is the right answer),
 and two effects hidden together (both must be named, the stronger first).  Detection rates per
 effect are measured offline by scripts/detection_rates.py (README, "What the diagnosis finds").
