@@ -810,9 +810,9 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     4000-4019): the registration fitted on the training blocks explained the held-out pose
     6.5-158 times better than the scan as it is (0.61-1.36 times on 20 campaigns with nothing
     hidden, 0.54-1.50 on 59 with multi-pass, slip-sinkage or a grouser), while its replayed
-    gain was 0-6 % on four of the 20, and none was named there.  On top of another cause the kinematic evidence is not
-    given: a soft soil patch, which the kinematic model does not know, sinks the rover as a
-    lowered scan would (ratios up to 9.8 on 20 soil-patch campaigns)."""
+    gain was 0-6 % on four of the 20, and none was named there.  On top of another cause the
+    kinematic evidence is not given: a soft soil patch, which the kinematic model does not
+    know, sinks the rover as a lowered scan would (ratios up to 9.8 on 20 soil-patch campaigns)."""
     candidate = CANDIDATES[res.name]
     if res.error:
         return {"name": res.name, "cause": candidate.cause, "error": res.error,

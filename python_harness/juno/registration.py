@@ -252,9 +252,8 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     upper = np.concatenate([LIMITS, [g[1] for g in GAIN_LIMITS]])
     best = None
     for i in np.argsort(costs)[:4]:
-        fit = least_squares(res, np.clip(starts[i], lower, upper), x_scale=np.array([0.1, 0.1, 0.01, 0.02, 0.1, 0.1]), max_nfev=300,
-                            diff_step=1e-6,
-                            bounds=(lower, upper))
+        fit = least_squares(res, np.clip(starts[i], lower, upper), x_scale=np.array([0.1, 0.1, 0.01, 0.02, 0.1, 0.1]),
+                            max_nfev=300, diff_step=1e-6, bounds=(lower, upper))
         if best is None or fit.cost < best.cost:
             best = fit
     as_scanned = least_squares(lambda g: res(np.array([0.0, 0.0, 0.0, 0.0, g[0], g[1]])),
@@ -290,7 +289,8 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
 #: 6.5-158 misregistered; 3.0 is near the geometric middle of 1.5 and 6.5.  (README, "Session
 #: 19": measured with the roll gain free to 0.7-1.5.)  A soft soil patch reached 9.8: its deeper
 #: sinkage looks like a lowered scan, which this kinematic model cannot tell apart, so the
-#: diagnosis uses the evidence only where no other cause explains more (diagnose._judge).
+#: diagnosis uses the evidence in its first round only, where a soil patch outranks the
+#: registration by its replayed gain; on top of another cause the replay judges (diagnose._judge).
 HELD_OUT_RATIO = 3.0
 
 
@@ -328,7 +328,10 @@ def held_out_evidence(grid: Grid, tr: Traverse, h0: float | None, train: np.ndar
     free parameters against the kinematic model's own error); on samples it did not see, only a
     real misregistration keeps its gain."""
     train = np.asarray(train, dtype=bool)
-    if train.shape != tr.x.shape or train.all() or not train.any():
+    if train.shape != tr.x.shape:
+        raise ValueError(f"held_out_evidence: the training mask has shape {train.shape}, "
+                         f"the traverse {tr.x.shape[0]} samples")
+    if train.all() or not train.any():
         raise ValueError("held_out_evidence: the traverse needs both training and held-out samples")
     x, gains, _cost, _cost0 = _fit(grid, tr.subset(train), h0)
     held_out = tr.subset(~train)
