@@ -320,7 +320,8 @@ _REGISTERED = {"terrain.offsetX": 0.15, "terrain.offsetY": -0.1, "terrain.offset
 def _pose_evidence(ratio: float) -> diagnose.HeldOutEvidence:
     """Kinematic held-out evidence of a registration that explains the held-out pose ``ratio``
     times better than the scan as it is."""
-    return diagnose.HeldOutEvidence(_REGISTERED, 2.0 * ratio, 2.0, _REGISTERED)
+    return diagnose.HeldOutEvidence(_REGISTERED, 2.0 * ratio, 2.0,
+                                    _REGISTERED if ratio >= diagnose.HELD_OUT_RATIO else None)
 
 
 def _replay_gaining(setting, terrain_factor: float) -> tuple[FitResult, FitResult]:

@@ -194,6 +194,7 @@ def test_a_scan_in_its_place_gains_nothing_on_the_held_out_pose():
     tr = _flank_traverse(scan, np.zeros(4), 1.15, 1.05, seed=11)
     evidence = reg.held_out_evidence(scan, tr, 0.41, _alternate_blocks(len(tr.x)))
     assert not evidence.significant and evidence.ratio < 0.5 * reg.HELD_OUT_RATIO, evidence
+    assert evidence.offsets_all is None          # the scan stays as it is; no second fit
 
 
 @pytest.mark.parametrize("train", ["all", "none", "short"])
