@@ -1163,9 +1163,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                                           "relative": 1 - after.get(k, np.nan) / before_judged[k]
                                           if before_judged[k] > 0 else 0.0}
                                       for k in before_judged}}
-        registration = next((c.get("kinematic") for c in cands if c["name"] == "terrain_offset"), None)
-        if "terrain_offset" in causes and registration:
-            out["gain"]["registration"] = registration     # the held-out pose evidence it was judged on
+        pose_judged = next((c.get("kinematic") for c in cands if c["name"] == "terrain_offset"), None)
+        if "terrain_offset" in causes and pose_judged:
+            out["gain"]["registration"] = pose_judged      # the held-out pose evidence it was judged on
     else:
         out["extended"] = {"name": None, "causes": []}
         out["gain"] = {"held_out_mse_before": base.test_mse, "held_out_mse_after": base.test_mse,
