@@ -627,23 +627,37 @@ def _replayed(problem: Problem, name: str, params: dict[str, object], r: np.ndar
                      r, evaluations, wall_time)
 
 
+def drive_problems(campaign: Campaign, problem: Problem, terrain_segment: float | None = None
+                   ) -> dict[str, Problem]:
+    """The problem with its terrain runs replayed by each drive of identify.REPLAY_DRIVES, by
+    drive; ``problem`` is the spin replay's (build_problem's default).  Their residuals line up:
+    the drive changes how the terrain runs are replayed, not what is compared."""
+    return {drive: problem if drive == "spin" else
+            build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive)
+            for drive in REPLAY_DRIVES}
+
+
 def choose_terrain_drive(campaign: Campaign, problem: Problem, base: FitResult,
-                         terrain_segment: float | None = None
+                         terrain_segment: float | None = None, problems: dict[str, Problem] | None = None
                          ) -> tuple[Problem, FitResult, str, dict[str, float]]:
     """The problem (and the base model's FitResult on it) with the terrain run replayed by the
     drive of identify.REPLAY_DRIVES whose replay at the base model has the lower fit_loss on the
     terrain run's training blocks; that drive; and that loss for each drive.  ``problem`` and
     ``base`` are those of the spin replay (build_problem's default).  The base fit uses the
     drawbar runs only, so it is the same for every drive, and so are the drawbar runs'
-    residuals: only the terrain runs are replayed.  The held-out blocks are not looked at."""
+    residuals: only the terrain runs are replayed.  The held-out blocks are not looked at.
+    ``problems``: drive_problems's (built here if not given).
+
+    This choice is the one the candidates are fitted with; once they are fitted,
+    settle_terrain_drive chooses again over every fitted model."""
     kinds = {p.run_id: p.kind for p in problem.prepared}
     terrain = np.array([kinds[r] == "terrain" for r in problem.meta["run"]])
+    problems = problems or drive_problems(campaign, problem, terrain_segment)
     fmu = JunoFMU(problem.fmu_path)
     try:
         options = {}
         for drive in REPLAY_DRIVES:
-            candidate = problem if drive == "spin" else \
-                build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive)
+            candidate = problems[drive]
             r = base.residuals.copy()
             if drive != "spin":
                 replayed = residuals_for(fmu, candidate, base.params, ("terrain",))
@@ -655,6 +669,56 @@ def choose_terrain_drive(campaign: Campaign, problem: Problem, base: FitResult,
     drive = min(losses, key=losses.get)
     _loss, chosen, r = options[drive]
     return chosen, _replayed(chosen, base.name, base.params, r, base.evaluations, base.wall_time), drive, losses
+
+
+def settle_terrain_drive(problems: dict[str, Problem], current: str, fits: Sequence[FitResult]
+                         ) -> tuple[str, dict[str, Any], list[FitResult]]:
+    """The drive by which the terrain runs are replayed for judging: of the drives in
+    ``problems`` (drive_problems), the one under which some model of ``fits`` (the base model and
+    every fitted candidate, whose terrain runs ``current`` replayed) has the lowest fit_loss on
+    the terrain runs' training blocks.  Returns that drive, the lowest loss under each drive
+    with the model that reached it, and ``fits`` with their terrain runs replayed by that drive
+    (a failed fit is passed on as it is).  The held-out blocks are not looked at, and every
+    model is then judged under the same replay, so their gains compare.
+
+    Why not choose_terrain_drive's choice at the base model alone: with an effect hidden, the
+    base model is wrong, and a wrong model replayed open loop by the measured torque drifts off
+    the measured path, so the spin replay, which imposes the kinematics, looks better at the
+    base model even where the right model is replayed far better by the torque.  Measured
+    (multi-pass seed 4005, terrain run, mean squared scaled residual on the training blocks,
+    spin -> torque): the base model 8.5 -> 17.4, the multi-pass fit 7.5 -> 1.9, the truth
+    6.6 -> 1.3.  Judged on the spin replay, the multi-pass fit lost 9 % of held-out accuracy
+    against the base model (the truth itself was 58 % worse there on the terrain run), and no
+    cause was named."""
+    any_problem = problems[current]
+    kinds = {p.run_id: p.kind for p in any_problem.prepared}
+    terrain = np.array([kinds[r] == "terrain" for r in any_problem.meta["run"]])
+    train = any_problem.train & terrain
+    replays: dict[str, list[FitResult]] = {}
+    best: dict[str, Any] = {}
+    fmu = JunoFMU(any_problem.fmu_path)
+    try:
+        for drive, problem in problems.items():
+            replays[drive] = []
+            for res in fits:
+                if res.error or res.residuals.size == 0:
+                    replays[drive].append(res)
+                    continue
+                if drive == current:
+                    r = res.residuals
+                else:
+                    r = res.residuals.copy()
+                    replayed = residuals_for(fmu, problem, res.params, ("terrain",))
+                    r[terrain] = np.nan if replayed is None else replayed
+                replays[drive].append(_replayed(problem, res.name, res.params, r, res.evaluations, res.wall_time))
+                loss = fit_loss(r[train])
+                loss = float(loss) if np.isfinite(loss) else np.inf
+                if drive not in best or loss < best[drive]["loss"]:
+                    best[drive] = {"loss": loss, "model": res.name}
+    finally:
+        fmu.close()
+    drive = min(best, key=lambda d: best[d]["loss"]) if best else current
+    return drive, best, replays.get(drive, list(fits))
 
 
 def best_reference(problem: Problem, run_kind: np.ndarray, reference: FitResult,
@@ -1051,10 +1115,11 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
         if base.error:
             raise SimulationError("the base model could not be fitted", [base.error])
-        terrain_drive, drive_losses = "spin", {}
+        terrain_drive, drive_losses, settled_losses, problems = "spin", {}, {}, {"spin": problem}
         if grid_file is not None:
+            problems = drive_problems(campaign, problem, terrain_segment)
             problem, base, terrain_drive, drive_losses = choose_terrain_drive(campaign, problem, base,
-                                                                              terrain_segment)
+                                                                              terrain_segment, problems)
             say("terrain run replayed by " + terrain_drive + " (training fit loss at the base model: "
                 + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
         say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
@@ -1073,13 +1138,28 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         restarts = [n for n in names if CANDIDATES[n].soil_restart]
         jobs += [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None) for n in restarts]
         fitted = _run_jobs(jobs, workers, scheduler, say)
+        if len(problems) > 1:
+            fitted_drive = terrain_drive
+            terrain_drive, settled_losses, settled = settle_terrain_drive(problems, terrain_drive, [base] + fitted)
+            base, fitted, problem = settled[0], settled[1:], problems[terrain_drive]
+            say(f"terrain run judged as replayed by {terrain_drive} (fitted with {fitted_drive}; lowest training "
+                "fit loss: " + ", ".join(f"{d} {v['loss']:.3g} ({v['model']})" for d, v in settled_losses.items())
+                + ")")
 
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
         results = fitted[:len(names)]
+        # Of a candidate's two fits, the one with the lower training loss over every run is kept
+        # (training_objective, as in the second round): a fit from the base optimum can stay in
+        # the basin where the base soil absorbed the effect, fit the drawbar runs a little better
+        # and lose the rover on the terrain replay.  Measured (multi-pass seed 4008, torque
+        # replay): from the base optimum, drawbar training loss 2.03 and terrain training mean
+        # square 17.2 (held-out gain 22 %, not significant on any kind of run); from the paper's
+        # soil, 2.08 and 3.4, near the truth's soil and compaction (gain 22 %, z 3.2 on the
+        # drawbar runs).
         for n, again in zip(restarts, fitted[len(names):]):
             i = names.index(n)
-            if fit_objective(problem, run_kind, again) < fit_objective(problem, run_kind, results[i]):
+            if training_objective(problem, again) < training_objective(problem, results[i]):
                 results[i] = again
         base, switched_off = best_reference(problem, run_kind, base, results, "base")
         moved = [on_reference_soil(problem, run_kind, base, res) for res in results]
@@ -1136,6 +1216,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         "criteria": {"block_s": BLOCK, "z_min": Z_MIN, "gain_min": GAIN_MIN, "tie_ratio": TIE_RATIO,
                      "terrain_segment_s": terrain_segment, "terrain_drive": terrain_drive,
                      "terrain_drive_training_loss": drive_losses,
+                     "terrain_drive_settled": settled_losses,
                      "negligible_change": NEGLIGIBLE_CHANGE,
                      "registration_held_out_ratio": HELD_OUT_RATIO},
         "residual_analysis": residual_analysis(problem, base.residuals),
