@@ -10,7 +10,8 @@
    training blocks.  Each starts at the base optimum; the physical ones with
    few parameters are also started from the paper's initial soil, and the
    better fit by training error is kept (the base fit bends the soil to absorb
-   the hidden effect, and the extension's fit can stay in that basin).  Every
+   the hidden effect, and the extension's fit can stay in that basin); the
+   training blocks of every run decide (training_objective).  Every
    fit minimises a soft-L1 loss of the scaled residuals (fit_loss): squares
    up to about FIT_LOSS_SCALE sigma, linear beyond, so that the few seconds
    where a spin-following replay is on a knife edge (a rear wheel dropping
@@ -20,8 +21,9 @@
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
    extensions are fitted on the drawbar runs only, so the terrain run is a
    validation run for them, as in the paper (replayed following the measured
-   spins or driven by the measured torque, whichever fits its training blocks
-   better at the base model: choose_terrain_drive).  The registration is measured
+   spins or driven by the measured torque: whichever lets some fitted model, the
+   base model or a candidate, fit its training blocks best; settle_terrain_drive).
+   The registration is measured
    kinematically (juno.registration: the rover posed on the scan against the
    measured height, pitch and roll) on the terrain run's training blocks, and in
    the first round judged the same way on its held-out blocks (registration_evidence,
@@ -106,8 +108,10 @@ OUTPUT_INTERVAL = 0.05
 #: 8.6), and it named both causes in 13 of the 16 two-effect draws (README).
 DIAGNOSE_STEP = 5e-3
 #: How the terrain run is replayed: one of identify.REPLAY_DRIVES; drawbar runs always follow the
-#: measured spins.  choose_terrain_drive picks one per campaign, blind: the one whose replay at
-#: the base model fits the terrain run's training blocks better.  Neither is right everywhere.
+#: measured spins.  choose_terrain_drive picks one per campaign, blind, for the candidates' fits:
+#: the one whose replay at the base model fits the terrain run's training blocks better; once
+#: they are fitted, settle_terrain_drive chooses again over every model, and that replay is the
+#: one every model is judged on.  Neither is right everywhere.
 #: Measured at the true parameters (held-out mean squared scaled residual of the terrain run at
 #: 5 ms, the noise is 1; spin -> torque): drivetrain loss + slip-sinkage seed 3199 8.6 -> 2.1,
 #: CI draw 177 30.4 -> 7.7 (its truth chatters on the mound: 1 ms and 0.25 ms truths part there

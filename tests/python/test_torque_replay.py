@@ -124,3 +124,38 @@ def test_the_diagnosis_replays_the_terrain_run_by_the_drive_that_fits_its_traini
     np.testing.assert_array_equal(base.residuals, diagnose.all_residuals(harness_fmu, chosen, params))
     drawbar = np.isin(problem.meta["run"], [p.run_id for p in problem.prepared if p.kind == "drawbar"])
     np.testing.assert_array_equal(base.residuals[drawbar], at_truth.residuals[drawbar])
+
+
+def test_once_the_candidates_are_fitted_the_terrain_run_is_judged_by_the_drive_the_best_model_fits_best(
+        climbing_at_high_slip, harness_fmu):
+    """diagnose.settle_terrain_drive, blind: over every fitted model, the drive under which some
+    model fits the terrain run's training blocks best.  A wrong model (the paper's initial soil,
+    neither the loss nor slip-sinkage) is replayed better with its spins imposed, as any model
+    that the measured torque would carry off the measured path; the right one (the truth), far
+    better driven by the torque.  Alone, the wrong model keeps the spin replay; beside the
+    right one, every model is judged on the torque replay; a failed fit is passed on."""
+    from juno import diagnose
+    from juno.identify import PAPER_INITIAL
+    campaign, _run, grid, truth = climbing_at_high_slip
+    problem = diagnose.build_problem(campaign, str(harness_fmu.fmu_path), grid)
+    problems = diagnose.drive_problems(campaign, problem)
+
+    def replayed(name, params):
+        return diagnose._replayed(problem, name, params, diagnose.all_residuals(harness_fmu, problem, params))
+    wrong = replayed("base", dict(PAPER_INITIAL))
+    right = replayed("truth", {**truth["soil"], **truth["extension"]})
+    failed = diagnose.FitResult("broken", {}, np.inf, np.inf, np.zeros(0), 0, 0.0, error="did not converge")
+
+    drive, best, _ = diagnose.settle_terrain_drive(problems, "spin", [wrong])
+    assert drive == "spin" and best["torque"]["loss"] > best["spin"]["loss"], best
+
+    drive, best, settled = diagnose.settle_terrain_drive(problems, "spin", [wrong, failed, right])
+    assert drive == "torque", best
+    assert best["torque"]["model"] == "truth" and best["spin"]["loss"] > 2 * best["torque"]["loss"], best
+    assert settled[1] is failed
+    drawbar = np.isin(problem.meta["run"], [p.run_id for p in problem.prepared if p.kind == "drawbar"])
+    for before, after in ((wrong, settled[0]), (right, settled[2])):
+        assert after.name == before.name and after.params == before.params
+        np.testing.assert_array_equal(after.residuals,
+                                      diagnose.all_residuals(harness_fmu, problems["torque"], before.params))
+        np.testing.assert_array_equal(after.residuals[drawbar], before.residuals[drawbar])
