@@ -1398,6 +1398,13 @@ def report_section(result: dict[str, Any], out: Path) -> list[str]:
     b = result["baseline"]
     lines += [f"Base model fitted on alternate {result['criteria']['block_s']:g} s training blocks of every run; "
               f"held-out mean squared scaled residual {b['test_mse']:.3g} (1 = sensor noise).", ""]
+    settled = result["criteria"].get("terrain_drive_settled") or {}
+    if settled:
+        drive = result["criteria"]["terrain_drive"]
+        how = "following the measured spins" if drive == "spin" else "driven by the measured torque"
+        lines += [f"The terrain run is replayed {how} for every model: the replay under which a fitted model "
+                  f"({settled[drive]['model']}) fits its training blocks best (lowest training loss: "
+                  + ", ".join(f"{d} {v['loss']:.3g}" for d, v in settled.items()) + ").", ""]
     for f in figs:
         lines += [f"![{f}]({f})", ""]
     lines += ["| candidate extension | physical cause | held-out gain | per kind of run | significant |",
