@@ -11,7 +11,8 @@
    few parameters are also started from the paper's initial soil, and the
    better fit by training error is kept (the base fit bends the soil to absorb
    the hidden effect, and the extension's fit can stay in that basin); the
-   training blocks of every run decide (training_objective).  Every
+   drawbar runs' training blocks decide, unless the fit they prefer lost the
+   rover on the terrain replay (better_of_two_fits).  Every
    fit minimises a soft-L1 loss of the scaled residuals (fit_loss): squares
    up to about FIT_LOSS_SCALE sigma, linear beyond, so that the few seconds
    where a spin-following replay is on a knife edge (a rear wheel dropping
@@ -100,6 +101,11 @@ NEAR_TIE = GAIN_MIN
 #: null distribution.
 NEGLIGIBLE_CHANGE = 0.01
 OUTPUT_INTERVAL = 0.05
+#: A fit whose terrain replay has more than this times another fit's training loss has lost the
+#: rover there (better_of_two_fits).  Measured: 3.8 between a multi-pass fit that lost the rover
+#: and one near the truth (seed 4008); mean squares 1.1 apart between two equally good fits of
+#: a campaign with nothing hidden (seed 4015).
+LOST_RATIO = 2.0
 #: Integration step of the diagnosis (s).  The base model and every candidate share it; its error
 #: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run (README,
 #: "Solver step against accuracy").  A 2 ms terrain replay was tried after the stiffness fix and
@@ -609,6 +615,32 @@ def _loss_on(res: FitResult, mask: np.ndarray) -> float:
         return np.inf
     value = fit_loss(res.residuals[mask])
     return value if np.isfinite(value) else np.inf
+
+
+def better_of_two_fits(problem: Problem, run_kind: np.ndarray, first: FitResult, second: FitResult) -> FitResult:
+    """Of two fits of the same candidate (from the base optimum and from the paper's soil), the
+    one the drawbar runs' training blocks prefer (fit_objective), unless it lost the rover on the
+    terrain replay: a fit_loss on the terrain runs' training blocks more than LOST_RATIO times
+    the other fit's.  Then the other.
+
+    Why the drawbar runs decide: the terrain run is replayed open loop, so its training and
+    held-out blocks are one replay, and a choice by its training blocks carries into its
+    held-out blocks.  Chosen by the training loss over every run (training_objective), a
+    multi-pass of rut fraction 0.035 was named on a campaign with nothing hidden (seed 4015,
+    torque replay): its two fits had the same drawbar loss to 3e-6 and terrain training mean
+    squares of 3.9 and 3.5, and the second, kept, gained 7 % on the held-out blocks.
+    Why the exception: a fit from the base optimum can stay in the basin where the base soil
+    absorbed the effect, fit the drawbar runs a little better and lose the rover on the
+    terrain.  Measured (multi-pass seed 4008, torque replay): from the base optimum, drawbar
+    training loss 2.03, terrain training loss 8.6 (mean square 17.2; held-out gain 22 %, not
+    significant on any kind of run); from the paper's soil, 2.08 and 2.2, near the truth's soil
+    and compaction (gain 22 %, z 3.2 on the drawbar runs)."""
+    terrain = problem.train & (run_kind == "terrain")
+    preferred, other = (second, first) if fit_objective(problem, run_kind, second) < \
+        fit_objective(problem, run_kind, first) else (first, second)
+    if np.any(terrain) and _loss_on(preferred, terrain) > LOST_RATIO * _loss_on(other, terrain):
+        return other
+    return preferred
 
 
 def training_objective(problem: Problem, res: FitResult) -> float:
@@ -1153,18 +1185,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
         results = fitted[:len(names)]
-        # Of a candidate's two fits, the one with the lower training loss over every run is kept
-        # (training_objective, as in the second round): a fit from the base optimum can stay in
-        # the basin where the base soil absorbed the effect, fit the drawbar runs a little better
-        # and lose the rover on the terrain replay.  Measured (multi-pass seed 4008, torque
-        # replay): from the base optimum, drawbar training loss 2.03 and terrain training mean
-        # square 17.2 (held-out gain 22 %, not significant on any kind of run); from the paper's
-        # soil, 2.08 and 3.4, near the truth's soil and compaction (gain 22 %, z 3.2 on the
-        # drawbar runs).
         for n, again in zip(restarts, fitted[len(names):]):
             i = names.index(n)
-            if training_objective(problem, again) < training_objective(problem, results[i]):
-                results[i] = again
+            results[i] = better_of_two_fits(problem, run_kind, results[i], again)
         base, switched_off = best_reference(problem, run_kind, base, results, "base")
         moved = [on_reference_soil(problem, run_kind, base, res) for res in results]
         for old_fit, res in zip(results, moved):

@@ -369,3 +369,32 @@ def test_on_top_of_another_cause_a_registration_is_judged_on_the_replay_like_the
     assert verdict["kinematic"] is None and not verdict["significant"]
     verdict = _judge(problem, run_kind, *_replay_gaining(setting, 0.5))
     assert verdict["significant"]
+
+
+def _two_fits(run_kind: np.ndarray, drawbar: tuple[float, float], terrain: tuple[float, float]
+              ) -> tuple[FitResult, FitResult]:
+    """Two fits of one candidate with residuals of the given scales on the drawbar and terrain runs."""
+    shape = np.random.default_rng(3).standard_normal(len(run_kind))
+    return tuple(_fit("multipass", np.where(run_kind == "drawbar", d, t) * shape, **{"multipass.rutFraction": 0.5})
+                 for d, t in zip(drawbar, terrain))
+
+
+def test_of_a_candidates_two_fits_the_drawbar_runs_choose_unless_their_choice_lost_the_rover():
+    """diagnose.better_of_two_fits.  The terrain run is one open-loop replay, so choosing by its
+    training blocks would carry into its held-out blocks: the drawbar runs' training loss
+    chooses, however much better the other fit replays the terrain (up to LOST_RATIO times).
+    Only a fit that lost the rover on the terrain replay (beyond LOST_RATIO times the other's
+    training loss) gives way, whatever its drawbar loss."""
+    problem, run_kind = _problem()
+    from_base, from_paper = _two_fits(run_kind, drawbar=(1.0, 1.1), terrain=(1.3, 1.0))
+    assert diagnose.better_of_two_fits(problem, run_kind, from_base, from_paper) is from_base
+    assert diagnose.better_of_two_fits(problem, run_kind, from_paper, from_base) is from_base
+    lost, kept = _two_fits(run_kind, drawbar=(1.0, 1.1), terrain=(6.0, 1.0))
+    assert diagnose._loss_on(lost, problem.train & (run_kind == "terrain")) > \
+        diagnose.LOST_RATIO * diagnose._loss_on(kept, problem.train & (run_kind == "terrain"))
+    assert diagnose.better_of_two_fits(problem, run_kind, lost, kept) is kept
+    assert diagnose.better_of_two_fits(problem, run_kind, kept, lost) is kept
+    # A failed fit never wins, and never unseats a fit that ran.
+    failed = FitResult("multipass", {}, np.inf, np.inf, np.zeros(0), 0, 0.0, error="diverged")
+    assert diagnose.better_of_two_fits(problem, run_kind, failed, kept) is kept
+    assert diagnose.better_of_two_fits(problem, run_kind, lost, failed) is lost
