@@ -8,11 +8,11 @@
 3. Fit each candidate extension of model-notes section 7 (its own
    parameters together with the four soil parameters refitted), on the
    training blocks.  Each starts at the base optimum; the physical ones with
-   few parameters are also started from the paper's initial soil, and the
-   better fit by training error is kept (the base fit bends the soil to absorb
-   the hidden effect, and the extension's fit can stay in that basin); the
-   drawbar runs' training blocks decide, unless the fit they prefer lost the
-   rover on the terrain replay (better_of_two_fits).  Every
+   few parameters are also started from the paper's initial soil (the base fit
+   bends the soil to absorb the hidden effect, and the extension's fit can stay
+   in that basin); the drawbar runs' training blocks choose between the two
+   fits, unless the fit they prefer lost the rover on the terrain replay
+   (better_of_two_fits).  Every
    fit minimises a soft-L1 loss of the scaled residuals (fit_loss): squares
    up to about FIT_LOSS_SCALE sigma, linear beyond, so that the few seconds
    where a spin-following replay is on a knife edge (a rear wheel dropping
