@@ -684,27 +684,12 @@ def choose_terrain_drive(campaign: Campaign, problem: Problem, base: FitResult,
     residuals: only the terrain runs are replayed.  The held-out blocks are not looked at.
     ``problems``: drive_problems's (built here if not given).
 
-    This choice is the one the candidates are fitted with; once they are fitted,
-    settle_terrain_drive chooses again over every fitted model."""
-    kinds = {p.run_id: p.kind for p in problem.prepared}
-    terrain = np.array([kinds[r] == "terrain" for r in problem.meta["run"]])
+    It is settle_terrain_drive over the base model alone.  This choice is the one the
+    candidates are fitted with; once they are fitted, settle_terrain_drive chooses again over
+    every fitted model."""
     problems = problems or drive_problems(campaign, problem, terrain_segment)
-    fmu = JunoFMU(problem.fmu_path)
-    try:
-        options = {}
-        for drive in REPLAY_DRIVES:
-            candidate = problems[drive]
-            r = base.residuals.copy()
-            if drive != "spin":
-                replayed = residuals_for(fmu, candidate, base.params, ("terrain",))
-                r[terrain] = np.nan if replayed is None else replayed
-            options[drive] = (fit_loss(r[candidate.train & terrain]), candidate, r)
-    finally:
-        fmu.close()
-    losses = {d: (float(o[0]) if np.isfinite(o[0]) else np.inf) for d, o in options.items()}
-    drive = min(losses, key=losses.get)
-    _loss, chosen, r = options[drive]
-    return chosen, _replayed(chosen, base.name, base.params, r, base.evaluations, base.wall_time), drive, losses
+    drive, best, (replayed,) = settle_terrain_drive(problems, "spin", [base])
+    return problems[drive], replayed, drive, {d: v["loss"] for d, v in best.items()}
 
 
 def settle_terrain_drive(problems: dict[str, Problem], current: str, fits: Sequence[FitResult]
