@@ -7,14 +7,13 @@ be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths
 [0.7, 1.0] of each effect's documented range (python_harness/juno/effects.py).
 
 Covered: `none` on two seeds (one shared with the effect tests as the no-effect reference),
-five of the six effect ids (soil_patch, slip_sinkage and drivetrain_loss found in 20 of 20 cases
-each in the first 20-seed detection study and at the code of session 16; terrain_offset in 20
-of 20 on seeds 4000-4019 since session 19, where the registration is judged on the measured
-pose; multipass in 20 of 20 on seeds 4000-4019 since session 20, where every model is judged on
-the terrain replay that the best-fitting model fits best: README), a grouser (named in 18 of 20
-on seeds 4000-4019, and reported tied with the drivetrain loss it mimics in the other 2: its own
-test says why that tie is the right answer), and two effects hidden together (both must be
-named, the stronger first).  Detection rates per effect are measured offline by
+five of the six effect ids (each found in 20 of 20 cases on seeds 4000-4019 at the code of
+session 20, README "Session 21"; terrain_offset since session 19, where the registration is
+judged on the measured pose; multipass since session 20, where every model is judged on the
+terrain replay that the best-fitting model fits best), a grouser (named in 17 of 20 on the same
+seeds, and reported tied with the drivetrain loss it mimics in the other 3: its own test says
+why that tie is the right answer), and two effects hidden together (both must be named, the
+stronger first).  Detection rates per effect are measured offline by
 scripts/detection_rates.py (README, "What the diagnosis finds").
 
 multipass was left out of this test until session 20: 8 of 10 on seeds 4000-4009 with the FMU's
@@ -22,7 +21,7 @@ stiffness fix of session 17 (4005 and 4008 `none`, again in sessions 18 and 19).
 terrain run was judged on the spin replay chosen at the base model, where even the truth was
 worse than the base model; on 4008 the multi-pass fit kept was the one from the base optimum,
 which lost the rover on the terrain replay (diagnose.settle_terrain_drive and
-training_objective say what changed).
+diagnose.better_of_two_fits say what changed).
 """
 
 from __future__ import annotations
@@ -258,9 +257,10 @@ def test_a_hidden_grouser_is_named_or_reported_tied_with_the_loss_it_mimics(tmp_
     the slips at which its thrust gain shows, the data cannot tell the two apart.  Measured
     (seeds 4005 and 4008 of the 20-seed study, README "What the diagnosis finds"): at the true
     soil and grouser, the held-out mean squared residual of the drawbar runs is 1.085 and 1.069;
-    a drivetrain loss fitted on the true soil gets 1.084 and 1.071.  Those two campaigns name the
-    loss and report the grouser as explaining the data about as well (``equally_good``, within
-    TIE_RATIO of the gain); the other 18 name the grouser.
+    a drivetrain loss fitted on the true soil gets 1.084 and 1.071.  Those two campaigns, and
+    4012 at the code of session 20, name the loss and report the grouser as explaining the data
+    about as well (``equally_good``, within TIE_RATIO of the gain; the grouser's fit within 17 %
+    of the truth's thrust gain and 6 % of its lugs); the other 17 name the grouser.
 
     So the grouser must be named, or the loss named with the grouser reported tied with it, and
     in either case the grouser's fit must have the right lugs (-11 % to -2 % of the truth in the
