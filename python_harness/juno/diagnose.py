@@ -43,7 +43,8 @@
    parameters and a larger raw gain explains the held-out data significantly
    better than it, by the same paired test with the leader as the reference
    (head_to_head); or ``none``.  Candidates whose gain is within TIE_RATIO of
-   the cause's are reported as equally good.
+   the cause's are reported as equally good, each with the steady drawbar run
+   at which its fit and the cause's differ most (tied_models_apart).
 5. Look for a second cause: every other candidate (even one that did not
    help on its own: an unmodelled first cause can hide it) is refitted
    together with the first cause and judged against it by the same
@@ -78,6 +79,7 @@ from .identify import PAPER_INITIAL, REPLAY_DRIVES, PreparedRun, from_search, pr
 from .parallel import map_tasks
 from .registration import HELD_OUT_RATIO, HeldOutEvidence
 from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
+from .telling_apart import heaviest_drawbar_load, telling_apart
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
 Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
@@ -983,6 +985,24 @@ def _refit_from_paper_soil(problem: Problem, run_kind: np.ndarray, first: Candid
     return again if other < kept else both_fit
 
 
+def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, tied: list[FitResult]
+                      ) -> list[dict[str, Any]]:
+    """The steady drawbar run that would tell the cause's fit from each fit reported equally
+    good (juno.telling_apart), with the campaign's rover; [] when nothing is tied.  Measured
+    (grouser seeds 4005, 4008, 4012, each naming the drivetrain loss with the grouser tied): up
+    to the campaigns' heaviest load the two fits' steady slips differ by at most 0.010-0.011;
+    at 1000-1500 N they part by 0.08-0.11, and there the grouser's fit is within 0.025 of the
+    truth's."""
+    if not tied:
+        return []
+    fixed = dict(campaign.rover)
+    forces = [p.inputs.values["drawbarForce"] for p in problem.prepared
+              if p.kind == "drawbar" and "drawbarForce" in p.inputs.values]
+    with JunoFMU(problem.fmu_path) as fmu:
+        return telling_apart(fmu, (named.name, {**fixed, **named.params}),
+                             {r.name: {**fixed, **r.params} for r in tied}, heaviest_drawbar_load(forces))
+
+
 def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, first_res: FitResult,
                   more: list[str], searched: dict[str, Candidate], registration: HeldOutEvidence | None,
                   workers: int | None, scheduler: str | None, say: Callable[[str], None]
@@ -1196,6 +1216,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         # the final models are compared (choose_branch).
         second_round: list[dict[str, Any]] = []
         branch_duels: list[dict[str, Any]] = []
+        apart: list[dict[str, Any]] = []
         if best:
             excluded = set(equally_good)
             branches = first_cause_branches(best, ranked_first, significant)
@@ -1211,6 +1232,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
             significant = [best] + [c for c in significant if c["name"] != best["name"]]
             cands = significant + [c for c in cands if not c["significant"]]
             equally_good = [c["name"] for c in significant[1:] if c["gain"] >= TIE_RATIO * best["gain"]]
+            apart = tied_models_apart(campaign, problem, fit_of[best["name"]], [fit_of[n] for n in equally_good])
 
     causes = [r.name for r in chosen]
     baseline = {"soil": {k: base.params[k] for k in SOIL_PARAMETERS}, "test_mse": base.test_mse,
@@ -1221,6 +1243,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         "explanation": "; then ".join(CANDIDATES[c].cause for c in causes) if causes
         else "no extension explains the held-out data significantly better",
         "equally_good": equally_good,
+        "telling_apart": apart,
         "head_to_head": duels + branch_duels,
         "candidates": cands,
         "second_round": second_round,
@@ -1315,6 +1338,8 @@ def cmd_diagnose(args) -> int:
         print(_duel_sentence(duel))
     if result["equally_good"]:
         print("equally good: " + ", ".join(result["equally_good"]))
+    for a in result.get("telling_apart", []):
+        print(_apart_sentence(a))
     if result["second_round"]:
         print(f"on top of {result['cause']}:")
         for c in result["second_round"]:
@@ -1399,6 +1424,15 @@ def _duel_sentence(duel: dict[str, Any]) -> str:
             f"held-out mean squared residual {-duel['gain']:+.1%} against it, {zs}")
 
 
+def _apart_sentence(a: dict[str, Any]) -> str:
+    """One sentence on the run that would tell a tied candidate from the cause (tied_models_apart)."""
+    named, other = a["models"]
+    return (f"What would tell {named} from {other}: a steady drawbar run on flat ground at {a['load_N']:.0f} N "
+            f"and throttle {a['throttle']:g} (the load ramped in over 4 s), where the fitted models settle at "
+            f"slips {a['slip'][named]:.3f} ({named}) and {a['slip'][other]:.3f} ({other}); up to this "
+            f"campaign's heaviest drawbar load they differ by at most {a['difference_within_campaign']:.3f}.")
+
+
 def report_section(result: dict[str, Any], out: Path) -> list[str]:
     """Markdown lines of the diagnosis for the report (figures written into ``out``)."""
     lines = ["## 5. What the model gets wrong: diagnosis", ""]
@@ -1439,6 +1473,8 @@ def report_section(result: dict[str, Any], out: Path) -> list[str]:
             lines += [_duel_sentence(duel), ""]
         if result["equally_good"]:
             lines += ["Explaining the data about as well: " + ", ".join(result["equally_good"]) + ".", ""]
+        for a in result.get("telling_apart", []):
+            lines += [_apart_sentence(a), ""]
         if result["second_round"]:
             lines += [f"Further causes on top of {result['cause']} (each refitted together with it):", "",
                       "| candidate extension | further held-out gain | per kind of run | significant |",
