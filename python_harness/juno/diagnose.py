@@ -996,11 +996,9 @@ def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, ti
     if not tied:
         return []
     fixed = dict(campaign.rover)
-    forces = [p.inputs.values["drawbarForce"] for p in problem.prepared
-              if p.kind == "drawbar" and "drawbarForce" in p.inputs.values]
     with JunoFMU(problem.fmu_path) as fmu:
         return telling_apart(fmu, (named.name, {**fixed, **named.params}),
-                             {r.name: {**fixed, **r.params} for r in tied}, heaviest_drawbar_load(forces))
+                             {r.name: {**fixed, **r.params} for r in tied}, heaviest_drawbar_load(campaign))
 
 
 def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, first_res: FitResult,

@@ -21,12 +21,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .campaign import Campaign
+from .identify import steady_averages
 from .simulator import JunoFMU
 from .synthesize import HEAVY_THROTTLE, THROTTLE, steady_slip
 
 #: Drawbar loads (N) of the ladder: from below the synthetic campaigns' lightest run (320 N) to
-#: beyond the heaviest load at which a grouser truth still settles below full slip at
-#: HEAVY_THROTTLE (about 1160 N, synthesize.load_for_slip).
+#: beyond the load at which a grouser truth settles at 70 % slip at HEAVY_THROTTLE (950-1160 N,
+#: synthesize.load_for_slip); at HEAVY_THROTTLE the fits measured stall by 1400-1600 N.
 LOADS = tuple(float(f) for f in np.arange(200.0, 1601.0, 100.0))
 #: Throttles (0-1): the campaigns' drawbar runs' and the heavy run's (synthesize).
 THROTTLES = (THROTTLE, HEAVY_THROTTLE)
@@ -39,10 +41,12 @@ def slip_ladder(fmu: JunoFMU, params: Mapping[str, object], loads: tuple[float, 
     return np.array([steady_slip(fmu, dict(params), load, throttle) for load in loads])
 
 
-def heaviest_drawbar_load(drawbar_forces: list[np.ndarray]) -> float:
-    """The heaviest steady load (N) among drawbar runs, each given as its sampled drawbar force:
-    the largest median over a run's second half (a run ramps its load in first)."""
-    return max((float(np.median(f[len(f) // 2:])) for f in drawbar_forces if len(f)), default=0.0)
+def heaviest_drawbar_load(campaign: Campaign) -> float:
+    """The heaviest load (N) of the campaign's drawbar runs: the largest measured drawbar force
+    averaged over a run's steady window (identify.steady_averages; the whole run if it has
+    none); 0 without drawbar runs."""
+    return max((steady_averages(campaign, run).drawbar for run in campaign.runs if run.kind == "drawbar"),
+               default=0.0)
 
 
 def telling_apart(fmu: JunoFMU, named: tuple[str, Mapping[str, object]],
