@@ -30,10 +30,8 @@ CAMPAIGN_LOAD = 720.0
 
 
 @pytest.fixture(scope="module")
-def fmu(fmu_path):
-    from juno.simulator import JunoFMU
-    with JunoFMU(fmu_path) as f:
-        yield f
+def fmu(harness_fmu):
+    return harness_fmu
 
 
 def test_a_model_is_not_told_apart_from_itself(fmu):
