@@ -10,8 +10,6 @@ traction limit.
 
 from __future__ import annotations
 
-import pytest
-
 from juno.telling_apart import LOADS, heaviest_drawbar_load, telling_apart
 
 pytest_plugins = ["harness_fixtures"]
@@ -29,31 +27,26 @@ TRUTH = {"soil.kh": 151062.0, "soil.eta": 0.53419, "soil.gamma": 0.07644, "soil.
 CAMPAIGN_LOAD = 720.0
 
 
-@pytest.fixture(scope="module")
-def fmu(harness_fmu):
-    return harness_fmu
-
-
-def test_a_model_is_not_told_apart_from_itself(fmu):
-    (a,) = telling_apart(fmu, ("drivetrain_loss", LOSS_FIT), {"copy": dict(LOSS_FIT)}, CAMPAIGN_LOAD)
+def test_a_model_is_not_told_apart_from_itself(harness_fmu):
+    (a,) = telling_apart(harness_fmu, ("drivetrain_loss", LOSS_FIT), {"copy": dict(LOSS_FIT)}, CAMPAIGN_LOAD)
     assert a["difference"] == 0.0 and a["difference_within_campaign"] == 0.0
     assert a["models"] == ["drivetrain_loss", "copy"]
 
 
-def test_no_drawbar_run_on_flat_ground_tells_a_registration_from_the_scan_as_it_is(fmu):
+def test_no_drawbar_run_on_flat_ground_tells_a_registration_from_the_scan_as_it_is(harness_fmu):
     registered = {**LOSS_FIT, "terrain.offsetX": 0.3, "terrain.offsetY": -0.2, "terrain.offsetZ": 0.05,
                   "terrain.offsetYaw": 0.04}
-    (a,) = telling_apart(fmu, ("base", LOSS_FIT), {"terrain_offset": registered}, CAMPAIGN_LOAD)
+    (a,) = telling_apart(harness_fmu, ("base", LOSS_FIT), {"terrain_offset": registered}, CAMPAIGN_LOAD)
     # On flat ground the offsets move the plane along itself and raise it by offsetZ: the rover
     # runs offsetZ higher, so the slips agree to rounding (measured: 8e-15), not bit for bit.
     assert a["difference"] < 1e-9
 
 
-def test_the_grouser_and_the_loss_it_mimics_part_only_beyond_the_campaigns_loads(fmu):
+def test_the_grouser_and_the_loss_it_mimics_part_only_beyond_the_campaigns_loads(harness_fmu):
     """Up to the campaign's loads the two fits settle within about 0.01 of slip of each other
     (why the campaign could not tell them apart); near the traction limit the loss's rover
     slips far more, since the loss lowers the torque but not the limit the lugs raise."""
-    (a,) = telling_apart(fmu, ("drivetrain_loss", LOSS_FIT), {"grouser": GROUSER_FIT}, CAMPAIGN_LOAD)
+    (a,) = telling_apart(harness_fmu, ("drivetrain_loss", LOSS_FIT), {"grouser": GROUSER_FIT}, CAMPAIGN_LOAD)
     assert a["difference_within_campaign"] < 0.02
     assert a["difference"] > 0.05
     assert a["load_N"] > CAMPAIGN_LOAD
@@ -70,12 +63,12 @@ def test_the_campaigns_heaviest_load_is_its_heaviest_drawbar_runs_steady_force(c
     assert 720.0 - 80.0 < heaviest_drawbar_load(clean_campaign.campaign) < 720.0 + 80.0
 
 
-def test_the_run_that_parts_the_two_fits_shows_which_one_the_truth_is(fmu):
+def test_the_run_that_parts_the_two_fits_shows_which_one_the_truth_is(harness_fmu):
     """Run on the truth, the proposed run settles where the right model (the grouser) predicts,
     not where the loss the campaign named does.  Measured on seven campaigns (grouser 4001,
     4003, 4005, 4008, 4012; drivetrain_loss 4000, 4002): the truth within 0.024 of slip of the
     right model, 0.08-0.29 from the other (README "Session 21")."""
     from juno.synthesize import steady_slip
-    (a,) = telling_apart(fmu, ("drivetrain_loss", LOSS_FIT), {"grouser": GROUSER_FIT}, CAMPAIGN_LOAD)
-    truth = steady_slip(fmu, TRUTH, a["load_N"], a["throttle"])
+    (a,) = telling_apart(harness_fmu, ("drivetrain_loss", LOSS_FIT), {"grouser": GROUSER_FIT}, CAMPAIGN_LOAD)
+    truth = steady_slip(harness_fmu, TRUTH, a["load_N"], a["throttle"])
     assert abs(truth - a["slip"]["grouser"]) < 0.25 * abs(truth - a["slip"]["drivetrain_loss"])
