@@ -55,7 +55,7 @@ TARGETS = {
     "joint_s": 10.0,               # joint identification of three drawbar runs < 10 s
     "diagnose_s": 120.0,           # diagnose < 2 min
 }
-SECTIONS = ("contact", "fmu-c", "fmpy", "cost", "joint")
+SECTIONS = ("contact", "fmu-c", "fmpy", "cost", "joint", "registration")
 COMM_STEP = 0.01                   # s, the default experiment's step size (as bench_fmu)
 
 
@@ -497,6 +497,23 @@ def _vmhwm_kb(pid: int) -> int:
         return 0
 
 
+def bench_registration(rep: Report, campaign, repeats: int, say) -> None:
+    """The scan's registration as the diagnosis fits it before its candidates, on one core:
+    the pose of the rover on the gridded scan, solved for every trial offset (no simulation)."""
+    from .diagnose import registration_evidence
+    from .validate import grid_terrain
+    rep.section("Registration (juno.diagnose.registration_evidence, the terrain run's training blocks)")
+    (run,) = campaign.runs_of_kind("terrain")[:1]
+    with tempfile.TemporaryDirectory(prefix="juno-bench-grid-") as tmp:
+        _path, grid = grid_terrain(campaign, run, tmp)
+        say(f"registration_evidence, {repeats} repeats")
+        walls, share, evidence = timed(lambda: registration_evidence(campaign, grid), repeats)
+    found = "no registration found" if evidence is None else \
+        f"held-out pose {evidence.ratio:.3g} times better than the scan as it is"
+    rep.figure("registration_s", "registration fit and its held-out evidence", float(np.median(walls)), "s",
+               note=f"median of {repeats}; CPU {share:.0%} of one core; {found}", walls=walls)
+
+
 def bench_diagnose(rep: Report, fmu, campaign, say) -> float | None:
     import threading
     from .diagnose import diagnose
@@ -587,12 +604,14 @@ def cmd_bench(args) -> int:
         with JunoFMU(fmu_path) as fmu:
             if "fmpy" in sections:
                 bench_fmpy(rep, fmu, grid, repeats, say)
-            if sections & {"cost", "joint"} or args.with_diagnose:
+            if sections & {"cost", "joint", "registration"} or args.with_diagnose:
                 campaign, campaign_time = _campaign(tmp, fmu, say)
                 if "cost" in sections:
                     bench_cost(rep, fmu, campaign, repeats, say)
                 if "joint" in sections:
                     bench_joint(rep, fmu, campaign, long_repeats, say)
+                if "registration" in sections:
+                    bench_registration(rep, campaign, long_repeats, say)
                 if args.with_diagnose:
                     rss["diagnose workers"] = bench_diagnose(rep, fmu, campaign, say)
 
