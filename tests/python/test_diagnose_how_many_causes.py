@@ -1,0 +1,87 @@
+"""How many causes the blind diagnosis names: none where nothing is hidden (a second seed beside
+test_diagnose.py's), both of two effects hidden together, the stronger first, and no second
+cause from a parameter that only frees the first cause's fit.
+
+These diagnoses are in a file of their own so that pytest-xdist (``--dist loadfile``, one file
+per worker) runs them beside test_diagnose.py's, not after them.  Draws as in test_diagnose.py
+(blind_draws.py): random strength and seed, printed so that a failure can be replayed.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from blind_draws import DRAWS, candidates_summary, extension_close, hide_and_diagnose
+
+
+@pytest.mark.parametrize("draw", [1])
+def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
+    """With nothing hidden, no cause is named, on further random seeds (the false-cause rate
+    over many seeds is measured by scripts/detection_rates.py; README)."""
+    seed = DRAWS.randrange(10_000, 20_000)
+    print(f"\n[diagnose] effect none, seed {seed}")
+    diagnosis, _ = hide_and_diagnose(tmp_path, "none", 1.0, seed)
+    assert diagnosis["cause"] == "none" and diagnosis["causes"] == [], \
+        f"seed {seed}: a false cause was named: {candidates_summary(diagnosis)}"
+
+
+def test_two_hidden_effects_are_named_stronger_first(tmp_path):
+    """A drivetrain loss and slip-sinkage together, each at a strength in [0.7, 1].
+
+    Stronger means: explains more of what the base model gets wrong.  Each effect's one-cause
+    model (its parameter and the soil refitted) is judged against the same base model, so its
+    held-out gain (the candidates' ``gain``) measures the effect alone, whatever is named first.
+    At these strengths the loss is the stronger: on 17 pair draws of session 22 (11 where
+    slip-sinkage is strongest against the loss, loss 0.72-0.79 and slip-sinkage 0.90-1.0, and 6
+    over the whole square), its gain was 36-84 % against slip-sinkage's -0.4 to +25 %, and all 17
+    named the loss, then slip-sinkage, with both parameters near the truth (README, "Session
+    22").  So the loss must be named first, slip-sinkage second, the loss's gain must be the
+    larger, each step must remove held-out error, and each parameter must be near the truth.
+
+    The steps' own sizes do not say which effect is the stronger: the second step is judged
+    against the first cause's model, which bends the soil to make up for the missing
+    slip-sinkage (k_h at 0.39-0.87 of the truth on those 17 draws), so it removes that bend's
+    error too.  In 4 of the 11 corner draws (CI draw 8256 among them) the second step removed
+    more held-out error than the first: the check this test made until session 22, which those
+    4 failed (README).
+
+    History of the named order: in 3 of 8 offline draws a grouser (two parameters: its lugs mimic
+    the loss, its thrust gain takes up part of the slip-sinkage) won the head-to-head test against
+    the loss as one-cause models and was named first; both now get a second round and the final
+    models are compared (diagnose.choose_branch).  Seed 3346 named the loss alone, its fit having
+    bent the soil; the pair is now also fitted from the paper's soil.  Seed 3199 and CI draws 177
+    and 8998 named the loss alone: the terrain run is now replayed by spin or by torque,
+    whichever fits its training blocks better (diagnose.choose_terrain_drive).  A runner-up
+    within NEAR_TIE of the leader gets its own second round (diagnose.first_cause_branches)."""
+    pairs = [("drivetrain_loss", round(DRAWS.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(DRAWS.uniform(0.7, 1.0), 3))]
+    seed = DRAWS.randrange(10_000)
+    replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"
+    print(f"\n[diagnose] {replay}")
+    diagnosis, truth = hide_and_diagnose(tmp_path, pairs, 0.0, seed)
+    second = candidates_summary(diagnosis, "second_round")
+    assert diagnosis["causes"] == ["drivetrain_loss", "slip_sinkage"], \
+        f"[{replay}] named {diagnosis['causes']}; second round: {second}"
+    gain = {c["name"]: c["gain"] for c in diagnosis["candidates"]}
+    assert gain["drivetrain_loss"] > gain["slip_sinkage"], \
+        f"[{replay}] one-cause gains: {candidates_summary(diagnosis)}"
+    for step in diagnosis["gain"]["steps"]:
+        assert step["held_out_mse_after"] < step["held_out_mse_before"], f"[{replay}] {step}"
+    for effect in ("drivetrain_loss", "slip_sinkage"):
+        far = extension_close(effect, diagnosis["extended"]["extension"], truth["extension"])
+        assert not far, f"[{replay}] fitted extension far from the truth: {far}"
+
+
+def test_a_second_parameter_that_only_frees_the_first_causes_fit_names_no_second_cause(tmp_path):
+    """A second extension's gain must survive its own removal with the first cause refitted
+    (diagnose._second_round).  A fixed draw, not a random one: slip-sinkage 1.15
+    (`--effect slip_sinkage --strength 0.767 --seed 4011`).  There slip-sinkage alone stops in
+    a local optimum (coefficient 1.03, drawbar training loss 1.48, from the base optimum and from
+    the paper's soil alike); fitted beside it, a drivetrain loss of 0.006 carried the soil out of
+    it, and that loss was named a second cause (at the true soil such a loss makes the held-out
+    error 4 % worse).  Refitted alone from that optimum with the loss switched off, slip-sinkage
+    reaches 1.12 at 1.23, and the loss's gain on top is no longer significant."""
+    diagnosis, truth = hide_and_diagnose(tmp_path, "slip_sinkage", 0.767, 4011)
+    assert diagnosis["causes"] == ["slip_sinkage"], \
+        f"named {diagnosis['causes']}; second round: {candidates_summary(diagnosis, 'second_round')}"
+    far = extension_close("slip_sinkage", diagnosis["extended"]["extension"], truth["extension"])
+    assert not far, f"fitted extension far from the truth: {far}"
