@@ -19,6 +19,15 @@ seeds) use a 2-core machine better than one with two; --merge tables them togeth
     .venv/bin/python scripts/detection_rates.py --seeds 5 --first-seed 3000 --workers 1 --json a.json &
     .venv/bin/python scripts/detection_rates.py --seeds 5 --first-seed 3005 --workers 1 --json b.json
     .venv/bin/python scripts/detection_rates.py --merge a.json b.json --json study.json
+
+--pair A B hides two effects together instead, each at its own strength (--pair-strengths), and
+tables whether both were named and whether the first named is the stronger: the one whose
+one-cause model has the larger held-out gain (each judged alone against the base model).  It also
+counts the draws where the second step removed more held-out error than the first, a measure
+that depends on the order (README, "Session 22"):
+
+    .venv/bin/python scripts/detection_rates.py --pair drivetrain_loss slip_sinkage \
+        --pair-strengths 0.7 0.8 0.9 1.0 --seeds 4 --workers 1 --json pairs.json
 """
 
 from __future__ import annotations
@@ -39,26 +48,40 @@ from juno.effects import EFFECTS
 from juno.synthesize import synthesize
 
 
-def one_case(effect: str, strength: float, seed: int, workers: int | None, heavy_run: bool = False) -> dict:
-    """Synthesize with ``effect`` hidden, diagnose without the truth, and summarise."""
+def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...], seed: int, workers: int | None,
+             heavy_run: bool = False) -> dict:
+    """Synthesize with ``effect`` hidden (a tuple: several, each at its own ``strength``),
+    diagnose without the truth, and summarise."""
+    effects = list(effect) if isinstance(effect, tuple) else [effect]
+    strengths = list(strength) if isinstance(strength, tuple) else [strength]
     with tempfile.TemporaryDirectory(prefix="juno-detect-") as tmp:
         campaign = Path(tmp) / "campaign"
-        synthesize(campaign, effect=effect, strength=strength, seed=seed, heavy_run=heavy_run)
+        synthesize(campaign, effect=effects, strength=strengths, seed=seed, heavy_run=heavy_run)
         truth = json.loads((campaign / "truth.json").read_text())
         shutil.move(str(campaign / "truth.json"), Path(tmp) / "truth.json")
         t0 = time.perf_counter()
         result = diagnose(campaign, workers=workers)
         wall = time.perf_counter() - t0
     gains = {c["name"]: c["gain"] for c in result["candidates"]}
-    return {"effect": effect, "strength": strength, "seed": seed, "heavy_run": heavy_run, "cause": result["cause"],
-            "causes": result["causes"], "correct": result["cause"] == effect,
+    case = {"effect": "+".join(effects), "strength": strengths[0] if len(strengths) == 1 else strengths,
+            "seed": seed, "heavy_run": heavy_run, "cause": result["cause"],
+            "causes": result["causes"], "correct": result["cause"] == effects[0],
             "gain": result["gain"]["relative"] if result["cause"] != "none" else 0.0,
-            "gain_of_hidden": gains.get(effect), "equally_good": result["equally_good"],
+            "gain_of_hidden": gains.get(effects[0]), "equally_good": result["equally_good"],
             "extension": result["extended"].get("extension", {}), "truth_extension": truth["extension"],
             "wall_time": wall,
             # every candidate's evidence, so other decision rules can be studied offline
             "candidates": [_evidence(c) for c in result["candidates"]],
             "second_round": [_evidence(c) for c in result.get("second_round", [])]}
+    if len(effects) > 1:
+        # Stronger: the larger one-cause gain, each effect's model judged against the base model.
+        stronger_first = sorted(effects, key=lambda e: -gains.get(e, -np.inf))
+        steps = result["gain"].get("steps", [])
+        case.update({"effects": effects, "gains_of_hidden": {e: gains.get(e) for e in effects},
+                     "both_named": sorted(result["causes"]) == sorted(effects),
+                     "correct": result["causes"] == stronger_first,
+                     "removed_by_step": [s["held_out_mse_before"] - s["held_out_mse_after"] for s in steps]})
+    return case
 
 
 def _evidence(candidate: dict) -> dict:
@@ -86,6 +109,16 @@ def table(cases: list[dict]) -> str:
         gain = f"{np.median(gains):+.1%}" if gains else "-"
         lines.append(f"| {effect} | {len(mine)} | {right}/{len(mine)} | {instead} | {gain} | "
                      f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
+    pairs = [c for c in cases if "effects" in c]
+    if pairs:
+        lines += ["", "| hidden together | cases | both named | the stronger named first | second step removed more | "
+                  "median diagnose wall time |", "|---|---|---|---|---|---|"]
+    for hidden in sorted({c["effect"] for c in pairs}):
+        mine = [c for c in pairs if c["effect"] == hidden]
+        reversed_steps = sum(len(r) == 2 and r[1] > r[0] for r in (c["removed_by_step"] for c in mine))
+        lines.append(f"| {hidden} | {len(mine)} | {sum(c['both_named'] for c in mine)}/{len(mine)} | "
+                     f"{sum(c['correct'] for c in mine)}/{len(mine)} | {reversed_steps}/{len(mine)} | "
+                     f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
     return "\n".join(lines)
 
 
@@ -99,6 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=None, help="processes per diagnose (default: cores)")
     ap.add_argument("--heavy-run", action="store_true",
                     help="campaigns with a heavy drawbar run (juno synthesize --heavy-run)")
+    ap.add_argument("--pair", nargs=2, metavar=("A", "B"), choices=[e for e in EFFECTS if e != "none"],
+                    help="hide effects A and B together (instead of --effects one at a time)")
+    ap.add_argument("--pair-strengths", nargs=4, type=float, metavar=("LO_A", "HI_A", "LO_B", "HI_B"),
+                    help="--pair: each effect's strength range (default: --min-strength to --max-strength)")
     ap.add_argument("--json", metavar="FILE", help="every case, as JSON")
     ap.add_argument("--merge", nargs="+", metavar="STUDY",
                     help="run nothing: print the table of these studies' cases (--json files, finished or "
@@ -119,20 +156,37 @@ def main(argv: list[str] | None = None) -> int:
     partial = Path(args.json + ".partial") if args.json else None
     done = json.loads(partial.read_text()) if partial and partial.exists() else []
     cases = list(done)
+    if args.pair:
+        if args.pair[0] == args.pair[1]:
+            ap.error("--pair: two different effects")
+        ranges = args.pair_strengths or [args.min_strength, args.max_strength] * 2
+        if not all(0.0 < x <= 1.0 for x in ranges) or ranges[0] > ranges[1] or ranges[2] > ranges[3]:
+            ap.error(f"--pair-strengths {ranges}: each range LO <= HI within (0, 1]")
+        kinds = [tuple(args.pair)]
+    else:
+        kinds = list(args.effects)
     # Seed-major: every effect gets its k-th case before any gets its (k+1)-th, so a study
     # stopped early still compares effects on equal footing.
     for k in range(args.seeds):
-        for effect in args.effects:
+        for effect in kinds:
             seed = args.first_seed + k
             # The strength is a function of (first seed, effect, seed) only, so a resumed study
             # draws the same.
-            rng = np.random.default_rng([args.first_seed, list(EFFECTS).index(effect), seed])
-            strength = 1.0 if effect == "none" else round(float(rng.uniform(args.min_strength, args.max_strength)), 3)
-            if any(c["effect"] == effect and c["seed"] == seed for c in done):
+            if isinstance(effect, tuple):
+                rng = np.random.default_rng([args.first_seed, 100 + list(EFFECTS).index(effect[0]),
+                                             list(EFFECTS).index(effect[1]), seed])
+                strength = tuple(round(float(rng.uniform(ranges[2 * i], ranges[2 * i + 1])), 3) for i in range(2))
+                name = "+".join(effect)
+            else:
+                rng = np.random.default_rng([args.first_seed, list(EFFECTS).index(effect), seed])
+                strength = 1.0 if effect == "none" else round(float(rng.uniform(args.min_strength, args.max_strength)), 3)
+                name = effect
+            if any(c["effect"] == name and c["seed"] == seed for c in done):
                 continue
             case = one_case(effect, strength, seed, args.workers, args.heavy_run)
             cases.append(case)
-            print(f"{effect:16s} seed {seed} strength {strength:.3f}: named {case['cause']:16s} "
+            shown = "/".join(f"{x:.3f}" for x in strength) if isinstance(strength, tuple) else f"{strength:.3f}"
+            print(f"{name:16s} seed {seed} strength {shown}: named {'+'.join(case['causes']) or 'none':16s} "
                   f"({'right' if case['correct'] else 'WRONG'}, {case['wall_time']:.0f} s)", flush=True)
             if partial:
                 atomic_write_text(partial, json.dumps(cases, indent=1))

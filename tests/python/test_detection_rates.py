@@ -1,0 +1,59 @@
+"""scripts/detection_rates.py, the offline study of the diagnosis: its tables and its arguments.
+The study itself runs one diagnose per case (minutes each), so it is not run here."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "detection_rates.py"
+
+
+@pytest.fixture(scope="module")
+def study():
+    spec = importlib.util.spec_from_file_location("detection_rates", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _pair_case(causes: list[str], gains: dict[str, float], removed: list[float]) -> dict:
+    effects = ["drivetrain_loss", "slip_sinkage"]
+    stronger_first = sorted(effects, key=lambda e: -gains[e])
+    return {"effect": "+".join(effects), "effects": effects, "seed": 1, "wall_time": 100.0,
+            "causes": causes, "cause": causes[0] if causes else "none", "correct": causes == stronger_first,
+            "both_named": sorted(causes) == effects, "gains_of_hidden": gains, "removed_by_step": removed}
+
+
+def test_the_pair_table_counts_both_named_the_stronger_first_and_reversed_steps(study):
+    cases = [
+        _pair_case(["drivetrain_loss", "slip_sinkage"], {"drivetrain_loss": 0.4, "slip_sinkage": 0.2}, [3.5, 3.8]),
+        _pair_case(["drivetrain_loss", "slip_sinkage"], {"drivetrain_loss": 0.7, "slip_sinkage": 0.1}, [5.5, 1.0]),
+        _pair_case(["slip_sinkage", "drivetrain_loss"], {"drivetrain_loss": 0.6, "slip_sinkage": 0.1}, [2.0, 1.0]),
+        _pair_case([], {"drivetrain_loss": -0.04, "slip_sinkage": 0.48}, []),
+    ]
+    row = next(line for line in study.table(cases).splitlines() if line.startswith("| drivetrain_loss+slip_sinkage"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1:5] == ["4", "3/4", "2/4", "1/4"], row
+
+
+def test_single_effect_tables_have_no_pair_section(study):
+    case = {"effect": "soil_patch", "seed": 1, "wall_time": 50.0, "cause": "soil_patch", "causes": ["soil_patch"],
+            "correct": True, "gain": 0.8}
+    text = study.table([case])
+    assert "| soil_patch | 1 | 1/1 |" in text and "hidden together" not in text
+
+
+@pytest.mark.parametrize("argv, complaint", [
+    (["--pair", "drivetrain_loss", "drivetrain_loss"], "two different effects"),
+    (["--pair", "drivetrain_loss", "slip_sinkage", "--pair-strengths", "0.9", "0.8", "0.7", "1.0"], "LO <= HI"),
+    (["--pair", "drivetrain_loss", "slip_sinkage", "--pair-strengths", "0.7", "1.2", "0.7", "1.0"], "within (0, 1]"),
+    (["--pair", "drivetrain_loss", "none"], "invalid choice"),
+])
+def test_a_bad_pair_is_refused_before_any_case_runs(study, argv, complaint, capsys):
+    with pytest.raises(SystemExit) as stop:
+        study.main(argv + ["--seeds", "1"])
+    assert stop.value.code == 2
+    assert complaint in capsys.readouterr().err
