@@ -93,8 +93,10 @@ def _evidence(candidate: dict) -> dict:
 
 def table(cases: list[dict]) -> str:
     """Markdown: per effect, how often the hidden cause was named, and what else was."""
-    lines = ["| hidden effect | cases | named correctly | named instead | median held-out gain | "
-             "median diagnose wall time |", "|---|---|---|---|---|---|"]
+    lines = []
+    if any("effects" not in c for c in cases):
+        lines += ["| hidden effect | cases | named correctly | named instead | median held-out gain | "
+                  "median diagnose wall time |", "|---|---|---|---|---|---|"]
     for effect in EFFECTS:
         mine = [c for c in cases if c["effect"] == effect]
         if not mine:
@@ -111,7 +113,9 @@ def table(cases: list[dict]) -> str:
                      f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
     pairs = [c for c in cases if "effects" in c]
     if pairs:
-        lines += ["", "| hidden together | cases | both named | the stronger named first | second step removed more | "
+        if lines:
+            lines.append("")                # a blank line between the two tables
+        lines += ["| hidden together | cases | both named | the stronger named first | second step removed more | "
                   "median diagnose wall time |", "|---|---|---|---|---|---|"]
     for hidden in sorted({c["effect"] for c in pairs}):
         mine = [c for c in pairs if c["effect"] == hidden]

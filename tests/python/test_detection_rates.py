@@ -34,7 +34,9 @@ def test_the_pair_table_counts_both_named_the_stronger_first_and_reversed_steps(
         _pair_case(["slip_sinkage", "drivetrain_loss"], {"drivetrain_loss": 0.6, "slip_sinkage": 0.1}, [2.0, 1.0]),
         _pair_case([], {"drivetrain_loss": -0.04, "slip_sinkage": 0.48}, []),
     ]
-    row = next(line for line in study.table(cases).splitlines() if line.startswith("| drivetrain_loss+slip_sinkage"))
+    text = study.table(cases)
+    assert text.startswith("| hidden together"), "a study of pairs alone has no single-effect table"
+    row = next(line for line in text.splitlines() if line.startswith("| drivetrain_loss+slip_sinkage"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[1:5] == ["4", "3/4", "2/4", "1/4"], row
 
