@@ -31,19 +31,19 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     Stronger means: explains more of what the base model gets wrong.  Each effect's one-cause
     model (its parameter and the soil refitted) is judged against the same base model, so its
     held-out gain (the candidates' ``gain``) measures the effect alone, whatever is named first.
-    At these strengths the loss is the stronger: on 17 pair draws of session 22 (11 where
+    At these strengths the loss is the stronger: on 21 pair draws of session 22 (15 where
     slip-sinkage is strongest against the loss, loss 0.72-0.79 and slip-sinkage 0.90-1.0, and 6
-    over the whole square), its gain was 36-84 % against slip-sinkage's -0.4 to +25 %, and all 17
+    over the whole square), its gain was 36-84 % against slip-sinkage's -0.4 to +25 %, and all 21
     named the loss, then slip-sinkage, with both parameters near the truth (README, "Session
     22").  So the loss must be named first, slip-sinkage second, the loss's gain must be the
     larger, each step must remove held-out error, and each parameter must be near the truth.
 
     The steps' own sizes do not say which effect is the stronger: the second step is judged
     against the first cause's model, which bends the soil to make up for the missing
-    slip-sinkage (k_h at 0.39-0.87 of the truth on those 17 draws), so it removes that bend's
-    error too.  In 4 of the 11 corner draws (CI draw 8256 among them) the second step removed
+    slip-sinkage (k_h at 0.39-0.87 of the truth on 17 of those draws), so it removes that bend's
+    error too.  In 5 of the 15 corner draws (CI draw 8256 among them) the second step removed
     more held-out error than the first: the check this test made until session 22, which those
-    4 failed (README).
+    5 failed (README).
 
     History of the named order: in 3 of 8 offline draws a grouser (two parameters: its lugs mimic
     the loss, its thrust gain takes up part of the slip-sinkage) won the head-to-head test against
