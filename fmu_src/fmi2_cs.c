@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "fmi2.h"
 #include "juno_guid.h"
@@ -289,17 +290,13 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     /* A relative terrain path that does not exist here is looked up in the FMU's resources. */
     char *resolved = NULL;
     if (m->terrain_file && m->terrain_file[0] && m->terrain_file[0] != '/' && inst->resource_dir) {
-        FILE *probe = fopen(m->terrain_file, "r");
-        if (probe) {
-            fclose(probe);
-        } else {
+        struct stat st;   /* stat, not fopen: opening a FIFO would wait for a writer */
+        if (stat(m->terrain_file, &st) != 0) {
             size_t n = strlen(inst->resource_dir) + strlen(m->terrain_file) + 2;
             resolved = (char *)malloc(n);
             if (resolved) {
                 snprintf(resolved, n, "%s/%s", inst->resource_dir, m->terrain_file);
-                probe = fopen(resolved, "r");
-                if (probe) {
-                    fclose(probe);
+                if (stat(resolved, &st) == 0) {
                     free(m->terrain_file);
                     m->terrain_file = resolved;
                     resolved = NULL;

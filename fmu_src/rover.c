@@ -23,6 +23,10 @@
 #include "model.h"
 #include "vec3.h"
 
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
 enum { BODY_CHASSIS = 0, BODY_ROCKER_L = 1, BODY_ROCKER_R = 2, BODY_WHEEL0 = 3 };
 
 static const char *const wheel_names[NUM_WHEELS] = {"FL", "RL", "FR", "RR"};
@@ -931,9 +935,77 @@ static int solve(double A[NU][NU], double b[NU])
     return 0;
 }
 
+/* The steepest terrain slope (rad) under the points (x, y) of n points,
+ * and which point it is under. */
+static double steepest_slope(const Model *m, const double (*xy)[3], int n, int *which)
+{
+    double steepest = 0.0;
+    *which = 0;
+    for (int k = 0; k < n; ++k) {
+        double nrm[3];
+        terrain_query(m, xy[k][0], xy[k][1], nrm);
+        const double slope = acos(fmax(-1.0, fmin(1.0, nrm[2])));
+        if (slope > steepest) steepest = slope, *which = k;
+    }
+    return steepest;
+}
+
+/* Why the rover cannot stand or drive where it is, as far as the model can
+ * tell: on terrain sloping more steeply than the soil's friction angle,
+ * the Mohr-Coulomb shear strength of a cohesionless soil (F_taumax = C A +
+ * Fn tan phi) cannot hold a wheel, and the rover slides and digs in
+ * whatever the soil's stiffness.  Writes a clause into buf and returns 1
+ * if the steepest slope under the given points exceeds soil.phi, else 0. */
+static int slope_beyond_friction(const Model *m, const double (*xy)[3], char *buf, size_t n)
+{
+    int w;
+    const double slope = steepest_slope(m, xy, NUM_WHEELS, &w);
+    if (!(slope > m->p.soil_phi)) return 0;
+    snprintf(buf, n,
+             "the terrain under wheel %s slopes %.1f deg, steeper than the soil's friction angle soil.phi = "
+             "%.1f deg: the soil cannot hold the rover there (terrain too steep)",
+             wheel_names[w], slope * 180.0 / M_PI, m->p.soil_phi * 180.0 / M_PI);
+    return 1;
+}
+
+/* Speed (m/s) at which wheel w's hub moves into the ground, along the
+ * terrain normal under it (negative: away from it). */
+static double hub_approach_speed(const Model *m, const Eval *ev, int w)
+{
+    double n[3], v[3];
+    terrain_query(m, ev->hub[w][0], ev->hub[w][1], n);
+    for (int i = 0; i < 3; ++i) {
+        v[i] = 0.0;
+        for (int k = 0; k < NU; ++k) v[i] += ev->Jv[BODY_WHEEL0 + w][i][k] * m->s.u[k];
+    }
+    return -v3_dot(n, v);
+}
+
+/* The likely cause of a wheel sinking deeper than its radius, from what
+ * the model knows at that moment, the first that holds of:
+ *  - the terrain under a wheel slopes more steeply than soil.phi (above);
+ *  - the wheel struck the ground faster than a fall from its own radius
+ *    height, sqrt(2 g R): the rover fell or tumbled, and no soil stops a
+ *    wheel within its radius from such a speed at these stiffnesses;
+ *  - otherwise the soil yields that far under the load: too soft. */
+static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
+{
+    if (slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
+    const double speed = hub_approach_speed(m, ev, w), fall = sqrt(2.0 * m->p.env_gravity * m->p.wheel_radius);
+    if (speed > fall) {
+        snprintf(buf, n,
+                 "it struck the ground at %.2f m/s, faster than a fall from its radius height (%.2f m/s): the "
+                 "rover fell or tumbled (terrain too steep or rough?)", speed, fall);
+        return;
+    }
+    snprintf(buf, n, "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
+             "wheel.width)");
+}
+
 static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
 {
     const State *s = &m->s;
+    char cause[256];
     for (int i = 0; i < 3; ++i)
         if (!isfinite(s->pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", s->time), 0;
     for (int i = 0; i < NU; ++i)
@@ -942,11 +1014,11 @@ static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
     if (fabs(s->beta) > 1.2)
         return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", s->time, s->beta), 0;
     for (int w = 0; w < NUM_WHEELS; ++w)
-        if (ev->wheel[w].sinkage >= m->p.wheel_radius)
-            return snprintf(err, n,
-                            "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius "
-                            "(soil too soft for the load? check soil.kh, soil.eta)",
-                            s->time, wheel_names[w], ev->wheel[w].sinkage), 0;
+        if (ev->wheel[w].sinkage >= m->p.wheel_radius) {
+            sinkage_cause(m, ev, w, cause, sizeof cause);
+            return snprintf(err, n, "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius; %s",
+                            s->time, wheel_names[w], ev->wheel[w].sinkage, cause), 0;
+        }
     return 1;
 }
 
@@ -1288,9 +1360,22 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
         res = resn;
     }
     if (!(res < 1e-8)) {
+        double at[NUM_WHEELS][3];
+        char steep[256];
+        for (int w = 0; w < NUM_WHEELS; ++w) {
+            const double lx = (w % 2 == 0 ? 0.5 : -0.5) * p->rover_wheelbase;
+            const double ly = (side_of(w) == SIDE_LEFT ? 0.5 : -0.5) * p->rover_track;
+            at[w][0] = p->init_x + cy * lx - sy * ly;
+            at[w][1] = p->init_y + sy * lx + cy * ly;
+            at[w][2] = 0.0;
+        }
+        if (!slope_beyond_friction(m, (const double (*)[3])at, steep, sizeof steep))
+            snprintf(steep, sizeof steep,
+                     "is the soil too soft for the load on these wheels (soil.kh, soil.eta, wheel.radius, "
+                     "wheel.width)?");
         snprintf(err, errlen,
                  "no static equilibrium found for the rover at init.x = %g, init.y = %g (residual %.3g of the "
-                 "weight): is the terrain too steep or the soil too soft?", p->init_x, p->init_y, res);
+                 "weight): %s", p->init_x, p->init_y, res, steep);
         return -1;
     }
     place(m, x);

@@ -1,8 +1,9 @@
 /*
  * Terrain: flat ground or an ESRI ASCII elevation grid (see terrain.h).
  *
- * Only standard C is used here (no POSIX) so that the file builds unchanged
- * with mingw-w64 for the Windows FMU binary.
+ * Only standard C is used here, and stat() from <sys/stat.h>, which
+ * mingw-w64 has too, so that the file builds unchanged for the Windows FMU
+ * binary.
  *
  * Reading is token based: values may be split across lines arbitrarily, so
  * the reader works on whitespace-separated tokens but remembers the line
@@ -13,8 +14,12 @@
  * x = x0 + i*cell, y = y0 + j*cell, with row 0 the southernmost row (the
  * file lists rows from north to south).
  */
+#if !defined(_WIN32) && !defined(_POSIX_C_SOURCE)
+#define _POSIX_C_SOURCE 200809L   /* stat, S_ISFIFO, S_ISSOCK under -std=c11 */
+#endif
 #include "terrain.h"
 
+#include <sys/stat.h>
 #include <ctype.h>
 #include <errno.h>
 #include <float.h>
@@ -966,6 +971,51 @@ int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen
     return read_grid(t, f, name, err, errlen);
 }
 
+/* What kind of file a stat mode describes, for a message. */
+static const char *file_kind(unsigned mode)
+{
+#ifdef S_ISDIR
+    if (S_ISDIR(mode)) return "a directory";
+#endif
+#ifdef S_ISFIFO
+    if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+#endif
+#ifdef S_ISCHR
+    if (S_ISCHR(mode)) return "a character device";
+#endif
+#ifdef S_ISBLK
+    if (S_ISBLK(mode)) return "a block device";
+#endif
+#ifdef S_ISSOCK
+    if (S_ISSOCK(mode)) return "a socket";
+#endif
+    return "not a plain file";
+}
+
+/* A grid is read from a regular file only.  Checked with stat before the
+ * file is opened: opening a FIFO blocks until a writer comes, a device such
+ * as /dev/zero never ends, and a directory fails only when read.  Returns
+ * 0, or -1 with a message naming the path and what it is. */
+static int check_regular_file(const char *path, char *err, size_t errlen)
+{
+    struct stat st;
+    errno = 0;
+    if (stat(path, &st) != 0) {
+        set_err(err, errlen, "%s: cannot open: %s", path,
+                errno != 0 ? strerror(errno) : "unknown error");
+        return -1;
+    }
+#ifndef S_ISREG
+#define S_ISREG(m) (((m) & S_IFMT) == S_IFREG)
+#endif
+    if (!S_ISREG(st.st_mode)) {
+        set_err(err, errlen, "%s: not a regular file (%s): the terrain must be an ESRI ASCII grid file",
+                path, file_kind((unsigned)st.st_mode));
+        return -1;
+    }
+    return 0;
+}
+
 /* *t is overwritten, not freed: it may be uninitialised on entry. */
 int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
 {
@@ -982,6 +1032,8 @@ int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
         set_err(err, errlen, "terrain_load: no file path given");
         return -1;
     }
+    if (check_regular_file(path, err, errlen) != 0)
+        return -1;
     errno = 0;
     f = fopen(path, "rb"); /* binary: line ends are handled by lex_next */
     if (f == NULL) {
@@ -1047,6 +1099,14 @@ static void node_gradient(const Terrain *t, int i, int j, double *gx, double *gy
         / ((double)(jr - jl) * t->cell);
 }
 
+int terrain_outside(const Terrain *t, double x, double y)
+{
+    if (t->ncols == 0)
+        return 0;
+    return x < t->x0 || x > t->x0 + (double)(t->ncols - 1) * t->cell ||
+           y < t->y0 || y > t->y0 + (double)(t->nrows - 1) * t->cell;
+}
+
 void terrain_normal(const Terrain *t, double x, double y, double n[3])
 {
     int i, j;
@@ -1060,8 +1120,10 @@ void terrain_normal(const Terrain *t, double x, double y, double n[3])
         n[0] = n[1] = n[2] = NAN;
         return;
     }
-    /* clamped like terrain_height, so outside the grid the normal is the
-     * edge's (continuous at the boundary) */
+    if (terrain_outside(t, x, y)) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+        return;
+    }
     locate(x, t->x0, t->cell, t->ncols, &i, &fx);
     locate(y, t->y0, t->cell, t->nrows, &j, &fy);
     node_gradient(t, i, j, &gx00, &gy00);

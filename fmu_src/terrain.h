@@ -24,7 +24,8 @@ void terrain_init_flat(Terrain *t);
  * NODATA_value (case-insensitive), then nrows lines of ncols numbers from
  * north to south.  NODATA cells are filled from valid neighbours.
  * Returns 0, or -1 with a message naming the file and line written to err
- * (missing/unreadable file, bad header, non-numeric value, too few/many
+ * (missing/unreadable file, a path that is not a regular file (a
+ * directory, a device, a FIFO: refused before it is opened), bad header, non-numeric value, too few/many
  * values, non-finite value, grid smaller than 2x2, all NODATA).
  * *t is overwritten, not freed (it may be uninitialised): call
  * terrain_free first if it holds a grid.  On error *t is flat ground. */
@@ -38,11 +39,23 @@ int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen
 
 void terrain_free(Terrain *t);
 
-/* Elevation (m) and unit upward surface normal at (x, y).  Outside the
- * grid the edge values extend flat (clamped).  Elevation is bilinear;
- * the normal comes from the bilinear interpolation of central-difference
- * gradients at the nodes, so it is continuous. */
+/* Elevation (m) and unit upward surface normal at (x, y).  Inside the
+ * grid (the rectangle of its nodes, edges included) the elevation is
+ * bilinear and the normal comes from the bilinear interpolation of
+ * central-difference gradients at the nodes, so both are continuous there.
+ * Outside it nothing is known of the ground, and it is taken as level:
+ * the normal is exactly (0, 0, 1) and the elevation that of the nearest
+ * point of the grid's edge (clamped coordinates).  Crossing the edge, the
+ * elevation is continuous (no step) but the normal jumps from the edge's
+ * slope to vertical (a kink).  Beside a side of the grid the clamped
+ * elevation still follows the edge's profile along that side while the
+ * normal is vertical: the level ground outside is level across the edge,
+ * the profile along it only keeps the surface free of steps.  A reader
+ * (or a rover) beyond a tilted grid stands on flat ground. */
 double terrain_height(const Terrain *t, double x, double y);
 void terrain_normal(const Terrain *t, double x, double y, double n[3]);
+
+/* 1 if (x, y) lies outside the grid's nodes (0 for flat ground and NaN). */
+int terrain_outside(const Terrain *t, double x, double y);
 
 #endif

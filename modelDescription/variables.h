@@ -12,6 +12,18 @@
  * kind: PARAM (fixed parameter: set before initialisation), CALC (calculated
  * parameter), INPUT, OUTPUT.  min/max are inclusive; NOLIM means none.
  * field is an lvalue relative to a Model *m.
+ *
+ * The declared range is what the FMU accepts: every value in [min, max]
+ * passes the parameter checks when the other variables keep their start
+ * values (tests/python/test_fmu_ranges.py walks them all).  A quantity that
+ * must be positive has a small positive min rather than an exclusive 0.
+ * Some parameters are also checked together (4 wheel.mass + 2
+ * rover.rockerMass < rover.mass, wheel.width < rover.track, wongReece.a0
+ * against a1, kc / wheel.width + kphi > 0); their ranges keep those true at
+ * the start values of the others, and a combination that breaks one is
+ * refused at initialisation with a message naming both.  Whether the
+ * rover can stand and drive with a value (k_h = 1e-3 under 318 kg) is
+ * physics, reported as such (no static equilibrium, a diverged state).
  */
 #ifndef NOLIM
 #define NOLIM HUGE_VAL
@@ -27,31 +39,31 @@
 
 #define JUNO_VARIABLES \
     /* ---- soil: the four identified parameters (paper Table 2) ---- */ \
-    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 0, 1e8, p.soil_kh,    "Hyperelastic foundation stiffness k_h") \
-    REAL(101, "soil.eta",       PARAM, "1",      0.501,  0, 2, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
+    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 1e-3, 1e8, p.soil_kh,    "Hyperelastic foundation stiffness k_h (> 0)") \
+    REAL(101, "soil.eta",       PARAM, "1",      0.501,  1e-3, 2, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
     REAL(102, "soil.gamma",     PARAM, "1",      0.0813, 0, 1,     p.soil_gamma,    "Soil rebound as a fraction of the maximum sinkage") \
-    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  0, 100, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5") \
-    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    0, 100, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (assumption: isotropic = 1)") \
+    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  1e-6, 100, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5 (> 0)") \
+    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    1e-6, 100, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (> 0; assumption: isotropic = 1)") \
     REAL(105, "soil.cohesion",  PARAM, "Pa",     1000.0, 0, 1e7, p.soil_cohesion, "Mohr-Coulomb cohesion C (assumed: dry sand)") \
     REAL(106, "soil.phi",       PARAM, "rad",    0.5236, 0, 1.5707, p.soil_phi,     "Internal friction angle (assumed: 30 deg, dry sand)") \
     REAL(110, "soil.A1",        CALC,  "1",      0.6667, -NOLIM, NOLIM, d.contact.A1,   "Eqn 3 exponent factor, fitted at initialisation") \
     REAL(111, "soil.Vint",      CALC,  "m3",     1e-3,   -NOLIM, NOLIM, d.contact.Vint, "Eqn 3 reference volume, fitted at initialisation") \
     /* ---- wheel ---- */ \
-    REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0, 5, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
-    REAL(121, "wheel.width",    PARAM, "m",      0.254,  0, 5, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8)") \
-    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0, 200, p.wheel_mass,    "Mass of one wheel") \
-    REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   0, 1e4, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
+    REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0.01, 5, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
+    REAL(121, "wheel.width",    PARAM, "m",      0.254,  0.01, 1, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8); less than rover.track") \
+    REAL(122, "wheel.mass",     PARAM, "kg",     9.6,    0.01, 50, p.wheel_mass,    "Mass of one wheel; 4 wheel.mass + 2 rover.rockerMass < rover.mass") \
+    REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   1e-6, 1e4, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
     /* ---- rover ---- */ \
-    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 0, 2000, p.rover_mass,        "Total mass including wheels") \
-    REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0, 20, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
-    REAL(132, "rover.track",       PARAM, "m",  1.35,  0, 20, p.rover_track,       "Distance between left and right wheel centres (assumed)") \
+    REAL(130, "rover.mass",        PARAM, "kg", 317.7, 60, 2000, p.rover_mass,        "Total mass including wheels and rockers (more than 4 wheel.mass + 2 rover.rockerMass)") \
+    REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0.01, 20, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
+    REAL(132, "rover.track",       PARAM, "m",  1.35,  0.3, 20, p.rover_track,       "Distance between left and right wheel centres (assumed); more than wheel.width") \
     REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, 10, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \
-    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0, 200, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
+    REAL(134, "rover.rockerMass",  PARAM, "kg", 10.0,  0.01, 100, p.rover_rockerMass,  "Mass of one main rocker (assumed)") \
     REAL(135, "rover.cgHeight",    PARAM, "m",  0.25,  -10, 10, p.rover_cgHeight, "Chassis centre of gravity above the axle line (assumed)") \
     REAL(136, "rover.hitchX",      PARAM, "m",  -0.69, -10, 10, p.rover_hitchX,  "Drawbar hitch, longitudinal position in the chassis frame (rear)") \
     REAL(137, "rover.hitchZ",      PARAM, "m",  0.0,   -1, 1, p.rover_hitchZ,  "Drawbar hitch height above the rocker pivots") \
     REAL(138, "rover.rockerDamping", PARAM, "N.m.s/rad", 20.0, 0, NOLIM, p.rover_rockerDamping, "Viscous friction of the rocker differential (assumed)") \
-    REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0, 100, p.env_gravity,     "Gravitational acceleration") \
+    REAL(139, "env.gravity",       PARAM, "m/s2", 9.81, 0.01, 100, p.env_gravity,     "Gravitational acceleration") \
     /* ---- terrain ---- */ \
     STR(140, "terrain.file",       PARAM, "", terrain_file, "ESRI ASCII elevation grid (.asc); empty = flat ground at z = 0") \
     /* ---- drive ---- */ \
@@ -62,18 +74,18 @@
     REAL(154, "drive.torqueMax",   PARAM, "N.m",       400.0, 0, NOLIM, p.drive_torqueMax, "Limit of the drive torque per side (drive.mode 1 and 2)") \
     REAL(155, "motor.voltage",     PARAM, "V",   24.0,   0, NOLIM, p.motor_voltage,    "Supply voltage at full throttle (assumed)") \
     REAL(156, "motor.kt",          PARAM, "N.m/A", 0.0465, 0, NOLIM, p.motor_kt,       "Torque and back-EMF constant (assumed)") \
-    REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    0, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
-    REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  0, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
+    REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    1e-6, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
+    REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  1e-3, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
     REAL(159, "motor.efficiency",  PARAM, "1",   0.85,   0, 1,     p.motor_efficiency, "Gear and chain efficiency (assumed)") \
     /* ---- Wong-Reece/Ishigami contact law (contact.model = 1; model-notes section 6).  Defaults: the dry \
      * sand set (Wong, Land Locomotion Lab); cohesion and phi are soil.cohesion and soil.phi (defaults \
      * 1 kPa, 30 deg; the set has 1.04 kPa, 28 deg), the rear rebound lambda is soil.gamma ---- */ \
-    REAL(160, "wongReece.n",    PARAM, "1",          1.1,     0, 5,       p.wr_n,    "Wong-Reece (contact.model 1): Bekker sinkage exponent n (> 0); default dry sand 1.1") \
-    REAL(161, "wongReece.kc",   PARAM, "N/m^(n+1)",  990.0, -1e8, 1e8,    p.wr_kc,   "Wong-Reece (contact.model 1): Bekker cohesive modulus k_c (fitted sets may be < 0; kc / wheel.width + kphi must be > 0); default dry sand 0.99e3") \
-    REAL(162, "wongReece.kphi", PARAM, "N/m^(n+2)",  1.528e6, -1e10, 1e10, p.wr_kphi, "Wong-Reece (contact.model 1): Bekker frictional modulus k_phi; default dry sand 1.528e6") \
-    REAL(163, "wongReece.K",    PARAM, "m",          0.010,   0, 10,      p.wr_K,    "Wong-Reece (contact.model 1): Janosi-Hanamoto shear deformation modulus K (> 0); default dry sand 10 mm") \
-    REAL(164, "wongReece.a0",   PARAM, "1",          0.40,    0, 1,       p.wr_a0,   "Wong-Reece (contact.model 1): peak stress angle theta_m = (a0 + a1 slip) theta_f, a0 in [0, 1); default 0.40 (Ishigami 2007)") \
-    REAL(165, "wongReece.a1",   PARAM, "1",          0.15,   -1, 1,       p.wr_a1,   "Wong-Reece (contact.model 1): slip coefficient a1 of the peak angle, |a1| <= a0 and |a1| < 1 - a0; default 0.15 (Ishigami 2007)") \
+    REAL(160, "wongReece.n",    PARAM, "1",          1.1,     0.01, 5,    p.wr_n,    "Wong-Reece (contact.model 1): Bekker sinkage exponent n (> 0); default dry sand 1.1") \
+    REAL(161, "wongReece.kc",   PARAM, "N/m^(n+1)",  990.0, -3.8e5, 1e8,  p.wr_kc,   "Wong-Reece (contact.model 1): Bekker cohesive modulus k_c (fitted sets may be < 0; kc / wheel.width + kphi must be > 0); default dry sand 0.99e3") \
+    REAL(162, "wongReece.kphi", PARAM, "N/m^(n+2)",  1.528e6, 0, 1e10,    p.wr_kphi, "Wong-Reece (contact.model 1): Bekker frictional modulus k_phi (kc / wheel.width + kphi must be > 0); default dry sand 1.528e6") \
+    REAL(163, "wongReece.K",    PARAM, "m",          0.010,   1e-6, 10,   p.wr_K,    "Wong-Reece (contact.model 1): Janosi-Hanamoto shear deformation modulus K (> 0); default dry sand 10 mm") \
+    REAL(164, "wongReece.a0",   PARAM, "1",          0.40,    0.15, 0.84, p.wr_a0,   "Wong-Reece (contact.model 1): peak stress angle theta_m = (a0 + a1 slip) theta_f, |a1| <= a0 < 1 - |a1|; default 0.40 (Ishigami 2007)") \
+    REAL(165, "wongReece.a1",   PARAM, "1",          0.15,   -0.4, 0.4,   p.wr_a1,   "Wong-Reece (contact.model 1): slip coefficient a1 of the peak angle, |a1| <= a0 and |a1| < 1 - a0; default 0.15 (Ishigami 2007)") \
     INT (166, "wongReece.points", PARAM, 100, 6, 1000000, p.wr_points, "Wong-Reece (contact.model 1): integrand evaluations per contact (Simpson, front and rear regions)") \
     /* ---- initial state ---- */ \
     REAL(170, "init.x",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_x,   "Initial x of the chassis reference point") \
@@ -82,7 +94,7 @@
     REAL(173, "init.vx",  PARAM, "m/s", 0.0, -NOLIM, NOLIM, p.init_vx,  "Initial forward speed (wheels rolling without slip)") \
     /* ---- numerics ---- */ \
     INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
-    REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 0, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor: below this speed the shear law is viscous") \
+    REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 1e-6, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor (> 0): below this speed the shear law is viscous") \
     INT (183, "contact.model",     PARAM, 0, 0, 1, p.contact_model, "Contact law: 0 = volumetric (Petersen-McPhee, the paper); 1 = Wong-Reece/Ishigami integrated rim stresses (wongReece.*, soil.cohesion, soil.phi, rebound soil.gamma)") \
     REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Largest internal integration step") \
     /* ---- model extensions (model-notes section 7); each is off at its default ---- */ \

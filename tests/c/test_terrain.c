@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static int n_pass, n_fail;
@@ -222,6 +223,12 @@ static void test_slope15(void)
         double n[3], x = urand(-1.0, 4.0), y = urand(-1.0, 3.0); /* also outside */
         double deg;
         terrain_normal(&t, x, y, n);
+        if (x < 0.0 || x > 11 * 0.25 || y < 0.0 || y > 8 * 0.25) {
+            /* beyond the nodes the ground is level */
+            CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "outside (%g, %g): normal (%g %g %g) not up",
+                  x, y, n[0], n[1], n[2]);
+            continue;
+        }
         deg = acos(n[2]) * 180.0 / PI;
         CHECK(fabs(deg - 15.0) < 1e-9, "tilt %.12g deg at (%g, %g)", deg, x, y);
         CHECK(fabs(hypot(n[0], n[1]) - sin(tilt)) < 1e-12, "horizontal part %.17g", hypot(n[0], n[1]));
@@ -334,13 +341,31 @@ static void test_outside_and_flat(void)
         CHECK(fabs(terrain_height(&t, x0 - d, y) - terrain_height(&t, x0, y)) < 1e-12, "west not clamped");
         CHECK(fabs(terrain_height(&t, x, y1 + d) - terrain_height(&t, x, y1)) < 1e-12, "north not clamped");
         CHECK(fabs(terrain_height(&t, x, y0 - d) - terrain_height(&t, x, y0)) < 1e-12, "south not clamped");
+        /* outside: level ground, the normal exactly up on every side */
         terrain_normal(&t, x1 + d, y, n);
-        terrain_normal(&t, x1, y, ne);
-        CHECK(vdiff(n, ne) < 1e-12, "east normal not the edge's");
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "east normal (%g %g %g) not up", n[0], n[1], n[2]);
+        terrain_normal(&t, x0 - d, y, n);
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "west normal (%g %g %g) not up", n[0], n[1], n[2]);
+        terrain_normal(&t, x, y1 + d, n);
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "north normal (%g %g %g) not up", n[0], n[1], n[2]);
         terrain_normal(&t, x, y0 - d, n);
-        terrain_normal(&t, x, y0, ne);
-        CHECK(vdiff(n, ne) < 1e-12, "south normal not the edge's");
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "south normal (%g %g %g) not up", n[0], n[1], n[2]);
+        /* on the edge itself (inside, edges included) the normal is still
+         * the grid's: the quadratic surface is not level at its east edge */
+        terrain_normal(&t, x1, y, ne);
+        CHECK(ne[2] < 1.0 - 1e-6, "east edge normal (%g %g %g) should be the grid's slope", ne[0], ne[1], ne[2]);
+        /* the transition at the edge: the elevation is continuous (no step:
+         * just outside equals on the edge to rounding), the normal has a
+         * kink (jumps from the edge's slope to vertical) */
+        CHECK(fabs(terrain_height(&t, x1 + 1e-9, y) - terrain_height(&t, x1, y)) < 1e-12, "step at the east edge");
+        CHECK(terrain_outside(&t, x1 + 1e-9, y) && !terrain_outside(&t, x1, y), "outside test at the east edge");
     }
+    for (k = 0; k < 4; k++) {
+        terrain_normal(&t, x0 - 5 + 2 * (k & 1) * (x1 - x0 + 5), y0 - 5 + (k & 2) * (y1 - y0 + 5), n);
+        CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "corner %d normal (%g %g %g) not up", k, n[0], n[1], n[2]);
+    }
+    terrain_normal(&t, 1e300, -1e300, n);
+    CHECK(n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0, "huge coordinates: normal (%g %g %g) not up", n[0], n[1], n[2]);
     CHECK(fabs(terrain_height(&t, x0 - 5, y0 - 5) - quad_fn(x0, y0, NULL)) < 1e-12, "SW corner extension");
     CHECK(fabs(terrain_height(&t, x1 + 5, y1 + 5) - quad_fn(x1, y1, NULL)) < 1e-12, "NE corner extension");
     CHECK(fabs(terrain_height(&t, 1e300, -1e300) - quad_fn(x1, y0, NULL)) < 1e-12, "huge coordinates");
@@ -548,6 +573,39 @@ static void test_bad_files(void)
 }
 
 /* Small error buffers are filled safely and NUL-terminated. */
+/* A path that is not a regular file is refused at once, before it is
+ * opened, with a message naming it and saying what it is: a directory,
+ * a device that never ends (/dev/zero), a FIFO no writer opens (opening
+ * it for reading would block forever; the alarm ends the test if so). */
+static void expect_not_regular(const char *path, const char *kind)
+{
+    char err[512];
+    Terrain t;
+    int r;
+    alarm(10);
+    r = terrain_load(&t, path, err, sizeof err);
+    alarm(0);
+    CHECK(r == -1, "%s (%s) was accepted", path, kind);
+    CHECK(is_flat(&t), "%s: not flat after failure", path);
+    CHECK(strstr(err, path) != NULL && strstr(err, "not a regular file") != NULL && strstr(err, kind) != NULL,
+          "%s: message '%s' should name the path, 'not a regular file' and '%s'", path, err, kind);
+}
+
+static void test_not_regular_files(void)
+{
+    char dir[4200], fifo[4200];
+    snprintf(dir, sizeof dir, "%s/a directory.asc", scratch);
+    snprintf(fifo, sizeof fifo, "%s/fifo.asc", scratch);
+    CHECK(mkdir(dir, 0700) == 0, "mkdir %s", dir);
+    expect_not_regular(dir, "directory");
+    if (access("/dev/zero", R_OK) == 0)
+        expect_not_regular("/dev/zero", "device");
+    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo %s", fifo);
+    expect_not_regular(fifo, "FIFO");
+    rmdir(dir);
+    unlink(fifo);
+}
+
 static void test_err_buffer(void)
 {
     char buf[24];
@@ -789,6 +847,7 @@ int main(int argc, char **argv)
     test_outside_and_flat();
     test_nodata();
     test_bad_files();
+    test_not_regular_files();
     test_err_buffer();
     test_odd_but_valid();
     test_numbers_match_strtod();

@@ -286,11 +286,12 @@ def test_missing_terrain_file(fmu_unzipped, tmp_path):
 
 
 def test_terrain_path_that_is_a_directory(fmu_unzipped, tmp_path):
-    """Unreadable even for root: fopen succeeds on Linux, reading fails."""
+    """Refused before it is opened, and the FMU recovers after fmi2Reset (test_fmu_hostile.py
+    has the devices and FIFOs)."""
     path = tmp_path / "a directory.asc"
     path.mkdir()
     message = _terrain_failure(fmu_unzipped, path)
-    assert str(path) in message and ("read error" in message or "cannot open" in message), message
+    assert str(path) in message and "not a regular file (a directory)" in message, message
 
 
 @pytest.mark.skipif(os.name != "posix", reason="POSIX permissions")
@@ -338,8 +339,9 @@ def test_diverging_state_fails_the_step_naming_the_cause(fmu_unzipped, case):
             r.step(H)
 
 
-@pytest.mark.parametrize("kh", [1e-3, 1e-300])
+@pytest.mark.parametrize("kh", [1e-3, 1.0])
 def test_absurdly_soft_soil_is_refused_with_the_cause(fmu_unzipped, kh):
+    """soil.kh at or near its declared min is accepted as a value; the rover cannot stand on it."""
     log = LogCapture()
     with Rover(fmu_unzipped, log=log) as r:
         with pytest.raises(FMICallException) as exc:

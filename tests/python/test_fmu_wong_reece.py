@@ -212,21 +212,21 @@ def test_drives_over_bumpy_terrain(fmu_unzipped, tmp_path):
 # Parameters
 # ---------------------------------------------------------------------------------------------
 
+# Each value inside its declared range, but the combination breaks a rule checked together at
+# initialisation (the single values out of range are refused when set, below).
 BAD = [
-    ({"wongReece.n": 0.0}, "wongReece.n"),
-    ({"wongReece.K": 0.0}, "wongReece.K"),
-    ({"wongReece.a0": 1.0}, "wongReece.a0"),
-    ({"wongReece.a1": 0.5}, "wongReece.a1"),            # a0 = 0.4: theta_m < 0 at s = -1
-    ({"wongReece.a0": 0.0}, "wongReece.a0"),            # then a1 = 0.15 is too large: both named
-    ({"wongReece.kc": -1e6}, "wongReece.kc"),           # kc / b + kphi < 0
-    ({"wongReece.kphi": -2e6}, "wongReece.kphi"),
+    ({"wongReece.a0": 0.3, "wongReece.a1": 0.35}, "wongReece.a1"),   # |a1| > a0: theta_m < 0 at s = -1
+    ({"wongReece.a0": 0.8, "wongReece.a1": 0.3}, "wongReece.a1"),    # |a1| >= 1 - a0: theta_m >= theta_f at s = 1
+    ({"wongReece.kc": -3e5, "wongReece.kphi": 1e6}, "wongReece.kc"),  # kc / b + kphi < 0
+    ({"wongReece.kphi": 1e3, "wongReece.kc": -1e3}, "wongReece.kphi"),
 ]
 
 
 @pytest.mark.parametrize("law", [0, 1])
 @pytest.mark.parametrize("params,name", BAD, ids=[n + "=" + str(list(p.values())[0]) for p, n in BAD])
 def test_bad_wong_reece_parameters_fail_initialisation_naming_them(fmu_unzipped, params, name, law):
-    """Checked whichever law is selected: a bad value is reported when it is set."""
+    """Checked whichever law is selected: a bad combination is reported when it is set, not when
+    the law is switched on later."""
     log = LogCapture()
     with Rover(fmu_unzipped, log=log) as r:
         with pytest.raises(FMICallException) as exc:
@@ -235,7 +235,9 @@ def test_bad_wong_reece_parameters_fail_initialisation_naming_them(fmu_unzipped,
     assert name in log.errors()[-1], log.errors()
 
 
-@pytest.mark.parametrize("name,value", [("wongReece.points", 5), ("contact.model", 2), ("wongReece.K", -0.01)])
+@pytest.mark.parametrize("name,value", [("wongReece.points", 5), ("contact.model", 2), ("wongReece.K", -0.01),
+                                        ("wongReece.K", 0.0), ("wongReece.n", 0.0), ("wongReece.a0", 1.0),
+                                        ("wongReece.kc", -1e6), ("wongReece.kphi", -2e6)])
 def test_out_of_range_values_are_refused_when_set(fmu_unzipped, name, value):
     log = LogCapture()
     with Rover(fmu_unzipped, log=log) as r:
