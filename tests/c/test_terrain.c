@@ -1,8 +1,10 @@
 /*
- * Standalone tests for fmu_src/terrain.c.
+ * Standalone tests for the terrain reader and grid (fmu_src/terrain_reader.c,
+ * fmu_src/terrain_grid.c).
  *
  *   gcc -std=c11 -O2 -Wall -Wextra -Werror -pedantic -D_POSIX_C_SOURCE=200809L \
- *       fmu_src/terrain.c tests/c/test_terrain.c -Ifmu_src -lm -o /tmp/test_terrain
+ *       fmu_src/terrain_reader.c fmu_src/terrain_grid.c tests/c/test_terrain.c -Ifmu_src -lm \
+ *       -o /tmp/test_terrain
  *   /tmp/test_terrain [scratch-dir]
  *
  * Fixture grids are written into a fresh directory (mkdtemp under argv[1],

@@ -1,5 +1,6 @@
 /*
- * Terrain: flat ground or an ESRI ASCII elevation grid (see terrain.h).
+ * Terrain reader: the ESRI ASCII elevation grid parser (terrain_load,
+ * terrain_read; see terrain.h).  The queries are in terrain_grid.c.
  *
  * Only standard C is used here, and stat() from <sys/stat.h>, which
  * mingw-w64 has too, so that the file builds unchanged for the Windows FMU
@@ -88,7 +89,8 @@ static void quote_token(char out[QUOTE_MAX + 4], const char *tok, size_t len)
  * (measured on a 501 x 231 grid of "%.6f" values, CPU per load: 15 ms
  * with getc and strtod, 12 ms buffered, 4 ms with fast_decimal, 2 ms with
  * the grid values read straight from the buffer, lex_next_simple_number;
- * 17-digit values as Python writes them: 26 ms before, 3.9 ms now). */
+ * 17-digit values as Python writes them: 26 ms with strtod, 3.9 ms with
+ * long_decimal). */
 #define LEX_BUF 16384
 
 typedef struct {
@@ -891,22 +893,6 @@ static int fill_nodata(Terrain *g, long nnodata)
 /* Public API                                                          */
 /* ------------------------------------------------------------------ */
 
-void terrain_init_flat(Terrain *t)
-{
-    t->ncols = t->nrows = 0;
-    t->x0 = t->y0 = 0.0;
-    t->cell = 0.0;
-    t->z = NULL;
-}
-
-void terrain_free(Terrain *t)
-{
-    if (t == NULL)
-        return;
-    free(t->z);
-    terrain_init_flat(t);
-}
-
 /* Reads a grid from an open stream; see terrain_read in terrain.h. */
 static int read_grid(Terrain *t, FILE *f, const char *name, char *err, size_t errlen)
 {
@@ -1044,110 +1030,4 @@ int terrain_load(Terrain *t, const char *path, char *err, size_t errlen)
     r = read_grid(t, f, path, err, errlen);
     fclose(f);
     return r;
-}
-
-/* Maps a coordinate to the grid interval [k, k+1] holding it and the
- * fraction f in [0, 1] within it, after clamping to the grid extent (so
- * edge values extend flat outside).  NaN is mapped to the first node only
- * to keep the integer conversion defined; callers handle NaN themselves. */
-static void locate(double q, double q0, double cell, int n, int *k, double *f)
-{
-    double u = (q - q0) / cell;
-    int i;
-    if (!(u > 0.0))
-        u = 0.0;
-    else if (u > (double)(n - 1))
-        u = (double)(n - 1);
-    i = (int)u;
-    if (i > n - 2)
-        i = n - 2;
-    *k = i;
-    *f = u - (double)i;
-}
-
-double terrain_height(const Terrain *t, double x, double y)
-{
-    const double *z;
-    size_t nc, r0, r1;
-    int i, j;
-    double fx, fy;
-
-    if (t->ncols == 0)
-        return 0.0;
-    if (isnan(x) || isnan(y))
-        return NAN; /* a NaN position is an upstream bug: propagate, don't hide */
-    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
-    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
-    z = t->z;
-    nc = (size_t)t->ncols;
-    r0 = (size_t)j * nc + (size_t)i;
-    r1 = r0 + nc;
-    return (1.0 - fy) * ((1.0 - fx) * z[r0] + fx * z[r0 + 1])
-         + fy * ((1.0 - fx) * z[r1] + fx * z[r1 + 1]);
-}
-
-/* Elevation gradient at node (i, j): central differences inside, one-sided
- * at the edges (the grid has at least 2 nodes each way). */
-static void node_gradient(const Terrain *t, int i, int j, double *gx, double *gy)
-{
-    const size_t nc = (size_t)t->ncols;
-    const double *row = t->z + (size_t)j * nc;
-    const int il = i > 0 ? i - 1 : i, ir = i < t->ncols - 1 ? i + 1 : i;
-    const int jl = j > 0 ? j - 1 : j, jr = j < t->nrows - 1 ? j + 1 : j;
-    *gx = (row[ir] - row[il]) / ((double)(ir - il) * t->cell);
-    *gy = (t->z[(size_t)jr * nc + (size_t)i] - t->z[(size_t)jl * nc + (size_t)i])
-        / ((double)(jr - jl) * t->cell);
-}
-
-int terrain_outside(const Terrain *t, double x, double y)
-{
-    if (t->ncols == 0)
-        return 0;
-    return x < t->x0 || x > t->x0 + (double)(t->ncols - 1) * t->cell ||
-           y < t->y0 || y > t->y0 + (double)(t->nrows - 1) * t->cell;
-}
-
-void terrain_normal(const Terrain *t, double x, double y, double n[3])
-{
-    int i, j;
-    double fx, fy, gx00, gy00, gx10, gy10, gx01, gy01, gx11, gy11, gx, gy, s;
-
-    if (t->ncols == 0) {
-        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
-        return;
-    }
-    if (isnan(x) || isnan(y)) {
-        n[0] = n[1] = n[2] = NAN;
-        return;
-    }
-    if (terrain_outside(t, x, y)) {
-        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
-        return;
-    }
-    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
-    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
-    node_gradient(t, i, j, &gx00, &gy00);
-    node_gradient(t, i + 1, j, &gx10, &gy10);
-    node_gradient(t, i, j + 1, &gx01, &gy01);
-    node_gradient(t, i + 1, j + 1, &gx11, &gy11);
-    gx = (1.0 - fy) * ((1.0 - fx) * gx00 + fx * gx10) + fy * ((1.0 - fx) * gx01 + fx * gx11);
-    gy = (1.0 - fy) * ((1.0 - fx) * gy00 + fx * gy10) + fy * ((1.0 - fx) * gy01 + fx * gy11);
-    if (fabs(gx) <= 1e150 && fabs(gy) <= 1e150) {
-        s = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
-        n[0] = -gx * s;
-        n[1] = -gy * s;
-        n[2] = s;
-    } else {
-        /* slopes whose squares overflow (elevations near the limits of a
-         * double, found by fuzzing): normalise (-gx, -gy, 1) scaled by its
-         * largest component, so the normal stays a unit vector pointing up.
-         * An infinite gradient (the difference of two elevations overflowed)
-         * leaves NaN, which the model reports as a diverged state. */
-        const double m = fmax(fabs(gx), fabs(gy));
-        const double a = gx / m, b = gy / m, c = 1.0 / m;
-        s = 1.0 / sqrt(a * a + b * b + c * c);
-        n[0] = -a * s;
-        n[1] = -b * s;
-        n[2] = c * s;
-    }
 }
