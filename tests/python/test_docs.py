@@ -1,0 +1,158 @@
+"""The documents are current, self-contained and describe the present.
+
+Fast (no simulation): the generated parts are regenerated in memory and compared with the
+committed files, every relative link is followed, and the repository's documents and sources
+are searched for references to documents outside the repository and for work-history notes.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCS = ROOT / "docs"
+EXAMPLE = DOCS / "example-campaign"
+
+#: Markdown files whose links must resolve.
+DOCUMENTS = sorted([ROOT / "README.md", *DOCS.rglob("*.md")])
+#: Sources searched for references to outside documents (text files only).
+SOURCE_DIRS = ("python_harness", "fmu_src", "modelDescription", "tests/python", "tests/c", "tests/conformance",
+               "scripts", "bench", "cmake")
+SOURCE_SUFFIXES = {".py", ".c", ".h", ".sh", ".cmake", ".md", ".txt", ".supp"}
+#: Where work-history notes are searched for (what a reader of the current version sees).
+HISTORY_PATHS = ("README.md", "docs", "python_harness/juno", "fmu_src")
+
+# Built from pieces so that this file does not match its own search.
+OUTSIDE = re.compile("|".join([r"model" + r"-notes", r"interfaces" + r"\.md", r"\.\./" + r"shared",
+                               r"\bissue" + r" [0-9]+"]), re.IGNORECASE)
+HISTORY = re.compile(r"\bsession" + r" [0-9]|\bseeds?" + r" [0-9]{3,}", re.IGNORECASE)
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location("generate_docs", ROOT / "scripts" / "generate_docs.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("generate_docs", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _without_code(text: str) -> str:
+    """The Markdown text with fenced code blocks and inline code removed (links there are examples)."""
+    text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+    return re.sub(r"`[^`\n]*`", "", text)
+
+
+def _text_files(paths) -> list[Path]:
+    out = []
+    for rel in paths:
+        p = ROOT / rel
+        if p.is_file():
+            out.append(p)
+        elif p.is_dir():
+            out += [f for f in sorted(p.rglob("*")) if f.is_file() and
+                    (f.suffix in SOURCE_SUFFIXES or f.name == "CMakeLists.txt") and "__pycache__" not in f.parts]
+    return out
+
+
+def test_every_relative_link_and_image_resolves_to_a_file_in_the_repository():
+    assert DOCUMENTS, "no documents found"
+    broken = []
+    for doc in DOCUMENTS:
+        for target in LINK.findall(_without_code(doc.read_text(encoding="utf-8"))):
+            if re.match(r"[a-z][a-z0-9+.-]*:", target) or target.startswith("#"):
+                continue          # a web address or an anchor in the same page
+            path = (doc.parent / target.split("#", 1)[0]).resolve()
+            if not path.exists() or not path.is_relative_to(ROOT):
+                broken.append(f"{doc.relative_to(ROOT)}: ({target})")
+    assert not broken, "links that lead nowhere in the repository:\n" + "\n".join(broken)
+
+
+def test_no_document_or_source_refers_to_documents_outside_the_repository():
+    files = _text_files(["README.md", "docs", "CMakeLists.txt", *SOURCE_DIRS])
+    hits = [f"{f.relative_to(ROOT)}:{n}: {line.strip()[:100]}"
+            for f in files for n, line in enumerate(f.read_text(encoding="utf-8", errors="replace").splitlines(), 1)
+            if OUTSIDE.search(line)]
+    assert not hits, "references to documents outside the repository:\n" + "\n".join(hits)
+
+
+def test_documents_and_code_describe_the_present_without_work_history():
+    files = _text_files(HISTORY_PATHS)
+    hits = [f"{f.relative_to(ROOT)}:{n}: {line.strip()[:100]}"
+            for f in files for n, line in enumerate(f.read_text(encoding="utf-8", errors="replace").splitlines(), 1)
+            if HISTORY.search(line)]
+    assert not hits, "work-history notes (sessions, seed diaries):\n" + "\n".join(hits)
+
+
+def test_generated_tables_and_sections_match_the_fmu_and_the_results_files():
+    """docs/reference/variables.md is the built FMU's modelDescription.xml; the README's and the
+    docs' generated sections are the committed results files. Regenerate with
+    scripts/generate_docs.py after changing either."""
+    gen = _generator()
+    fmu = ROOT / "build" / "JunoRover.fmu"
+    assert fmu.is_file(), "build/JunoRover.fmu is not built (cmake --build build)"
+    stale = gen.stale_parts(fmu)
+    assert not stale, f"stale generated documents (run .venv/bin/python scripts/generate_docs.py): {stale}"
+
+
+def test_the_variables_table_lists_every_variable_of_the_fmu_with_its_unit():
+    gen = _generator()
+    table = gen.variables_table(ROOT / "build" / "JunoRover.fmu")
+    rows = [line for line in table.splitlines() if line.startswith("| `")]
+    names = [re.match(r"\| `([^`]+)`", r).group(1) for r in rows]
+    assert len(names) == len(set(names)) > 100
+    for name, unit in (("soil.kh", "N/m^(2+eta)"), ("x", "m"), ("drawbarForce", "N"), ("wheelRR.slip", "1")):
+        row = rows[names.index(name)]
+        assert f"| {unit} |" in row, row
+
+
+def test_readme_is_short_and_keeps_the_two_commands():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 200
+    assert "bash scripts/main.sh" in text and "bash scripts/test.sh" in text
+    assert "BSD-2-Clause" in text and (ROOT / "LICENSE").is_file()
+
+
+def test_headline_never_quotes_detection_rates_without_a_study():
+    """Without a committed study the README says the rates are not measured and how to measure them."""
+    gen = _generator()
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    if not gen.DETECTION_JSON.is_file():
+        assert "not measured at this commit" in text and gen.DETECTION_COMMAND in text
+
+
+def test_the_example_campaign_loads_and_every_run_and_scan_reads():
+    from juno.campaign import load_campaign, read_run, read_terrain_points
+
+    campaign = load_campaign(EXAMPLE)
+    kinds = sorted(run.kind for run in campaign.runs)
+    assert kinds == ["drawbar", "terrain"]
+    for run in campaign.runs:
+        data = read_run(campaign, run)
+        assert len(data) >= 50, f"{run.id}: {len(data)} rows"
+        for column in ("torque_left", "omega_left", "pos_x"):
+            assert data.has(column)
+        if run.kind == "terrain":
+            points = read_terrain_points(campaign, run)
+            assert points.shape[1] == 3 and len(points) >= 100
+
+
+def test_the_example_campaigns_terrain_run_stays_over_its_scan():
+    """The terrain run's measured path lies inside the scanned area (with a wheelbase's margin)."""
+    import numpy as np
+    from juno.campaign import load_campaign, read_run, read_terrain_points
+
+    campaign = load_campaign(EXAMPLE)
+    run = campaign.runs_of_kind("terrain")[0]
+    data, points = read_run(campaign, run), read_terrain_points(campaign, run)
+    _, x = data.samples("pos_x")
+    _, y = data.samples("pos_y")
+    lo, hi = points[:, :2].min(axis=0), points[:, :2].max(axis=0)
+    margin = 0.41          # m: half the wheelbase, from the chassis reference point to an axle
+    assert lo[0] <= x.min() - margin and x.max() + margin <= hi[0]
+    assert lo[1] <= y.min() - margin and y.max() + margin <= hi[1]
