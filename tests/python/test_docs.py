@@ -156,3 +156,22 @@ def test_the_example_campaigns_terrain_run_stays_over_its_scan():
     margin = 0.41          # m: half the wheelbase, from the chassis reference point to an axle
     assert lo[0] <= x.min() - margin and x.max() + margin <= hi[0]
     assert lo[1] <= y.min() - margin and y.max() + margin <= hi[1]
+
+
+def test_a_detection_study_is_tabled_with_its_provenance():
+    """With a study, the pages quote its cases per effect and say where and when it ran."""
+    gen = _generator()
+    study = {"cases": [{"effect": "none", "correct": True}, {"effect": "none", "correct": True},
+                       {"effect": "grouser", "correct": True}, {"effect": "grouser", "correct": False},
+                       {"effect": "drivetrain_loss+slip_sinkage", "correct": True}],
+             "table": "| hidden effect | cases |\n|---|---|\n| none | 2 |",
+             "provenance": {"command": "scripts/detection_rates.py --seeds 2", "commit": "abc1234",
+                            "started": "2026-01-01 00:00 UTC", "finished": "2026-01-01 01:00 UTC",
+                            "machine": "test machine"}}
+    summary = gen.detection_summary(study)
+    assert "none 2/2" in summary and "grouser 1/2" in summary and "abc1234" in summary
+    assert "slip_sinkage" not in summary          # pairs are tabled on the page, not in the one-line summary
+    page = gen.detection_page(study)
+    for text in ("abc1234", "test machine", "2026-01-01 00:00 UTC", "--seeds 2", study["table"]):
+        assert text in page
+    assert "not measured" not in page
