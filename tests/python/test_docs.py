@@ -142,6 +142,15 @@ def test_the_example_campaign_loads_and_every_run_and_scan_reads():
             assert points.shape[1] == 3 and len(points) >= 100
 
 
+def test_the_example_campaign_raises_no_plausibility_finding():
+    """The example users copy is clean: no warning a user would have to explain away."""
+    plausibility = pytest.importorskip("juno.plausibility")
+    from juno.campaign import load_campaign
+
+    findings = [str(f) for f in plausibility.check_campaign(load_campaign(EXAMPLE))]
+    assert not findings, "\n".join(findings)
+
+
 def test_the_example_campaigns_terrain_run_stays_over_its_scan():
     """The terrain run's measured path lies inside the scanned area (with a wheelbase's margin)."""
     import numpy as np
