@@ -73,6 +73,18 @@ def test_every_relative_link_and_image_resolves_to_a_file_in_the_repository():
     assert not broken, "links that lead nowhere in the repository:\n" + "\n".join(broken)
 
 
+def test_every_repository_path_the_documents_name_exists():
+    """A file named in code font (`fmu_src/contact.c`, `tests/c/test_terrain.c`) is there: a
+    renamed or removed file shows up here rather than as a dead pointer for the reader."""
+    named = re.compile(r"`((?:fmu_src|tests|scripts|python_harness|bench|modelDescription|cmake|docs)/[\w./-]+)`")
+    missing = []
+    for doc in DOCUMENTS:
+        for path in named.findall(doc.read_text(encoding="utf-8")):
+            if not (ROOT / path).exists():
+                missing.append(f"{doc.relative_to(ROOT)}: {path}")
+    assert not missing, "paths named in the documents that do not exist:\n" + "\n".join(missing)
+
+
 def test_no_document_or_source_refers_to_documents_outside_the_repository():
     files = _text_files(["README.md", "docs", "CMakeLists.txt", *SOURCE_DIRS])
     hits = [f"{f.relative_to(ROOT)}:{n}: {line.strip()[:100]}"
