@@ -280,9 +280,15 @@ def run_detection_rates(args: str) -> dict[str, Any]:
     print("running: " + " ".join(cmd[1:]), file=sys.stderr, flush=True)
     subprocess.run(cmd, cwd=ROOT, check=True)
     data = json.loads(DETECTION_WORK.read_text())
-    data["provenance"] = {"command": "scripts/detection_rates.py " + args, "commit": start_commit,
+    data["provenance"] = {"command": "scripts/detection_rates.py " + _display_args(args), "commit": start_commit,
                           "started": start, "finished": _now(), "machine": machine_description()}
     return data
+
+
+def _display_args(args: str) -> str:
+    """Command-line arguments as recorded in a results page: option values joined with ``=``
+    (``--first-seed=4000``), the form that reads as one option."""
+    return re.sub(r"(--[\w-]+) +([^-\s]\S*)", r"\1=\2", args.strip())
 
 
 def _cases_by_effect(data: dict[str, Any]) -> dict[str, list[dict[str, Any]]]:
