@@ -24,7 +24,7 @@
  * (the headline comparison, as before): one wong_reece_forces call; and,
  * for the record, "as the FMU uses it": three calls (forces, and the
  * differences in slip and sinkage that give its damping and stiffness,
- * rover.c wong_reece_contact).
+ * rover_wheel_contact.c, wong_reece_contact).
  *
  * Timing: every evaluation gets a different sinkage (+-1 % around the
  * matched one) and slip (0..0.3) from a table, results go to a volatile
@@ -174,7 +174,7 @@ static inline void volumetric_batch(const Workload *w, long n, int with_jacobian
 static void run_volumetric(const Workload *w, long n) { volumetric_batch(w, n, 1); }
 static void run_volumetric_forces(const Workload *w, long n) { volumetric_batch(w, n, 0); }
 
-/* Wong-Reece as rover.c's wong_reece_contact calls it in a matrices
+/* Wong-Reece as rover_wheel_contact.c's wong_reece_contact calls it in a matrices
  * evaluation at speed: the forces, then a slip step and a sinkage step. */
 static void run_wong_reece_fmu(const Workload *w, long n)
 {

@@ -96,7 +96,7 @@ typedef struct {
     WheelOutputs wheel[NUM_WHEELS];
 } Outputs;
 
-/* ---- rover.c's working data (not part of the FMU state) ---- */
+/* ---- the working data of an evaluation (rover_*.c; not part of the FMU state) ---- */
 
 #define NUM_BODIES 7
 
@@ -108,7 +108,7 @@ typedef struct {
     double force[3];               /* world force on the wheel, N */
 } WheelContact;
 
-/* Everything one evaluation of the dynamics computes (rover.c). */
+/* Everything one evaluation of the dynamics computes. */
 typedef struct {
     double R[9];                   /* world from chassis */
     double e[3];                   /* chassis lateral axis = rocker and wheel axles */
@@ -124,7 +124,7 @@ typedef struct {
 } Eval;
 
 /* What the input-independent part of an evaluation is computed from
- * (rover.c, evaluate_passive): a byte copy, compared byte for byte before
+ * (rover_evaluate_passive): a byte copy, compared byte for byte before
  * the evaluation at the end of one communication step is reused as the
  * first one of the next.  rut only counts when multipass is on. */
 typedef struct {
@@ -164,9 +164,6 @@ int model_initialize(Model *m, char *err, size_t errlen);
 /* Advances from s.time by h_comm (s) using internal substeps.  Returns 0,
  * or -1 with a message in err (bad input, diverging state). */
 int model_do_step(Model *m, double h_comm, char *err, size_t errlen);
-
-/* Outputs from the current state; pure. */
-void model_compute_outputs(Model *m);
 
 void model_free(Model *m);
 

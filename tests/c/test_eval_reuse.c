@@ -1,5 +1,5 @@
 /*
- * Reusing the end-of-step evaluation (rover.c, model_do_step) changes
+ * Reusing the end-of-step evaluation (rover_step.c, model_do_step) changes
  * nothing: a model that reuses it and one made to evaluate afresh at every
  * step (its eval_valid cleared before each model_do_step) end every
  * communication step in bit-identical states and outputs, while

@@ -740,7 +740,7 @@ static void time_forces(int soil)
            calls, (double)sink);
 }
 
-/* The FMU's linearisation of this model (rover.c, wong_reece_contact):
+/* The FMU's linearisation of this model (rover_wheel_contact.c, wong_reece_contact):
  * forward differences of 1e-3 of the sinkage (relative) for dFz/dh and of
  * 1e-3 in slip for dT, dFx, dFz per unit slip, at the default 100 points.
  * Against central differences of a 20000-point reference over sinkage

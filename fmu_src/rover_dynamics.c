@@ -1,0 +1,391 @@
+/*
+ * The rover's dynamics (rover_internal.h): the kinematics of its seven
+ * bodies, their mass matrix, gravity, bias and gyroscopic forces, the
+ * drive, the rocker differential's friction and the drawbar, and the
+ * outputs.  The contacts are rover_wheel_contact.c's.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "rover_internal.h"
+
+/* ------------------------------------------------------- kinematics */
+
+/* Jacobian rows of a point x (world) moving with the chassis, or with a
+ * rocker of the given side (side < 0: chassis). */
+static void point_jacobian(const Eval *ev, const double pos[3], const double x[3], int side, double J[3][NU])
+{
+    double r[3], c[3] = {0, 0, 0};
+    v3_sub(r, x, pos);
+    if (side >= 0) {
+        double s[3];
+        v3_sub(s, x, ev->pivot[side]);
+        v3_cross(c, ev->e, s);
+        v3_scale(c, c, sigma_of(side));
+    }
+    /* v = v_c + w x r + u_beta c  ->  [1 | -[r]x | c | 0 0], written whole (no memset) */
+    for (int i = 0; i < 3; ++i) {
+        J[i][U_VX + 0] = i == 0;
+        J[i][U_VX + 1] = i == 1;
+        J[i][U_VX + 2] = i == 2;
+        J[i][U_BETA] = c[i];
+        J[i][U_SPIN_L] = 0;
+        J[i][U_SPIN_R] = 0;
+    }
+    J[0][U_WX + 0] = 0;     J[0][U_WX + 1] = r[2];  J[0][U_WX + 2] = -r[1];
+    J[1][U_WX + 0] = -r[2]; J[1][U_WX + 1] = 0;     J[1][U_WX + 2] = r[0];
+    J[2][U_WX + 0] = r[1];  J[2][U_WX + 1] = -r[0]; J[2][U_WX + 2] = 0;
+}
+
+/* One rigid body's kinematics for the assembly.  With r = CG - chassis
+ * reference point (world), the CG velocity is
+ *   v = u_v + w x r + u_beta cb,
+ * and the angular velocity w + u_beta sb e + u_spin e (the spin term on
+ * a wheel only); that is, Jv = [I, -[r]x, cb, 0] and Jw = [0, I, sb e, e].
+ * The assembly below multiplies these blocks out instead of forming the
+ * 3 x 9 matrices (most of their 54 entries are 0 or 1). */
+typedef struct {
+    double mass, r[3], I[9];       /* kg; m; world inertia about the CG, kg m^2 */
+    double cb[3];                  /* CG velocity per unit rocker rate, m/rad (0: chassis) */
+    double sb;                     /* rocker-rate factor of the angular velocity: sigma, or 0 */
+    double spin_rate;              /* about e, relative to the chassis, rad/s */
+    int side;                      /* SIDE_LEFT or SIDE_RIGHT for a rocker or wheel, -1: chassis */
+    int spin;                      /* U_SPIN_L or U_SPIN_R for a wheel, -1 otherwise */
+    double Ie[3], eIe;             /* I e and e.I e (rocker or wheel) */
+} Body;
+
+/* What the bodies share within one evaluation. */
+typedef struct {
+    const double *w;               /* chassis angular velocity, rad/s */
+    double g;                      /* gravity, m/s^2 */
+    double wxe[3];                 /* w x e */
+    double pivot_acc[2][3];        /* w x (w x (pivot - reference point)), per side */
+} BodyCommon;
+
+/* Adds body b's mass matrix (upper triangle) and generalised forces
+ * (gravity, bias and gyroscopic terms) to M and Q. */
+static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double M[NU][NU], double Q[NU])
+{
+    const double m = b->mass, *r = b->r, *I = b->I, *e = ev->e, *w = c->w, g = c->g;
+    /* Bias accelerations (u' = 0) of the CG and of the angular velocity. */
+    double bv[3], bw[3], tmp[3];
+    if (b->side >= 0) {
+        /* CG = pivot + sv, the body turning at w + sb u_beta e about the pivot */
+        double sv[3], wr[3], tmp2[3];
+        const double *rd = ev->pivot_r[b->side], *wxe = c->wxe;
+        const double sb_rate = b->sb * ev->u_beta;
+        v3_sub(sv, r, rd);
+        v3_copy(bv, c->pivot_acc[b->side]);
+        v3_cross(tmp, wxe, sv);
+        v3_axpy(bv, sb_rate, tmp);
+        v3_copy(wr, w);
+        v3_axpy(wr, sb_rate, e);
+        v3_cross(tmp, wr, sv);
+        v3_cross(tmp2, wr, tmp);
+        v3_add(bv, bv, tmp2);
+        v3_scale(bw, wxe, b->spin_rate);
+    } else {
+        v3_cross(tmp, w, r);
+        v3_cross(bv, w, tmp);
+        v3_set(bw, 0, 0, 0);
+    }
+    /* body angular velocity and gyroscopic torque */
+    double wb[3], Iw[3], gyro[3], Ibw[3];
+    v3_copy(wb, w);
+    v3_axpy(wb, b->spin_rate, e);
+    m3_mul_v(Iw, I, wb);
+    v3_cross(gyro, wb, Iw);
+    m3_mul_v(Ibw, I, bw);
+    const double F[3] = {-m * bv[0], -m * bv[1], -m * (bv[2] + g)};
+    const double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
+
+    /* Q += Jv^T F + Jw^T T */
+    double rF[3];
+    v3_cross(rF, r, F);
+    for (int i = 0; i < 3; ++i) {
+        Q[U_VX + i] += F[i];
+        Q[U_WX + i] += rF[i] + T[i];
+    }
+    /* M += m Jv^T Jv + Jw^T I Jw, upper triangle:
+     *   vv: m 1, vw: -m [r]x, ww: m (|r|^2 1 - r r^T) + I. */
+    const double rr = v3_dot(r, r);
+    for (int i = 0; i < 3; ++i) M[U_VX + i][U_VX + i] += m;
+    M[U_WX + 0][U_WX + 0] += m * (rr - r[0] * r[0]) + I[0];
+    M[U_WX + 0][U_WX + 1] += m * (0 - r[0] * r[1]) + I[1];
+    M[U_WX + 0][U_WX + 2] += m * (0 - r[0] * r[2]) + I[2];
+    M[U_WX + 1][U_WX + 1] += m * (rr - r[1] * r[1]) + I[4];
+    M[U_WX + 1][U_WX + 2] += m * (0 - r[1] * r[2]) + I[5];
+    M[U_WX + 2][U_WX + 2] += m * (rr - r[2] * r[2]) + I[8];
+    M[U_VX + 0][U_WX + 1] += m * r[2];
+    M[U_VX + 0][U_WX + 2] -= m * r[1];
+    M[U_VX + 1][U_WX + 0] -= m * r[2];
+    M[U_VX + 1][U_WX + 2] += m * r[0];
+    M[U_VX + 2][U_WX + 0] += m * r[1];
+    M[U_VX + 2][U_WX + 1] -= m * r[0];
+    if (b->side < 0) return;
+    /* rocker rate column: vb: m cb, wb: m r x cb + sb I e, bb: m cb.cb + sb^2 e.I e */
+    const double *Ie = b->Ie, eIe = b->eIe;
+    double rc[3];
+    v3_cross(rc, r, b->cb);
+    for (int i = 0; i < 3; ++i) {
+        M[U_VX + i][U_BETA] += m * b->cb[i];
+        M[U_WX + i][U_BETA] += m * rc[i] + b->sb * Ie[i];
+    }
+    M[U_BETA][U_BETA] += m * v3_dot(b->cb, b->cb) + b->sb * b->sb * eIe;
+    Q[U_BETA] += v3_dot(b->cb, F) + b->sb * v3_dot(e, T);
+    if (b->spin < 0) return;
+    /* wheel spin column: ws: I e, bs: sb e.I e, ss: e.I e */
+    for (int i = 0; i < 3; ++i) M[U_WX + i][b->spin] += Ie[i];
+    M[U_BETA][b->spin] += b->sb * eIe;
+    M[b->spin][b->spin] += eIe;
+    Q[b->spin] += v3_dot(e, T);
+}
+
+/* The rocker frames and the hubs relative to the chassis reference point,
+ * which the body assembly needs beside what Eval keeps. */
+typedef struct {
+    double Rr[2][9];               /* world from rocker frame, left and right */
+    double hub_r[NUM_WHEELS][3];   /* hub - chassis reference point */
+} Frames;
+
+/* Kinematics: the chassis frame, the rocker frames, pivots, hubs and the
+ * wheels' velocity Jacobians. */
+static void kinematics(const Model *m, Eval *ev, Frames *fr)
+{
+    const Derived *d = &m->d;
+    const State *s = &m->s;
+    const double *u = s->u;
+
+    quat_to_m3(ev->R, s->quat);
+    v3_set(ev->e, ev->R[1], ev->R[4], ev->R[7]);
+    v3_set(ev->heading, ev->R[0], ev->R[3], 0);
+    v3_normalize(ev->heading);
+    ev->u_beta = u[U_BETA];
+
+    /* Rocker frames R Ry(sigma beta): the y column is the chassis's, one
+     * sine and cosine serve both sides (sin is odd). */
+    const double cb = cos(s->beta), sbeta = sin(s->beta);
+    for (int k = 0; k < 2; ++k) {
+        const double sb = sigma_of(k) * sbeta;
+        const double *R = ev->R;
+        double *A = fr->Rr[k];
+        for (int i = 0; i < 3; ++i) {
+            A[3 * i + 0] = R[3 * i] * cb - R[3 * i + 2] * sb;
+            A[3 * i + 1] = R[3 * i + 1];
+            A[3 * i + 2] = R[3 * i] * sb + R[3 * i + 2] * cb;
+        }
+        m3_mul_v(ev->pivot_r[k], ev->R, d->pivot[k]);
+        v3_add(ev->pivot[k], s->pos, ev->pivot_r[k]);
+    }
+    for (int wh = 0; wh < NUM_WHEELS; ++wh) {
+        const int side = side_of(wh);
+        double tmp[3];
+        m3_mul_v(tmp, fr->Rr[side], d->hub[wh % 2]);
+        v3_add(ev->hub[wh], ev->pivot[side], tmp);
+        v3_add(fr->hub_r[wh], ev->pivot_r[side], tmp);
+        /* The hub Jacobians the contacts work with (dense rows). */
+        double (*Jv)[NU] = ev->Jv[BODY_WHEEL0 + wh];
+        double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + wh];
+        point_jacobian(ev, s->pos, ev->hub[wh], side, Jv);
+        const double sg = sigma_of(side);
+        for (int i = 0; i < 3; ++i) {
+            Jw[i][U_VX + 0] = 0; Jw[i][U_VX + 1] = 0; Jw[i][U_VX + 2] = 0;
+            Jw[i][U_WX + 0] = i == 0; Jw[i][U_WX + 1] = i == 1; Jw[i][U_WX + 2] = i == 2;
+            Jw[i][U_BETA] = sg * ev->e[i];
+            Jw[i][U_SPIN_L] = side == SIDE_LEFT ? ev->e[i] : 0;
+            Jw[i][U_SPIN_R] = side == SIDE_RIGHT ? ev->e[i] : 0;
+        }
+    }
+}
+
+/* M and Q of the seven bodies (ev->M, ev->Q cleared first; ev->D and
+ * ev->K cleared for the contacts and inputs to add to). */
+static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
+{
+    const Params *p = &m->p;
+    const Derived *d = &m->d;
+    const double *u = m->s.u;
+    memset(ev->M, 0, sizeof ev->M);
+    memset(ev->Q, 0, sizeof ev->Q);
+    memset(ev->D, 0, sizeof ev->D);
+    memset(ev->K, 0, sizeof(double) * NU * NU);
+    BodyCommon common;
+    common.w = &u[U_WX];
+    common.g = p->env_gravity;
+    v3_cross(common.wxe, common.w, ev->e);
+    for (int side = 0; side < 2; ++side) {
+        double tmp[3];
+        v3_cross(tmp, common.w, ev->pivot_r[side]);
+        v3_cross(common.pivot_acc[side], common.w, tmp);
+    }
+    Body b;
+    /* chassis */
+    b.mass = d->chassis_mass;
+    m3_mul_v(b.r, ev->R, d->chassis_cg);
+    m3_rotate_diag(b.I, ev->R, d->chassis_inertia);
+    v3_set(b.cb, 0, 0, 0);
+    b.sb = 0;
+    b.side = -1;
+    b.spin_rate = 0;
+    b.spin = -1;
+    add_body(ev, &common, &b, ev->M, ev->Q);
+    /* rockers */
+    for (int side = 0; side < 2; ++side) {
+        double tmp[3], sv[3];
+        b.mass = p->rover_rockerMass;
+        m3_mul_v(tmp, fr->Rr[side], d->rocker_cg);
+        v3_add(b.r, ev->pivot_r[side], tmp);
+        m3_rotate_diag(b.I, fr->Rr[side], d->rocker_inertia);
+        b.sb = sigma_of(side);
+        b.side = side;
+        v3_cross(sv, ev->e, tmp);                 /* e x (CG - pivot) */
+        v3_scale(b.cb, sv, b.sb);
+        b.spin_rate = b.sb * u[U_BETA];
+        b.spin = -1;
+        m3_mul_v(b.Ie, b.I, ev->e);
+        b.eIe = v3_dot(ev->e, b.Ie);
+        add_body(ev, &common, &b, ev->M, ev->Q);
+    }
+    /* wheels: discs about the axle e */
+    const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
+    b.mass = p->wheel_mass;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) b.I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
+    m3_mul_v(b.Ie, b.I, ev->e);
+    b.eIe = v3_dot(ev->e, b.Ie);
+    for (int wh = 0; wh < NUM_WHEELS; ++wh) {
+        const int side = side_of(wh);
+        v3_copy(b.r, fr->hub_r[wh]);
+        b.sb = sigma_of(side);
+        b.side = side;
+        for (int i = 0; i < 3; ++i) b.cb[i] = ev->Jv[BODY_WHEEL0 + wh][i][U_BETA];
+        b.spin_rate = b.sb * u[U_BETA] + u[U_SPIN_L + side];
+        b.spin = U_SPIN_L + side;
+        add_body(ev, &common, &b, ev->M, ev->Q);
+    }
+    for (int i = 0; i < NU; ++i)
+        for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
+}
+
+/* From s.pos, quat, beta, u, memory, path, rut, the parameters, derived
+ * data and terrain only (what EvalKey records). */
+void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
+{
+    Frames fr;
+    kinematics(m, ev, &fr);
+    if (matrices) assemble_bodies(m, ev, &fr);
+    for (int wh = 0; wh < NUM_WHEELS; ++wh) rover_wheel_contact(m, ev, wh, matrices);
+}
+
+/* ---------------------------------------------------------- drive, drawbar */
+
+void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2])
+{
+    const Params *p = &m->p;
+    const double omega[2] = {m->s.u[U_SPIN_L], m->s.u[U_SPIN_R]};
+    for (int k = 0; k < 2; ++k) {
+        double t = 0, slope = 0;
+        if (p->drive_mode == DRIVE_TORQUE) {
+            t = k == SIDE_LEFT ? m->in.torqueLeft : m->in.torqueRight;
+        } else if (p->drive_mode == DRIVE_PID) {
+            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            t = p->drive_Kp * (ref - omega[k]) + p->drive_Ki * m->s.pid_integral[k];
+            slope = -p->drive_Kp;
+        } else {
+            /* DC motor at throttle u: T = eff * n * kt * (u V - ke n w) / Ra, ke = kt (SI). */
+            double u = k == SIDE_LEFT ? m->in.throttleLeft : m->in.throttleRight;
+            double n = p->motor_gearRatio, kt = p->motor_kt;
+            t = p->motor_efficiency * n * kt * (u * p->motor_voltage - kt * n * omega[k]) / p->motor_resistance;
+            slope = -p->motor_efficiency * n * n * kt * kt / p->motor_resistance;
+        }
+        if (p->drive_mode != DRIVE_TORQUE && fabs(t) > p->drive_torqueMax) {
+            t = copysign(p->drive_torqueMax, t);
+            slope = 0;
+        }
+        torque[k] = t;
+        dtorque_domega[k] = slope;
+    }
+}
+
+/* The part that depends on the inputs (and s.pid_integral): the drive
+ * torques and, if matrices, the drive, rocker damping and drawbar terms
+ * added to the Q, D, K of rover_evaluate_passive (once per passive
+ * evaluation). */
+void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
+{
+    const Params *p = &m->p;
+    const double *u = m->s.u;
+    double (*K)[NU] = ev->K;
+    double *slope = ev->torque_slope;
+    rover_drive_torques(m, ev->torque, slope);
+    if (!matrices) return;
+
+    /* Drive: the motor on each rocker turns its side's wheels relative to it. */
+    /* The drive torque is on the motor side (what the current measures);
+     * the wheels get (1 - drive.lossFraction) of it. */
+    const double transmitted = 1.0 - p->drive_lossFraction;
+    for (int k = 0; k < 2; ++k) {
+        ev->Q[U_SPIN_L + k] += transmitted * ev->torque[k];
+        ev->D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
+        /* The PID's integral acts like a torsion spring on the spin angle (I' = ref - omega):
+         * treated implicitly as a stiffness, so a stiff PID stays stable at large steps
+         * (explicitly, K_i = 2e4 N m/rad went unstable at 5 ms in soft soil).  Off when the
+         * torque is saturated (slope 0), where the anti-windup holds the integral. */
+        if (p->drive_mode == DRIVE_PID && slope[k] != 0)
+            K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
+    }
+    /* Rocker differential friction. */
+    ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
+    ev->D[U_BETA][U_BETA] += p->rover_rockerDamping;
+    /* Drawbar: horizontal, backwards along the heading, at the hitch (a
+     * chassis point r from the reference point: Q_v += F, Q_w += r x F). */
+    const double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ};
+    double r_hitch[3], Fd[3], rF[3];
+    m3_mul_v(r_hitch, ev->R, hitch_local);
+    v3_scale(Fd, ev->heading, -m->in.drawbarForce);
+    v3_cross(rF, r_hitch, Fd);
+    for (int i = 0; i < 3; ++i) {
+        ev->Q[U_VX + i] += Fd[i];
+        ev->Q[U_WX + i] += rF[i];
+    }
+}
+
+/* Evaluates kinematics, forces and (if matrices) M, Q, D, K. */
+void rover_evaluate(const Model *m, Eval *ev, int matrices)
+{
+    rover_evaluate_passive(m, ev, matrices);
+    rover_evaluate_inputs(m, ev, matrices);
+}
+
+/* ------------------------------------------------------------ outputs */
+
+/* Outputs from an evaluation of the current state (with its torques). */
+void rover_outputs_from(Model *m, const Eval *ev)
+{
+    Outputs *o = &m->out;
+    const double *R = ev->R;
+    o->x = m->s.pos[0];
+    o->y = m->s.pos[1];
+    o->z = m->s.pos[2];
+    o->yaw = atan2(R[3], R[0]);
+    o->pitch = asin(fmax(-1.0, fmin(1.0, -R[6])));
+    o->roll = atan2(R[7], R[8]);
+    o->vx = v3_dot(&m->s.u[U_VX], ev->heading);
+    o->omegaLeft = m->s.u[U_SPIN_L];
+    o->omegaRight = m->s.u[U_SPIN_R];
+    o->torqueLeftApplied = ev->torque[SIDE_LEFT];
+    o->torqueRightApplied = ev->torque[SIDE_RIGHT];
+    o->rocker = m->s.beta;
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const WheelContact *wc = &ev->wheel[w];
+        WheelOutputs *wo = &o->wheel[w];
+        const double sa = wc->sin_alpha, ca = wc->cos_alpha;
+        wo->sinkage = wc->sinkage;
+        wo->slip = wc->slip;
+        wo->Fn = wc->Fn;
+        wo->Ft = wc->F_long;
+        wo->Fx = wc->F_long * ca - wc->Fn * sa;
+        wo->Fy = wc->F_lat;
+        wo->Fz = wc->Fn * ca + wc->F_long * sa;
+    }
+}

@@ -1,0 +1,82 @@
+/*
+ * What the parts of the rover model share (not part of the model's API,
+ * model.h):
+ *   rover_setup.c          parameters, derived data, static equilibrium,
+ *                          the life cycle and the hooks of the FMI layer
+ *   rover_dynamics.c       kinematics, the bodies' mass matrix and forces,
+ *                          the drive, the drawbar, the outputs
+ *   rover_wheel_contact.c  one wheel's contact with the soil (both contact
+ *                          laws) and the model extensions acting there
+ *   rover_step.c           the integrator, the reuse of an evaluation, the
+ *                          checks of a diverging state
+ *
+ * The rover: the CSA Juno rover's chassis (6 DOF), two main rockers coupled
+ * by the transverse differential (left angle beta, right -beta), one spin
+ * DOF per side (1:1 chain), four wheel/soil contacts, a drawbar hitch.
+ *
+ * Formulation: Kane's equations in the 9 generalised velocities u of
+ * model.h.  Each of the 7 bodies (chassis, 2 rockers, 4 wheels) has a
+ * linear and angular velocity Jacobian J(q) (3 x 9) and a bias
+ * acceleration (the J'u terms), so M(q) u' = Q(q, u) with
+ * M = sum J^T m J and Q = sum J^T (F - m b) + gyroscopic terms.
+ */
+#ifndef JUNO_ROVER_INTERNAL_H
+#define JUNO_ROVER_INTERNAL_H
+
+#include <math.h>
+#include <stddef.h>
+
+#include "model.h"
+#include "vec3.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+enum { BODY_CHASSIS = 0, BODY_ROCKER_L = 1, BODY_ROCKER_R = 2, BODY_WHEEL0 = 3 };
+
+/* "FL", "RL", "FR", "RR", for messages. */
+extern const char *const rover_wheel_names[NUM_WHEELS];
+
+static inline int side_of(int w) { return w / 2; }
+static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
+
+/* rover_wheel_contact.c */
+
+/* Terrain elevation (m) at world (x, y) and, if n, the unit normal there,
+ * with the registration offsets (terrain.offset*) applied. */
+double rover_terrain_at(const Model *m, double x, double y, double n[3]);
+
+/* Contact of wheel w: fills ev->wheel[w]; with matrices, adds its
+ * generalised force to ev->Q, its damping to ev->D and its stiffness to
+ * ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
+void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices);
+
+/* rover_dynamics.c */
+
+/* Drive torque per side (N m, on the motor side) and its derivative in the
+ * side's wheel spin (0 when saturated), from the drive mode and inputs. */
+void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2]);
+
+/* The part of an evaluation that does not depend on the inputs (what
+ * EvalKey records): kinematics, the bodies' M and Q (with matrices) and
+ * the contacts.  rover_evaluate_inputs adds the drive and drawbar terms;
+ * rover_evaluate does both. */
+void rover_evaluate_passive(const Model *m, Eval *ev, int matrices);
+void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices);
+void rover_evaluate(const Model *m, Eval *ev, int matrices);
+
+/* Outputs from an evaluation of the current state (with its torques). */
+void rover_outputs_from(Model *m, const Eval *ev);
+
+/* rover_step.c */
+
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
+void rover_evaluate_end_of_step(Model *m);
+
+/* If the steepest terrain slope under the NUM_WHEELS points xy (world x,
+ * y) exceeds the soil's friction angle, writes why the rover cannot stand
+ * there into buf and returns 1; else returns 0. */
+int rover_slope_beyond_friction(const Model *m, const double (*xy)[3], char *buf, size_t n);
+
+#endif

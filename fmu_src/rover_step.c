@@ -1,0 +1,305 @@
+/*
+ * The integrator (rover_internal.h): one communication step in internal
+ * steps of at most solver.step, linearly implicit Euler in the velocities
+ * (the stiff soil shear, normal stiffness and drive damping are
+ * linearised), then the positions with the new velocities (symplectic):
+ *   (M + h D + h^2 K) du = h (Q - h K u),   u += du,   q += h u.
+ * The contact memory (max sinkage, distance rolled), the multi-pass rut
+ * and the PID integral are advanced explicitly once per internal step.
+ * Also: the reuse of the end-of-step evaluation, and the checks that name
+ * the likely cause of a diverging state.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "rover_internal.h"
+
+/* ------------------------------------------------------ linear algebra */
+
+/* One column of the elimination in solve(): partial pivoting among rows
+ * c..NU-1 (by row pointer), then the rows below lose their column-c entry.
+ * The entries left of the diagonal are never read again, so they are not
+ * updated.  Inlined with a constant c, the loops have fixed lengths. */
+static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], const int c)
+{
+    int piv = c;
+    double best = fabs(row[c][c]);
+    for (int r = c + 1; r < NU; ++r) {
+        const double v = fabs(row[r][c]);
+        if (v > best) best = v, piv = r;
+    }
+    if (!(best > 1e-300)) return -1;
+    if (piv != c) {
+        double *t = row[c]; row[c] = row[piv]; row[piv] = t;
+        const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
+    }
+    const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
+    for (int r = c + 1; r < NU; ++r) {
+        double *rr = row[r];
+        const double f = rr[c] / pivot;
+        if (f == 0) continue;
+        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+        b[idx[r]] -= f * bc;
+    }
+    return 0;
+}
+
+/* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
+ * A and b are overwritten.  Returns -1 if singular.  The rows are swapped
+ * through pointers: the arithmetic is that of the textbook loop,
+ * operation for operation. */
+static int solve(double A[NU][NU], double b[NU])
+{
+    _Static_assert(NU == 9, "solve() unrolls its columns for NU = 9");
+    double *row[NU], x[NU];
+    int idx[NU];
+    for (int i = 0; i < NU; ++i) row[i] = A[i], idx[i] = i;
+    if (eliminate_column(row, idx, b, 0) || eliminate_column(row, idx, b, 1) || eliminate_column(row, idx, b, 2) ||
+        eliminate_column(row, idx, b, 3) || eliminate_column(row, idx, b, 4) || eliminate_column(row, idx, b, 5) ||
+        eliminate_column(row, idx, b, 6) || eliminate_column(row, idx, b, 7) || eliminate_column(row, idx, b, 8))
+        return -1;
+    for (int c = NU - 1; c >= 0; --c) {
+        const double *pr = row[c];
+        double s = b[idx[c]];
+        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
+        x[c] = s / pr[c];
+    }
+    memcpy(b, x, sizeof x);
+    return 0;
+}
+
+/* ------------------------------------------------- diverging states */
+
+/* The steepest terrain slope (rad) under the points (x, y) of n points,
+ * and which point it is under. */
+static double steepest_slope(const Model *m, const double (*xy)[3], int n, int *which)
+{
+    double steepest = 0.0;
+    *which = 0;
+    for (int k = 0; k < n; ++k) {
+        double nrm[3];
+        rover_terrain_at(m, xy[k][0], xy[k][1], nrm);
+        const double slope = acos(fmax(-1.0, fmin(1.0, nrm[2])));
+        if (slope > steepest) steepest = slope, *which = k;
+    }
+    return steepest;
+}
+
+/* Why the rover cannot stand or drive where it is, as far as the model can
+ * tell: on terrain sloping more steeply than the soil's friction angle,
+ * the Mohr-Coulomb shear strength of a cohesionless soil (F_taumax = C A +
+ * Fn tan phi) cannot hold a wheel, and the rover slides and digs in
+ * whatever the soil's stiffness.  Writes a clause into buf and returns 1
+ * if the steepest slope under the given points exceeds soil.phi, else 0. */
+int rover_slope_beyond_friction(const Model *m, const double (*xy)[3], char *buf, size_t n)
+{
+    int w;
+    const double slope = steepest_slope(m, xy, NUM_WHEELS, &w);
+    if (!(slope > m->p.soil_phi)) return 0;
+    snprintf(buf, n,
+             "the terrain under wheel %s slopes %.1f deg, steeper than the soil's friction angle soil.phi = "
+             "%.1f deg: the soil cannot hold the rover there (terrain too steep)",
+             rover_wheel_names[w], slope * 180.0 / M_PI, m->p.soil_phi * 180.0 / M_PI);
+    return 1;
+}
+
+/* Speed (m/s) at which wheel w's hub moves into the ground, along the
+ * terrain normal under it (negative: away from it). */
+static double hub_approach_speed(const Model *m, const Eval *ev, int w)
+{
+    double n[3], v[3];
+    rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n);
+    for (int i = 0; i < 3; ++i) {
+        v[i] = 0.0;
+        for (int k = 0; k < NU; ++k) v[i] += ev->Jv[BODY_WHEEL0 + w][i][k] * m->s.u[k];
+    }
+    return -v3_dot(n, v);
+}
+
+/* The likely cause of a wheel sinking deeper than its radius, from what
+ * the model knows at that moment, the first that holds of:
+ *  - the terrain under a wheel slopes more steeply than soil.phi (above);
+ *  - the wheel struck the ground faster than a fall from its own radius
+ *    height, sqrt(2 g R): the rover fell or tumbled, and no soil stops a
+ *    wheel within its radius from such a speed at these stiffnesses;
+ *  - otherwise the soil yields that far under the load: too soft. */
+static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
+{
+    if (rover_slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
+    const double speed = hub_approach_speed(m, ev, w), fall = sqrt(2.0 * m->p.env_gravity * m->p.wheel_radius);
+    if (speed > fall) {
+        snprintf(buf, n,
+                 "it struck the ground at %.2f m/s, faster than a fall from its radius height (%.2f m/s): the "
+                 "rover fell or tumbled (terrain too steep or rough?)", speed, fall);
+        return;
+    }
+    snprintf(buf, n, "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
+             "wheel.width)");
+}
+
+static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
+{
+    const State *s = &m->s;
+    char cause[256];
+    for (int i = 0; i < 3; ++i)
+        if (!isfinite(s->pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", s->time), 0;
+    for (int i = 0; i < NU; ++i)
+        if (!isfinite(s->u[i]) || fabs(s->u[i]) > 1e3)
+            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g", s->time, i, s->u[i]), 0;
+    if (fabs(s->beta) > 1.2)
+        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", s->time, s->beta), 0;
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        if (ev->wheel[w].sinkage >= m->p.wheel_radius) {
+            sinkage_cause(m, ev, w, cause, sizeof cause);
+            return snprintf(err, n, "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius; %s",
+                            s->time, rover_wheel_names[w], ev->wheel[w].sinkage, cause), 0;
+        }
+    return 1;
+}
+
+/* ------------------------------------------- reusing an evaluation */
+
+/* The evaluation at the end of a communication step (for the outputs) is
+ * that of the state the next step starts from.  Only its drive and drawbar
+ * terms depend on the inputs, which the importer may change in between;
+ * so the input-independent part (evaluate_passive, with matrices) is kept
+ * in m->eval and the next step's first substep adds the input terms to it
+ * (evaluate_inputs), the same operations in the same order as evaluating
+ * afresh.  It is used only if nothing it was computed from has changed
+ * since, byte for byte (EvalKey: parameters, derived data, terrain, the
+ * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
+ * failed step make the next step evaluate afresh. */
+static void eval_key_store(Model *m)
+{
+    EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    memcpy(&k->p, &m->p, sizeof k->p);
+    memcpy(&k->d, &m->d, sizeof k->d);
+    memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
+    memcpy(k->pos, s->pos, sizeof k->pos);
+    memcpy(k->quat, s->quat, sizeof k->quat);
+    k->beta = s->beta;
+    memcpy(k->u, s->u, sizeof k->u);
+    memcpy(k->memory, s->memory, sizeof k->memory);
+    memcpy(k->path, s->path, sizeof k->path);
+    if (m->p.multipass_rutFraction > 0) memcpy(k->rut, s->rut, sizeof k->rut);
+}
+
+static int eval_key_matches(const Model *m)
+{
+    const EvalKey *k = &m->eval_key;
+    const State *s = &m->s;
+    return memcmp(&k->p, &m->p, sizeof k->p) == 0 && memcmp(&k->d, &m->d, sizeof k->d) == 0 &&
+           memcmp(&k->terrain, &m->terrain, sizeof k->terrain) == 0 &&
+           memcmp(k->pos, s->pos, sizeof k->pos) == 0 && memcmp(k->quat, s->quat, sizeof k->quat) == 0 &&
+           memcmp(&k->beta, &s->beta, sizeof k->beta) == 0 && memcmp(k->u, s->u, sizeof k->u) == 0 &&
+           memcmp(k->memory, s->memory, sizeof k->memory) == 0 &&
+           memcmp(k->path, s->path, sizeof k->path) == 0 &&
+           (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
+}
+
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
+void rover_evaluate_end_of_step(Model *m)
+{
+    rover_evaluate_passive(m, &m->eval, 1);
+    eval_key_store(m);
+    m->eval_valid = 1;
+    rover_evaluate_inputs(m, &m->eval, 0);          /* the torques only: Q, D, K stay input-free */
+    rover_outputs_from(m, &m->eval);
+}
+
+/* One internal step of length h.  reuse: m->eval holds the passive
+ * evaluation of the current state (model_do_step checked it). */
+static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    Eval *ev = &m->eval;
+    double (*K)[NU] = ev->K;
+    double A[NU][NU], b[NU];
+    if (!reuse) rover_evaluate_passive(m, ev, 1);
+    m->eval_valid = 0;                        /* it gets the input terms, and the state moves on */
+    rover_evaluate_inputs(m, ev, 1);
+    for (int i = 0; i < NU; ++i) {
+        double Ku = 0;
+        for (int j = 0; j < NU; ++j) {
+            A[i][j] = ev->M[i][j] + h * ev->D[i][j] + h * h * K[i][j];
+            Ku += K[i][j] * s->u[j];
+        }
+        b[i] = h * (ev->Q[i] - h * Ku);
+    }
+    if (m->p.drive_mode == DRIVE_PID)   /* the reference's share of the implicit PID integral */
+        for (int k = 0; k < 2; ++k)
+            if (ev->torque_slope[k] != 0) {
+                const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+                b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
+            }
+    if (solve(A, b) != 0)
+        return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
+
+    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
+    for (int i = 0; i < NU; ++i) s->u[i] += b[i];
+    /* PID integral with anti-windup: integrate only while not saturated,
+     * or while the error would bring the torque back inside the limit.  The
+     * error is the end-of-step one, as the implicit stiffness above assumes. */
+    if (m->p.drive_mode == DRIVE_PID) {
+        for (int k = 0; k < 2; ++k) {
+            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            double e = ref - s->u[U_SPIN_L + k];
+            int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
+            if (!saturated || e * ev->torque[k] < 0) s->pid_integral[k] += e * h;
+        }
+        /* What the wheels got over the step is the end-of-step PID torque. */
+        double slope[2];
+        rover_drive_torques(m, s->torque_applied, slope);
+    }
+    for (int i = 0; i < 3; ++i) s->pos[i] += h * s->u[U_VX + i];
+    quat_integrate_world(s->quat, &s->u[U_WX], h);
+    s->beta += h * s->u[U_BETA];
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        contact_memory_update(&m->d.contact, &s->memory[w], ev->wheel[w].sinkage, ev->wheel[w].v_long, h);
+    if (m->p.multipass_rutFraction > 0) {
+        /* Record the residual rut each front wheel leaves along its forward travel. */
+        for (int side = 0; side < 2; ++side) {
+            const int front = 2 * side;
+            const double v = ev->wheel[front].v_long;
+            if (!(v > 0)) continue;
+            const double depth = ev->wheel[front].sinkage > 0
+                                     ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
+            const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
+            s->path[side] += v * h;
+            const long to = (long)floor(s->path[side] / RUT_SPACING);
+            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i)
+                s->rut[side][((i % RUT_SAMPLES) + RUT_SAMPLES) % RUT_SAMPLES] = depth;
+        }
+    }
+    s->time += h;
+    if (!state_is_sane(m, ev, err, errlen)) return -1;
+    return 0;
+}
+
+static int inputs_are_finite(const Inputs *in, char *err, size_t n)
+{
+    const double v[7] = {in->drawbarForce, in->torqueLeft, in->torqueRight, in->omegaRefLeft,
+                         in->omegaRefRight, in->throttleLeft, in->throttleRight};
+    static const char *const names[7] = {"drawbarForce", "torqueLeft", "torqueRight", "omegaRefLeft",
+                                         "omegaRefRight", "throttleLeft", "throttleRight"};
+    for (int i = 0; i < 7; ++i)
+        if (!isfinite(v[i])) return snprintf(err, n, "input %s = %g is not finite", names[i], v[i]), 0;
+    return 1;
+}
+
+int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
+{
+    if (!inputs_are_finite(&m->in, err, errlen)) return -1;
+    const double t_end = m->s.time + h_comm;
+    int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
+    if (n < 1) n = 1;
+    const double h = h_comm / n;
+    const int reuse = m->eval_valid && eval_key_matches(m);
+    for (int i = 0; i < n; ++i)
+        if (substep(m, h, reuse && i == 0, err, errlen) != 0) return -1;
+    m->s.time = t_end;
+    rover_evaluate_end_of_step(m);
+    return 0;
+}
