@@ -75,6 +75,12 @@ def _require_positive(name: str, value: float | None) -> None:
         raise InputError(f"{name} = {value} must be a positive number of seconds")
 
 
+def _check_plausibility(campaign, args) -> None:
+    """The measured data's plausibility checks, right after loading, before any computation."""
+    from .plausibility import enforce_plausibility
+    enforce_plausibility(campaign, force=getattr(args, "force", False))
+
+
 # ------------------------------------------------------------ subcommands
 
 SCENARIOS = {
@@ -101,6 +107,7 @@ def cmd_simulate(args) -> int:
             from .identify import prepare_run
             from .validate import grid_terrain
             campaign = load_campaign(args.campaign)
+            _check_plausibility(campaign, args)
             run = campaign.run(args.run) if args.run else campaign.runs[0]
             with tempfile.TemporaryDirectory() as tmp:
                 grid = str(grid_terrain(campaign, run, tmp)[0]) if run.kind == "terrain" else None
@@ -133,6 +140,7 @@ def cmd_identify(args) -> int:
     from .simulator import JunoFMU
     say = _progress(args.quiet)
     campaign = load_campaign(args.campaign)
+    _check_plausibility(campaign, args)
     if args.starts < 1:
         raise InputError(f"--starts must be at least 1, got {args.starts}")
     batch = {"workers": args.workers, "scheduler": args.scheduler}
@@ -193,6 +201,7 @@ def cmd_validate(args) -> int:
     from .validate import validate_run
     say = _progress(args.quiet)
     campaign = load_campaign(args.campaign)
+    _check_plausibility(campaign, args)
     with JunoFMU(args.fmu) as fmu:
         if args.params:
             soil = _load_soil(args.params)
@@ -230,6 +239,7 @@ def cmd_report(args) -> int:
     from .validate import validate_run
     say = _progress(args.quiet)
     campaign = load_campaign(args.campaign)
+    _check_plausibility(campaign, args)
     timings: dict[str, float] = {}
     with JunoFMU(args.fmu) as fmu:
         t = time.perf_counter()
@@ -279,6 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--json", metavar="FILE", help="write the machine-readable result to FILE")
         p.add_argument("--fmu", metavar="FMU", help="the FMU (default: build/JunoRover.fmu or $JUNO_FMU)")
         p.add_argument("--quiet", action="store_true", help="no progress messages")
+        p.add_argument("--force", action="store_true",
+                       help="go on despite implausible measured data (its errors are printed as warnings)")
 
     p = sub.add_parser("simulate", help="run a scenario or a measured run through the FMU")
     src = p.add_mutually_exclusive_group()

@@ -1317,8 +1317,11 @@ def cmd_diagnose(args) -> int:
 
     from .atomic import atomic_write_text
     from .cli import _progress, _to_jsonable
+    from .plausibility import enforce_plausibility
     say = _progress(args.quiet)
-    result = diagnose(args.campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
+    campaign = load_campaign(args.campaign)
+    enforce_plausibility(campaign, force=args.force)
+    result = diagnose(campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
                       candidates=args.candidates, progress=say, scheduler=args.scheduler,
                       terrain_segment=args.terrain_segments)
     if args.plots:

@@ -37,6 +37,7 @@ __all__ = [
     "write_xyz",
     "format_xyz",
     "check_points",
+    "gross_outliers",
     "grid_from_points",
     "write_esri_ascii",
     "read_esri_ascii",
@@ -168,6 +169,58 @@ def check_points(points: ArrayLike, path: Optional[PathLike] = None) -> NDArray[
     if s[-1] <= 1e-9 * s[0]:
         raise InputError("all points are collinear in x-y: they do not span a terrain area", path)
     return pts
+
+
+def gross_outliers(points: ArrayLike, false_alarm: float = 1e-2, neighbours: int = 8,
+                   min_step: float = 0.25) -> NDArray[np.bool_]:
+    """Mask of the gross outliers of an (N, 3) cloud (m): points no terrain explains.
+
+    Two robust tests, each with threshold ``k * 1.4826 * MAD`` (1.4826 * MAD is the standard
+    deviation for Gaussian data) and ``k`` chosen so that N Gaussian values exceed it with
+    probability ``false_alarm`` (two-sided: ``k = Phi^-1(1 - false_alarm / (2 N))``, 5.3 for
+    25 000 points):
+
+    * x and y, each against the cloud's median: points far outside the bulk of the scan
+      (a uniformly scanned strip reaches 1.7 MAD-sigmas from its median, far inside k).
+    * z against the local surface: the residual of z from the median height of the point's
+      ``neighbours`` nearest points in x-y, against the residuals' own MAD. The point must also
+      stand more than ``min_step`` (m) off its neighbours: a step smaller than a wheel's
+      radius within a few point spacings is terrain for the gridding to average, not a
+      point to drop, and it keeps a noise-free scan (MAD = 0) from flagging its own curvature.
+
+    With MAD = 0 (more than half the values equal) x or y is not tested, and z only against
+    ``min_step``.
+    """
+    from statistics import NormalDist
+
+    from scipy.spatial import cKDTree
+
+    pts = np.asarray(points, dtype=float)
+    n = len(pts)
+    bad = np.zeros(n, dtype=bool)
+    if n < neighbours + 2:
+        return bad
+    k = NormalDist().inv_cdf(1.0 - false_alarm / (2.0 * n))
+    for j in (0, 1):
+        v = pts[:, j]
+        med = np.median(v)
+        dev = np.abs(v - med)
+        scale = 1.4826 * float(np.median(dev))
+        if scale > 0:
+            bad |= dev > k * scale
+    good = ~bad
+    tree = cKDTree(pts[good, :2])
+    _, idx = tree.query(pts[:, :2], k=min(neighbours + 1, int(good.sum())))
+    zg = pts[good, 2]
+    nz = zg[idx]
+    # Leave the point itself out of its neighbourhood (it is its own nearest neighbour when kept).
+    own = np.flatnonzero(good)[idx] == np.arange(n)[:, None]
+    nz = np.where(own, np.nan, nz)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = pts[:, 2] - np.nanmedian(nz, axis=1)
+        scale = 1.4826 * float(np.nanmedian(np.abs(r[good] - np.nanmedian(r[good]))))
+        bad |= (np.abs(r) > max(k * scale, min_step)) | ~np.isfinite(r)
+    return bad
 
 
 def format_xyz(points: ArrayLike) -> str:

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
 from .identify import SPIN_TRACKER, base_parameters
-from .pointcloud import Grid, grid_from_points, write_esri_ascii
+from .pointcloud import Grid, grid_from_points, gross_outliers, write_esri_ascii
 from .simulator import InputSignals, JunoFMU
 
 #: Default terrain grid resolution (m).
@@ -29,9 +30,21 @@ GRID_CELL = 0.10
 SETTLING = 1.0
 
 
-def grid_terrain(campaign: Campaign, run: RunSpec, out_dir: str | Path, cell: float = GRID_CELL) -> tuple[Path, Grid]:
-    """Grids the run's LIDAR scan into ``out_dir/<terrain>.asc``; returns the path and the grid."""
+def grid_terrain(campaign: Campaign, run: RunSpec, out_dir: str | Path, cell: float = GRID_CELL,
+                 say: Callable[[str], None] | None = None) -> tuple[Path, Grid]:
+    """Grids the run's LIDAR scan into ``out_dir/<terrain>.asc``; returns the path and the grid.
+
+    The scan's gross outliers (:func:`juno.pointcloud.gross_outliers`: a point a kilometre
+    away would stretch the grid, a spike would raise a bump) are dropped first; ``say`` is told
+    how many. The commands report them, and check that the path lies on the scan, before any
+    computation (:func:`juno.plausibility.check_scan`).
+    """
     points = read_terrain_points(campaign, run)
+    bad = gross_outliers(points)
+    if bad.any():
+        points = points[~bad]
+        if say is not None:
+            say(f"{run.terrain}: dropped {int(bad.sum())} gross outlier(s) of the scan before gridding")
     grid = grid_from_points(points, cell=cell, margin=1.0)
     path = Path(out_dir) / (Path(run.terrain).stem + f"_{int(round(cell * 1000))}mm.asc")
     write_esri_ascii(path, grid)

@@ -1,0 +1,592 @@
+"""Plausibility of measured data: say clearly what is wrong before any fit.
+
+A campaign that reads without a format error can still hold data that no rover produced: angles
+in degrees, spins in rpm, positions in millimetres, time in milliseconds, a torque sensor that
+was never connected, a frozen total station, a single absurd sample, a scan with a point a
+kilometre away or a scan that does not cover the path. :func:`check_campaign` reads every run
+(and every terrain run's scan) and returns :class:`Finding` s, each naming the file, the column
+and the evidence::
+
+    runs/dbp1.csv, column 'pitch': |pitch| reaches 15.3 (> 1.2 rad): looks like degrees
+
+Severity follows one rule: **error** where no rover could have produced the data (beyond a
+physical limit of the rover with a margin), **warning** where the data may be legitimate but
+is suspicious. :func:`enforce_plausibility` is what the commands that read measured data run
+right after loading the campaign: errors stop them (all errors listed at once) unless forced.
+
+The limits are the rover's own physics, from its FMU parameters (defaults below, overridden by
+the campaign's ``rover`` entry):
+
+* **Motor torque.** A DC motor gives its largest steady torque at stall, at full voltage:
+  ``T_stall = eff * n * kt * V / Ra`` per side (612 N m with the defaults); the drive controller
+  further limits it to ``drive.torqueMax`` (400 N m). The electrical maximum of all is plugging,
+  full voltage against the back-EMF of a wheel turning backwards at no-load speed: twice the
+  stall torque. Torque beyond ``TORQUE_MARGIN`` times the drive's limit is a warning, beyond the
+  plugging bound an error.
+* **Spin.** The no-load spin ``omega_0 = V / (kt * n)`` (4.0 rad/s) is the fastest the motors
+  turn a wheel; a wheel may overrun it a little downhill (warning beyond ``SPIN_WARN`` times it)
+  but not three times over (error beyond ``SPIN_ERROR`` times it: the rover pushed at three
+  times its top speed). rpm are 9.55 times rad/s.
+* **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
+  speed over 1 s exceeds twice that are not in metres.
+* **Attitude.** The static tip-over angles are ``atan(half track / CG height)`` in roll and
+  ``atan(half wheelbase / CG height)`` in pitch (CG height = wheel radius + ``rover.cgHeight``):
+  0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
+  an error: such angles are degrees.
+* **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
+  radius: the same margins as the torque, times 2 / radius.
+* **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
+  typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
+  more apart, are milliseconds (error); a run over an hour alone is a warning.
+* **Single absurd samples** (any known column): each sample is compared with the median of the
+  five samples around it (its column's own samples; a step or a monotone transient has no
+  residual, a lone spike has). The noise's standard deviation is estimated robustly from the
+  second differences, which cancel a linear trend: for white Gaussian noise of deviation s they
+  have deviation s * sqrt(6), and 1.4826 * MAD is the standard deviation of Gaussian data, so
+  ``s = 1.4826 * MAD(d2) / sqrt(6)`` (exact zeros left out: they are held samples, not noise).
+  The residual from the median of five then has the tails of a Gaussian of deviation
+  ``RESIDUAL_TAIL * s`` (1.14: the other four samples' median has a variance of 0.3 s^2;
+  measured 1.09 over 2 million samples). A sample is an outlier when its residual exceeds both
+  ``k * RESIDUAL_TAIL * s`` and a quarter of the column's robust span (1st to 99th
+  percentile); ``k`` is chosen so that Gaussian noise over the column's n samples raises a
+  false alarm with probability ``FALSE_ALARM`` (``k = Phi^-1(1 - FALSE_ALARM / (2 n))``, 5.5
+  for 2000 samples). The span term keeps noise-free data (MAD = 0) from flagging its own
+  curvature. An outlier is an error when its residual exceeds ten times the column's span
+  (nothing the run measured), else a warning.
+
+The scan (terrain runs): gross outliers are found by :func:`juno.pointcloud.gross_outliers`
+(a warning naming them: the gridding drops them), and the measured path, widened by the wheel
+footprint, must lie on the scan (:func:`path_off_scan`).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from statistics import NormalDist
+from typing import Callable, Iterable, Mapping, Optional, TextIO, Union
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .campaign import KNOWN_COLUMNS, Campaign, RunData, RunSpec, aligned, read_run, read_terrain_points
+from .errors import InputError
+from .pointcloud import gross_outliers
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "Finding",
+    "RoverLimits",
+    "rover_limits",
+    "check_run",
+    "check_scan",
+    "path_off_scan",
+    "check_campaign",
+    "enforce_plausibility",
+    "PlausibilityError",
+    "outlier_threshold_k",
+]
+
+#: FMU defaults of the parameters the limits derive from (the campaign's ``rover`` overrides them).
+ROVER_DEFAULTS: dict[str, float] = {
+    "wheel.radius": 0.2794, "wheel.width": 0.254, "rover.track": 1.35, "rover.wheelbase": 0.82,
+    "rover.cgHeight": 0.25, "motor.voltage": 24.0, "motor.kt": 0.0465, "motor.resistance": 0.2,
+    "motor.gearRatio": 129.0, "motor.efficiency": 0.85, "drive.torqueMax": 400.0,
+}
+
+#: Torque (and drawbar force) warning: beyond this times the drive's limit, min(stall,
+#: drive.torqueMax): the current sensor's noise (1.5 N m + 1 %) and the motor constants'
+#: uncertainty stay well inside 20 %.
+TORQUE_MARGIN = 1.2
+#: Spin warning / error, as multiples of the no-load spin.
+SPIN_WARN = 1.25
+SPIN_ERROR = 3.0
+#: Positions: typical (median) speed over SPEED_WINDOW s beyond this times the top speed.
+SPEED_ERROR = 2.0
+SPEED_WINDOW = 1.0
+#: Attitude beyond which the rover would lie on its side (rad).
+ANGLE_ERROR = 1.2
+#: Time: longest plausible run (s), typical row step that no rover log has (s).
+LONGEST_RUN = 3600.0
+SLOW_STEP = 0.5
+ABSURD_STEP = 10.0
+#: A frozen position: the same pos_x and pos_y repeated for longer than this (s) while the
+#: wheels turn faster than TURNING (rad/s). A total station that updates has noise in its last
+#: digits; exact repeats over seconds mean it stopped updating.
+FROZEN_SPAN = 2.0
+TURNING = 0.2
+#: Probability that Gaussian noise over one column raises an outlier finding.
+FALSE_ALARM = 1e-4
+#: Tail deviation of a white Gaussian sample's residual from its median of five, per unit noise.
+RESIDUAL_TAIL = math.sqrt(1.3)
+#: An outlier's residual must also exceed this fraction of the column's robust span.
+SPAN_FRACTION = 0.25
+#: ... and is an error beyond this multiple of the span.
+ABSURD_SPAN = 10.0
+#: Path off the scan for more than this fraction of the run's position samples: an error.
+OFF_SCAN_ERROR = 0.10
+
+RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One implausibility of the measured data.
+
+    Attributes:
+        severity: "error" (no rover could have produced it) or "warning" (may be legitimate).
+        file: the file, relative to the campaign folder (``runs/dbp1.csv``).
+        column: the column (``pitch``), or the coordinate of a scan (``z``).
+        message: what is wrong and the evidence, with units.
+    """
+
+    severity: str
+    file: str
+    column: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.file}, column '{self.column}': {self.message}"
+
+
+class PlausibilityError(InputError):
+    """The measured data hold errors (every error finding is in the message)."""
+
+
+@dataclass(frozen=True)
+class RoverLimits:
+    """Physical limits of the rover (SI units), derived from its parameters (module docstring)."""
+
+    stall_torque: float      # N m per side at full voltage, zero spin
+    drive_torque: float      # N m per side: min(stall, drive.torqueMax)
+    no_load_spin: float      # rad/s
+    top_speed: float         # m/s
+    wheel_radius: float      # m
+    half_length: float       # m: wheelbase / 2 + wheel radius (footprint ahead / behind)
+    half_width: float        # m: track / 2 + wheel width / 2
+    roll_tip: float          # rad
+    pitch_tip: float         # rad
+
+    @property
+    def plugging_torque(self) -> float:
+        """Electrical maximum (N m per side): full voltage against the no-load back-EMF."""
+        return 2.0 * self.stall_torque
+
+
+def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
+    """The limits of the rover with the FMU defaults overridden by ``rover`` (numbers only)."""
+    p = dict(ROVER_DEFAULTS)
+    for k, v in (rover or {}).items():
+        if k in p and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0:
+            p[k] = float(v)
+    n, kt, volt, ra = p["motor.gearRatio"], p["motor.kt"], p["motor.voltage"], p["motor.resistance"]
+    stall = p["motor.efficiency"] * n * kt * volt / ra
+    omega0 = volt / (kt * n)
+    r = p["wheel.radius"]
+    cg = r + p["rover.cgHeight"]
+    return RoverLimits(
+        stall_torque=stall, drive_torque=min(stall, p["drive.torqueMax"]), no_load_spin=omega0,
+        top_speed=omega0 * r, wheel_radius=r, half_length=0.5 * p["rover.wheelbase"] + r,
+        half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
+        roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg))
+
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+# --------------------------------------------------------------------------------------------
+
+def outlier_threshold_k(n: int, false_alarm: float = FALSE_ALARM) -> float:
+    """k such that n Gaussian samples exceed k sigma (two-sided) with probability ~false_alarm."""
+    return float(NormalDist().inv_cdf(1.0 - false_alarm / (2.0 * max(n, 1))))
+
+
+def _g(x: float) -> str:
+    """A number for a message: 4 significant digits, plain float."""
+    return f"{float(x):.4g}"
+
+
+def _own(run: RunData, name: str) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+    """(times, values, file lines) of a column's own samples."""
+    v = run.columns[name]
+    ok = ~np.isnan(v)
+    lines = run.lines if run.lines is not None else np.arange(len(v)) + 2
+    return run.time[ok], v[ok], np.asarray(lines)[ok]
+
+
+def _at(ts: FloatArray, vs: FloatArray, lines: NDArray[np.int64], i: int) -> str:
+    return f"{_g(vs[i])} at line {int(lines[i])} (t = {_g(ts[i])} s)"
+
+
+def _median_of_five(v: FloatArray) -> FloatArray:
+    """Running median over 5 samples; the ends padded by odd reflection (a trend continues)."""
+    if len(v) < 5:
+        return np.full(len(v), np.median(v))
+    with np.errstate(over="ignore", invalid="ignore"):
+        pad = np.concatenate([2 * v[0] - v[2:0:-1], v, 2 * v[-1] - v[-2:-4:-1]])
+    windows = np.lib.stride_tricks.sliding_window_view(pad, 5)
+    return np.median(windows, axis=1)
+
+
+def _spans(t: FloatArray, mask: NDArray[np.bool_]) -> list[tuple[float, float]]:
+    """(start, end) times of the runs of consecutive True in mask."""
+    out = []
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        return out
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    ends = np.concatenate([idx[breaks], [idx[-1]]])
+    return [(float(t[a]), float(t[b])) for a, b in zip(starts, ends)]
+
+
+def _format_spans(spans: list[tuple[float, float]], limit: int = 4) -> str:
+    text = ", ".join(f"{_g(a)}-{_g(b)} s" for a, b in spans[:limit])
+    return text + (f" and {len(spans) - limit} more" if len(spans) > limit else "")
+
+
+# --------------------------------------------------------------------------------------------
+# Checks of one run, one column at a time
+# --------------------------------------------------------------------------------------------
+
+def check_time(run: RunData, file: str) -> list[Finding]:
+    """Time in milliseconds: duration and typical row step (module docstring)."""
+    t = run.time
+    if len(t) < 2:
+        return []
+    duration = float(t[-1] - t[0])
+    step = float(np.median(np.diff(t)))
+    if step >= ABSURD_STEP:
+        return [Finding("error", file, "time", f"rows are typically {_g(step)} s apart (the rover's sensors sample "
+                        f"at 5-100 Hz): time looks like milliseconds")]
+    if duration > LONGEST_RUN:
+        evidence = f"the run lasts {_g(duration)} s ({_g(duration / 3600)} h) with rows typically {_g(step)} s apart"
+        if step >= SLOW_STEP:
+            return [Finding("error", file, "time", f"{evidence} (the rover's sensors sample at 5-100 Hz): "
+                            "time looks like milliseconds")]
+        return [Finding("warning", file, "time", f"{evidence}: longer than an hour; is time in milliseconds?")]
+    return []
+
+
+def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Roll and pitch: degrees (> ANGLE_ERROR rad) or beyond the tip-over angle."""
+    out = []
+    for name, tip in (("roll", limits.roll_tip), ("pitch", limits.pitch_tip)):
+        if not run.has(name):
+            continue
+        ts, vs, lines = _own(run, name)
+        i = int(np.argmax(np.abs(vs)))
+        peak = abs(float(vs[i]))
+        if peak > ANGLE_ERROR:
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} (> {ANGLE_ERROR} rad, the rover "
+                               f"on its side) at line {int(lines[i])}: looks like degrees"))
+        elif peak > tip:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad at line {int(lines[i])}, "
+                               f"beyond the rover's static tip-over angle of {_g(tip)} rad"))
+    return out
+
+
+def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Wheel spins beyond the motors' no-load spin (rpm instead of rad/s)."""
+    out = []
+    w0 = limits.no_load_spin
+    for name in ("omega_left", "omega_right"):
+        if not run.has(name):
+            continue
+        ts, vs, lines = _own(run, name)
+        i = int(np.argmax(np.abs(vs)))
+        peak = abs(float(vs[i]))
+        where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+        if peak > SPIN_ERROR * w0:
+            hint = ""
+            if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
+                hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, more than "
+                               f"{SPIN_ERROR:g} times the motors' no-load spin of {_g(w0)} rad/s{hint}"))
+        elif peak > SPIN_WARN * w0:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, beyond the "
+                               f"motors' no-load spin of {_g(w0)} rad/s (the wheel overran the motor)"))
+    return out
+
+
+def _turning(run: RunData) -> float:
+    """Median |spin| (rad/s) over both wheels' samples, 0 without spins."""
+    vals = [np.abs(_own(run, n)[1]) for n in ("omega_left", "omega_right") if run.has(n)]
+    return float(np.median(np.concatenate(vals))) if vals else 0.0
+
+
+def check_torques(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Drive torques beyond what the motors can give; an all-zero (or constant) torque."""
+    out = []
+    warn, error = TORQUE_MARGIN * limits.drive_torque, limits.plugging_torque
+    spinning = _turning(run)
+    for name in ("torque_left", "torque_right"):
+        if not run.has(name):
+            continue
+        ts, vs, lines = _own(run, name)
+        i = int(np.argmax(np.abs(vs)))
+        peak = abs(float(vs[i]))
+        where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+        if peak > error:
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} N m at {where}, beyond the motors' "
+                               f"electrical maximum of {_g(error)} N m (twice the stall torque "
+                               f"eff * n * kt * V / Ra = {_g(limits.stall_torque)} N m)"))
+        elif peak > warn:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N m at {where}, beyond "
+                               f"{TORQUE_MARGIN:g} times the drive's limit of {_g(limits.drive_torque)} N m"))
+        if np.all(vs == vs[0]) and spinning > TURNING:
+            what = "is zero in every sample" if vs[0] == 0 else f"is {_g(vs[0])} N m in every sample"
+            if run.kind == "drawbar":
+                out.append(Finding("error", file, name, f"{what} while the wheels turn (median spin "
+                                   f"{_g(spinning)} rad/s): pulling a drawbar load takes drive torque; is the "
+                                   "torque sensor connected?"))
+            else:
+                out.append(Finding("warning", file, name, f"{what} while the wheels turn (median spin "
+                                   f"{_g(spinning)} rad/s): is the torque sensor connected?"))
+    return out
+
+
+def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Drawbar force beyond what the wheels of both sides can push."""
+    name = "drawbar_force"
+    if not run.has(name):
+        return []
+    ts, vs, lines = _own(run, name)
+    i = int(np.argmax(np.abs(vs)))
+    peak = abs(float(vs[i]))
+    warn = 2.0 * TORQUE_MARGIN * limits.drive_torque / limits.wheel_radius
+    error = 2.0 * limits.plugging_torque / limits.wheel_radius
+    where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+    if peak > error:
+        return [Finding("error", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond the {_g(error)} N "
+                        "the wheels could push at the motors' electrical maximum")]
+    if peak > warn:
+        return [Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond {TORQUE_MARGIN:g} "
+                        f"times the {_g(warn / TORQUE_MARGIN)} N the drive's torque limit pushes")]
+    return []
+
+
+def check_positions(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Positions in millimetres (typical speed far beyond the top speed); a frozen position."""
+    out = []
+    for name in ("pos_x", "pos_y", "pos_z"):
+        if not run.has(name):
+            continue
+        ts, vs, _ = _own(run, name)
+        if len(ts) < 2 or ts[-1] - ts[0] < SPEED_WINDOW:
+            continue
+        j = np.searchsorted(ts, ts + SPEED_WINDOW)
+        ok = j < len(ts)
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed = np.abs(vs[j[ok]] - vs[ok]) / (ts[j[ok]] - ts[ok])
+        typical = float(np.median(speed))
+        if typical > SPEED_ERROR * limits.top_speed:
+            hint = ": looks like millimetres" if typical / 1000.0 <= SPEED_ERROR * limits.top_speed else ""
+            out.append(Finding("error", file, name, f"{name} changes typically by {_g(typical)} m/s (median over "
+                               f"{SPEED_WINDOW:g} s), more than {SPEED_ERROR:g} times the rover's top speed of "
+                               f"{_g(limits.top_speed)} m/s{hint}"))
+    if run.has("pos_x") and run.has("pos_y"):
+        out += _check_frozen(run, file)
+    return out
+
+
+def _check_frozen(run: RunData, file: str) -> list[Finding]:
+    tx, x, _ = _own(run, "pos_x")
+    if len(tx) < 2:
+        return []
+    y = aligned(run, "pos_y", tx, method="nearest")["pos_y"]
+    same = (np.diff(x) == 0) & (np.diff(y) == 0)
+    if not same.any():
+        return []
+    spins = [aligned(run, n, tx)[n] for n in ("omega_left", "omega_right") if run.has(n)]
+    turning = np.max(np.abs(spins), axis=0) if spins else np.zeros(len(tx))
+    held = same & (np.minimum(turning[:-1], turning[1:]) > TURNING)
+    out = []
+    for a, b in _spans(tx[:-1], held):
+        k = int(np.searchsorted(tx, b)) + 1
+        end = float(tx[min(k, len(tx) - 1)])
+        if end - a > FROZEN_SPAN:
+            out.append((a, end))
+    if not out:
+        return []
+    total = sum(b - a for a, b in out)
+    return [Finding("warning", file, "pos_x", f"the position (pos_x, pos_y) stays exactly the same for {_g(total)} s "
+                    f"({_format_spans(out)}) while the wheels turn: the total station looks frozen")]
+
+
+def check_outliers(run: RunData, file: str, columns: Iterable[str]) -> list[Finding]:
+    """Single absurd samples, column by column (robust test of the module docstring)."""
+    out = []
+    for name in columns:
+        if not run.has(name):
+            continue
+        ts, vs, lines = _own(run, name)
+        if len(vs) < 5:
+            continue
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = vs - _median_of_five(vs)
+            r = np.where(np.isfinite(r), r, np.sign(vs) * np.inf)
+            lo, hi = np.percentile(vs, [1.0, 99.0])
+            span = float(hi - lo) if np.isfinite(hi - lo) else np.inf
+            d2 = vs[2:] - 2.0 * vs[1:-1] + vs[:-2]
+            d2 = d2[d2 != 0]  # exact zeros are held samples (a frozen stretch), not noise
+            if d2.size == 0:
+                d2 = np.zeros(1)
+            scale = RESIDUAL_TAIL * 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
+        limit = max(outlier_threshold_k(len(vs)) * scale, SPAN_FRACTION * span)
+        bad = np.flatnonzero(np.abs(r) > limit)
+        if bad.size == 0:
+            continue
+        worst = int(bad[np.argmax(np.abs(r[bad]))])
+        absurd = bool(np.abs(r[worst]) > ABSURD_SPAN * max(span, scale))
+        listed = ", ".join(_at(ts, vs, lines, int(i)) for i in bad[:3])
+        if bad.size > 3:
+            listed += f" and {bad.size - 3} more"
+        what = f"{bad.size} samples far from their" if bad.size > 1 else "1 sample far from its"
+        out.append(Finding("error" if absurd else "warning", file, name,
+                           f"{what} neighbours: {listed} (the column's other samples span {_g(lo)} to {_g(hi)}; "
+                           f"a sample more than {_g(limit)} from the median of the five around it is an outlier)"))
+    return out
+
+
+def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Every check of one run's columns; a column with an error gets no outlier warning on top."""
+    found = (check_time(run, file) + check_angles(run, file, limits) + check_spins(run, file, limits)
+             + check_torques(run, file, limits) + check_drawbar(run, file, limits)
+             + check_positions(run, file, limits))
+    with_error = {f.column for f in found if f.severity == "error"}
+    columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
+    return found + check_outliers(run, file, columns)
+
+
+# --------------------------------------------------------------------------------------------
+# The scan
+# --------------------------------------------------------------------------------------------
+
+def footprint_offsets(limits: RoverLimits) -> FloatArray:
+    """Outline of the wheel footprint in the rover frame (m): (8, 2), x ahead, y left.
+
+    A rectangle ``half_length`` ahead and behind the chassis reference point (the wheels'
+    radius beyond the axles) and ``half_width`` to either side (beyond the wheels' outer
+    edges): its corners and the midpoints of its sides.
+    """
+    a, b = limits.half_length, limits.half_width
+    return np.array([[a, b], [a, 0.0], [a, -b], [0.0, -b], [-a, -b], [-a, 0.0], [-a, b], [0.0, b]])
+
+
+def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Which position samples put part of the wheel footprint off the scan.
+
+    The footprint (:func:`footprint_offsets`) is placed at each position sample, turned by the
+    measured yaw (without a yaw column it is turned to every heading: a disc of its
+    half-diagonal, sampled at 16 headings). A footprint point is on the scan when a scan point
+    lies within one wheel radius of it: the contact region of a wheel spans that much, so a
+    narrower gap is bridged by the gridding's interpolation, while farther out the grid only
+    repeats the nearest edge height (invented ground).
+
+    Returns:
+        (times of the position samples (s), True where part of the footprint is off the scan).
+    """
+    from scipy.spatial import cKDTree
+
+    t, x, _ = _own(run, "pos_x")
+    y = aligned(run, "pos_y", t)["pos_y"]
+    tree = cKDTree(points[:, :2])
+    if run.has("yaw"):
+        yaw = aligned(run, "yaw", t)["yaw"]
+        off = footprint_offsets(limits)
+        c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+        px = x[:, None] + c * off[None, :, 0] - s * off[None, :, 1]
+        py = y[:, None] + s * off[None, :, 0] + c * off[None, :, 1]
+    else:
+        radius = math.hypot(limits.half_length, limits.half_width)
+        ang = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+        px = x[:, None] + radius * np.cos(ang)[None, :]
+        py = y[:, None] + radius * np.sin(ang)[None, :]
+    dist, _ = tree.query(np.column_stack([px.ravel(), py.ravel()]), distance_upper_bound=2 * limits.wheel_radius)
+    off_scan = (dist > limits.wheel_radius).reshape(px.shape).any(axis=1)
+    return t, off_scan
+
+
+def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLimits) -> list[Finding]:
+    """Gross outliers of a terrain run's scan (warning: dropped before gridding) and the path's
+    coverage: an error when the footprint is off the scan for more than OFF_SCAN_ERROR of the
+    run's position samples, a warning for a briefer excursion."""
+    points = read_terrain_points(campaign, spec)
+    scan_file = str(spec.terrain)
+    out = []
+    bad = gross_outliers(points)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        shown = "; ".join(f"no. {int(i) + 1} ({_g(points[i, 0])}, {_g(points[i, 1])}, {_g(points[i, 2])})"
+                          for i in idx[:5]) + (f"; and {idx.size - 5} more" if idx.size > 5 else "")
+        axes = "".join(a for a, on in zip("xyz", _outlier_axes(points, bad)) if on) or "z"
+        out.append(Finding("warning", scan_file, axes, f"{idx.size} of {len(points)} scan points are gross outliers "
+                           f"and are dropped before gridding: {shown} (x, y, z in m)"))
+        points = points[~bad]
+    if not (run.has("pos_x") and run.has("pos_y")):
+        return out
+    t, off = path_off_scan(run, points, limits)
+    if off.any():
+        spans = _spans(t, off)
+        share = float(np.mean(off))
+        severity = "error" if share > OFF_SCAN_ERROR else "warning"
+        out.append(Finding(severity, spec.file, "pos_x", f"run {spec.id!r}: the rover's wheel footprint leaves the "
+                           f"scan {scan_file} during {_format_spans(spans)} ({share:.0%} of the position samples; "
+                           f"more than {OFF_SCAN_ERROR:.0%} is an error): the terrain there is not measured"))
+    return out
+
+
+def _outlier_axes(points: FloatArray, bad: NDArray[np.bool_]) -> tuple[bool, bool, bool]:
+    """Which coordinates make the dropped points odd: far beyond the others' range."""
+    good = points[~bad]
+    lo, hi = good.min(axis=0), good.max(axis=0)
+    far = (points[bad] < lo - (hi - lo)) | (points[bad] > hi + (hi - lo))
+    return tuple(bool(v) for v in far.any(axis=0))  # type: ignore[return-value]
+
+
+# --------------------------------------------------------------------------------------------
+# The campaign
+# --------------------------------------------------------------------------------------------
+
+def check_campaign(campaign: Campaign) -> list[Finding]:
+    """Reads every run (and every terrain run's scan) and returns every finding, errors first.
+
+    Raises:
+        InputError: a file breaks the format (see :func:`juno.campaign.read_run`).
+    """
+    limits = rover_limits(campaign.rover)
+    found: list[Finding] = []
+    for spec in campaign.runs:
+        run = read_run(campaign, spec)
+        found += check_run(run, spec.file, limits)
+        if spec.terrain is not None:
+            found += check_scan(campaign, spec, run, limits)
+    return [f for f in found if f.severity == "error"] + [f for f in found if f.severity != "error"]
+
+
+def enforce_plausibility(campaign: Campaign, force: bool = False,
+                         stream: Optional[Union[TextIO, Callable[[str], None]]] = None) -> list[Finding]:
+    """Runs :func:`check_campaign` before any computation.
+
+    Warnings are written one line each to ``stream`` (default stderr; a callable gets each line).
+    Errors raise :class:`PlausibilityError` listing every error finding, unless ``force``: then
+    they are written as warnings too and the command goes on. Returns the findings.
+    """
+    findings = check_campaign(campaign)
+    if stream is None:
+        stream = sys.stderr
+    write = stream if callable(stream) else (lambda line: print(line, file=stream, flush=True))
+    errors = [f for f in findings if f.severity == "error"]
+    for f in findings:
+        if f.severity != "error":
+            write(f"warning: {f}")
+    if errors and not force:
+        lines = "\n".join(f"  {f}" for f in errors)
+        count = f"{len(errors)} error{'s' if len(errors) > 1 else ''}"
+        raise PlausibilityError(f"the measured data of {campaign.root} are implausible ({count}; "
+                                f"--force goes on anyway):\n{lines}")
+    for f in errors:
+        write(f"warning (--force): {f}")
+    return findings

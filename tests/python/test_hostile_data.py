@@ -1,0 +1,341 @@
+"""Specification of the plausibility checks on measured data (juno.plausibility).
+
+Each bad-data case is written into a copy of a short synthetic campaign. A case that no rover
+could have produced makes the commands that read measured data stop with exit code 2 within
+seconds (before any fit), naming the file, the column and the evidence; a suspicious but
+possible case is a warning naming the same; no input file is ever changed. Campaigns written
+by ``juno synthesize`` (every hidden effect, with and without sensor noise) raise nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+
+from harness_fixtures import run_juno
+from juno.campaign import format_run_csv, load_campaign, read_run_csv
+from juno.plausibility import (Finding, PlausibilityError, check_campaign, enforce_plausibility,
+                               outlier_threshold_k, rover_limits)
+from juno.pointcloud import format_xyz, gross_outliers, read_xyz
+
+pytest_plugins = ["harness_fixtures"]
+
+#: The short synthetic campaign the bad cases are written into (shared with test_cli).
+SEED = 101
+#: A refusal happens right after loading: well within this (s), where a fit takes minutes.
+QUICK_EXIT = 20.0
+
+
+# ------------------------------------------------------------------------ writing bad copies
+
+def edit_run(root: Path, run: str, change: Callable[[dict[str, np.ndarray]], None]) -> None:
+    """Rewrites runs/<run>.csv after ``change`` edits its columns in place."""
+    path = root / "runs" / f"{run}.csv"
+    kind = "terrain" if run == "t3d" else "drawbar"
+    columns = dict(read_run_csv(path, kind).columns)
+    change(columns)
+    path.write_text(format_run_csv(columns))
+
+
+def scale(run: str, factor: float, *names: str) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        def change(c):
+            for n in names:
+                c[n] = c[n] * factor
+        edit_run(root, run, change)
+    return apply
+
+
+def set_sample(run: str, name: str, k: int, value: float) -> Callable[[Path], None]:
+    """Sets the k-th own sample of a column to ``value``."""
+    def apply(root: Path) -> None:
+        def change(c):
+            idx = np.flatnonzero(~np.isnan(c[name]))
+            c[name] = c[name].copy()
+            c[name][idx[k]] = value
+        edit_run(root, run, change)
+    return apply
+
+
+def add_to_sample(run: str, name: str, k: int, delta: float) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        def change(c):
+            idx = np.flatnonzero(~np.isnan(c[name]))
+            c[name] = c[name].copy()
+            c[name][idx[k]] += delta
+        edit_run(root, run, change)
+    return apply
+
+
+def zero_torque(run: str) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        def change(c):
+            c["torque_left"] = np.where(np.isnan(c["torque_left"]), np.nan, 0.0)
+        edit_run(root, run, change)
+    return apply
+
+
+def freeze_position(run: str, after: float) -> Callable[[Path], None]:
+    """The total station repeats its last reading before ``after`` (s) to the end of the run."""
+    def apply(root: Path) -> None:
+        def change(c):
+            t = c["time"]
+            for n in ("pos_x", "pos_y", "pos_z"):
+                v = c[n].copy()
+                own = np.flatnonzero(~np.isnan(v))
+                last = own[t[own] < after][-1]
+                later = own[t[own] >= after]
+                v[later] = v[last]
+                c[n] = v
+        edit_run(root, run, change)
+    return apply
+
+
+def edit_scan(change: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        path = root / "terrain" / "scan.xyz"
+        path.write_text("# x y z (m)\n" + format_xyz(change(read_xyz(path))))
+    return apply
+
+
+def far_point(points: np.ndarray) -> np.ndarray:
+    return np.vstack([points, [[1.0e6, 0.0, 0.0]]])
+
+
+def spike_point(points: np.ndarray) -> np.ndarray:
+    p = points.copy()
+    i = int(np.argmin(np.hypot(p[:, 0] - 4.0, p[:, 1] + 0.8)))
+    p[i, 2] += 5.0
+    return p
+
+
+def crop_scan(points: np.ndarray, root: Path, share: float) -> np.ndarray:
+    """The scan without the part beyond where the rover is after ``share`` of the terrain run."""
+    run = read_run_csv(root / "runs" / "t3d.csv", "terrain")
+    t, x = run.time[~np.isnan(run["pos_x"])], run["pos_x"][~np.isnan(run["pos_x"])]
+    # The footprint reaches half_length ahead of the prism, and counts as on the scan within one
+    # wheel radius of a scan point: it leaves the cropped scan at ``share`` of the run.
+    lim = rover_limits()
+    x_cut = float(np.interp(t[0] + share * (t[-1] - t[0]), t, x)) + lim.half_length - lim.wheel_radius
+    return points[points[:, 0] < x_cut]
+
+
+def cropped(share: float) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        path = root / "terrain" / "scan.xyz"
+        path.write_text("# x y z (m)\n" + format_xyz(crop_scan(read_xyz(path), root, share)))
+    return apply
+
+
+@dataclass(frozen=True)
+class Case:
+    """A bad-data case: how to write it, and the finding it must raise."""
+
+    name: str
+    write: Callable[[Path], None]
+    severity: str
+    file: str
+    column: str
+    words: tuple[str, ...]
+
+
+ERRORS = [
+    Case("pitch in degrees", scale("t3d", 180 / math.pi, "pitch"), "error", "runs/t3d.csv", "pitch",
+         ("degrees", "> 1.2 rad")),
+    Case("roll in degrees", scale("t3d", 180 / math.pi, "roll"), "error", "runs/t3d.csv", "roll", ("degrees",)),
+    Case("spins in rpm", scale("dbp1", 60 / (2 * math.pi), "omega_left"), "error", "runs/dbp1.csv", "omega_left",
+         ("looks like rpm", "no-load spin")),
+    Case("positions in millimetres", scale("dbp2", 1000.0, "pos_x", "pos_y", "pos_z"), "error", "runs/dbp2.csv",
+         "pos_x", ("millimetres", "top speed")),
+    Case("time in milliseconds", scale("t3d", 1000.0, "time"), "error", "runs/t3d.csv", "time",
+         ("milliseconds",)),
+    Case("all-zero torque while pulling", zero_torque("dbp3"), "error", "runs/dbp3.csv", "torque_left",
+         ("zero in every sample", "drawbar")),
+    Case("one absurd torque sample", set_sample("dbp3", "torque_right", 100, 1e300), "error", "runs/dbp3.csv",
+         "torque_right", ("1e+300", "electrical maximum")),
+    Case("one absurd yaw sample", set_sample("dbp1", "yaw", 200, 1e300), "error", "runs/dbp1.csv", "yaw",
+         ("1e+300", "far from its neighbours", "line")),
+    Case("torque beyond the motors", scale("dbp2", 6.0, "torque_left"), "error", "runs/dbp2.csv", "torque_left",
+         ("electrical maximum", "stall torque")),
+    Case("drawbar force beyond the wheels", scale("dbp1", 40.0, "drawbar_force"), "error", "runs/dbp1.csv",
+         "drawbar_force", ("the wheels could push",)),
+    Case("path far off the scan", cropped(0.5), "error", "runs/t3d.csv", "pos_x",
+         ("run 't3d'", "leaves the scan terrain/scan.xyz during", "s (")),
+]
+
+WARNINGS = [
+    Case("torque beyond the drive's limit", scale("dbp2", 2.5, "torque_left"), "warning", "runs/dbp2.csv",
+         "torque_left", ("drive's limit",)),
+    Case("drawbar force beyond the drive", scale("dbp1", 15.0, "drawbar_force"), "warning", "runs/dbp1.csv",
+         "drawbar_force", ("torque limit pushes",)),
+    Case("frozen total station", freeze_position("t3d", 2.0), "warning", "runs/t3d.csv", "pos_x",
+         ("frozen", "while the wheels turn")),
+    Case("one glitch of the total station", add_to_sample("t3d", "pos_x", 12, 0.5), "warning", "runs/t3d.csv",
+         "pos_x", ("far from its neighbours", "line")),
+    Case("a scan point a kilometre off", edit_scan(far_point), "warning", "terrain/scan.xyz", "x",
+         ("1 of", "gross outliers", "dropped", "1e+06")),
+    Case("a 5 m spike in the scan", edit_scan(spike_point), "warning", "terrain/scan.xyz", "z",
+         ("gross outliers", "dropped")),
+    Case("path briefly off the scan", cropped(1.0), "warning", "runs/t3d.csv", "pos_x",
+         ("run 't3d'", "leaves the scan")),
+]
+
+
+def checksums(root: Path) -> dict[str, str]:
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def base(small_campaign) -> Path:
+    return small_campaign(SEED).path
+
+
+def bad_copy(base: Path, tmp_path: Path, case: Case) -> Path:
+    root = tmp_path / "campaign"
+    shutil.copytree(base, root)
+    case.write(root)
+    return root
+
+
+def matching(findings: list[Finding], case: Case) -> list[Finding]:
+    return [f for f in findings if f.severity == case.severity and f.file == case.file and f.column == case.column
+            and all(w in f.message for w in case.words)]
+
+
+# ------------------------------------------------------------------------------- the cases
+
+@pytest.mark.parametrize("case", ERRORS, ids=lambda c: c.name)
+def test_identify_refuses_impossible_data_at_once(base, tmp_path, case) -> None:
+    """``juno identify`` exits 2 within seconds, naming file, column and evidence, files untouched."""
+    root = bad_copy(base, tmp_path, case)
+    before = checksums(root)
+    start = time.perf_counter()
+    proc = run_juno("identify", root, "--quiet", timeout=120)
+    elapsed = time.perf_counter() - start
+    assert proc.returncode == 2, f"exit {proc.returncode}\n{proc.stderr}"
+    assert "Traceback" not in proc.stderr
+    assert elapsed < QUICK_EXIT, f"the refusal took {elapsed:.1f} s"
+    line = next((ln for ln in proc.stderr.splitlines() if f"{case.file}, column '{case.column}'" in ln), None)
+    assert line is not None, proc.stderr
+    assert all(w in line for w in case.words), line
+    assert "--force" in proc.stderr
+    assert "np.float64" not in proc.stderr
+    assert checksums(root) == before
+
+
+@pytest.mark.parametrize("case", ERRORS + WARNINGS, ids=lambda c: c.name)
+def test_each_case_is_found_with_its_severity(base, tmp_path, case) -> None:
+    root = bad_copy(base, tmp_path, case)
+    before = checksums(root)
+    findings = check_campaign(load_campaign(root))
+    assert matching(findings, case), "\n".join(f"{f.severity}: {f}" for f in findings)
+    if case.severity == "warning":
+        assert not [f for f in findings if f.severity == "error"], [str(f) for f in findings]
+    assert checksums(root) == before
+
+
+@pytest.mark.parametrize("command", ["validate", "report", "diagnose"])
+def test_every_command_reading_measured_data_refuses(base, tmp_path, command) -> None:
+    root = bad_copy(base, tmp_path, ERRORS[0])
+    extra = ["--out", str(tmp_path / "report")] if command == "report" else []
+    proc = run_juno(command, root, *extra, "--quiet", timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "runs/t3d.csv, column 'pitch'" in proc.stderr
+    assert not (tmp_path / "report").exists()
+
+
+def test_simulate_of_a_campaign_refuses_and_force_goes_on(base, tmp_path) -> None:
+    """--force turns the errors into warnings: the run is simulated, the evidence still printed."""
+    root = bad_copy(base, tmp_path, ERRORS[0])
+    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", timeout=120)
+    assert proc.returncode == 2 and "runs/t3d.csv, column 'pitch'" in proc.stderr
+    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", "--force", timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "warning (--force): runs/t3d.csv, column 'pitch'" in proc.stderr
+    assert "run dbp1" in proc.stdout
+
+
+def test_warnings_print_one_line_each_and_go_on(base, tmp_path) -> None:
+    root = bad_copy(base, tmp_path, WARNINGS[2])
+    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("warning: runs/t3d.csv, column 'pos_x'"), proc.stderr
+
+
+def test_every_error_is_listed_at_once(base, tmp_path) -> None:
+    root = bad_copy(base, tmp_path, ERRORS[0])
+    ERRORS[2].write(root)
+    lines: list[str] = []
+    with pytest.raises(PlausibilityError) as err:
+        enforce_plausibility(load_campaign(root), stream=lines.append)
+    assert "runs/t3d.csv, column 'pitch'" in str(err.value) and "runs/dbp1.csv, column 'omega_left'" in str(err.value)
+    assert "2 errors" in str(err.value)
+
+
+# ------------------------------------------------------------------- the scan and gridding
+
+def test_gridding_drops_the_far_point(base, tmp_path) -> None:
+    """A 1e6 m point would stretch the grid over a kilometre; it is dropped and said so."""
+    from juno.validate import grid_terrain
+
+    root = bad_copy(base, tmp_path, WARNINGS[4])
+    campaign = load_campaign(root)
+    said: list[str] = []
+    _, grid = grid_terrain(campaign, campaign.run("t3d"), tmp_path, say=said.append)
+    xmin, xmax, _, _ = grid.extent
+    assert xmax - xmin < 12.0
+    assert len(said) == 1 and "dropped 1 gross outlier" in said[0]
+
+
+def test_gross_outliers_keeps_a_steep_real_mound() -> None:
+    """A 0.5 m mound with 5 mm noise and no outliers has none; a 0.3 m spike is one."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(-3, 3, size=(20000, 2))
+    exact = 0.5 * np.exp(-(xy ** 2).sum(axis=1) / (2 * 0.5 ** 2))
+    assert not gross_outliers(np.column_stack([xy, exact])).any()
+    pts = np.column_stack([xy, exact + rng.normal(0, 0.005, len(xy))])
+    assert not gross_outliers(pts).any()
+    pts[7, 2] += 0.3
+    assert np.flatnonzero(gross_outliers(pts)).tolist() == [7]
+
+
+def test_outlier_k_gives_the_stated_false_alarm_rate() -> None:
+    """k(n) = Phi^-1(1 - p / 2n): n Gaussian samples exceed it with probability about p."""
+    assert outlier_threshold_k(2000, 1e-4) == pytest.approx(5.45, abs=0.01)
+    p_one = math.erfc(outlier_threshold_k(2000, 1e-4) / math.sqrt(2))
+    assert 2000 * p_one == pytest.approx(1e-4, rel=1e-6)
+
+
+def test_limits_follow_from_the_motor_constants() -> None:
+    lim = rover_limits()
+    assert lim.stall_torque == pytest.approx(0.85 * 129 * 0.0465 * 24 / 0.2)
+    assert lim.drive_torque == 400.0
+    assert lim.top_speed == pytest.approx(24 / (0.0465 * 129) * 0.2794)
+    assert rover_limits({"motor.voltage": 48.0}).no_load_spin == pytest.approx(2 * lim.no_load_spin)
+
+
+# ----------------------------------------------------------------- synthetic data is clean
+
+SYNTHETIC = [("none", 1.0), ("soil_patch", 1.0), ("multipass", 1.0), ("slip_sinkage", 1.0), ("grouser", 1.0),
+             ("drivetrain_loss", 1.0), ("terrain_offset", 1.0), ("none", 0.0), ("terrain_offset", 0.0),
+             ("soil_patch", 0.0)]
+
+
+@pytest.mark.parametrize("effect,noise", SYNTHETIC, ids=[f"{e}-noise{n:g}" for e, n in SYNTHETIC])
+def test_synthetic_campaigns_raise_nothing(small_campaign, effect, noise) -> None:
+    """Campaigns as ``juno synthesize`` writes them are what a rover produces: no finding at all."""
+    seeds = {"none": 4101, "soil_patch": 4102, "multipass": 4103, "slip_sinkage": 4104, "grouser": 4105,
+             "drivetrain_loss": 4106, "terrain_offset": 4107}
+    c = small_campaign(seeds[effect] + (100 if noise == 0 else 0), effect, noise)
+    findings = check_campaign(c.campaign)
+    assert findings == [], "\n".join(f"{f.severity}: {f}" for f in findings)
