@@ -157,8 +157,8 @@ def cmd_identify(args) -> int:
             grid = None
             tmp = tempfile.TemporaryDirectory()
             if args.with_terrain:
-                from .validate import grid_terrain
-                grid = str(grid_terrain(campaign, campaign.runs_of_kind("terrain")[0], tmp.name)[0])
+                from .identify import terrain_grids
+                grid = terrain_grids(campaign, tmp.name, "identify --with-terrain")
             joint_args = dict(include_terrain=args.with_terrain, terrain_file=grid,
                               max_evaluations=args.max_evaluations, optimizer=args.optimizer)
             if args.starts > 1:
@@ -196,12 +196,13 @@ def _load_soil(path: str) -> dict[str, float]:
 
 def cmd_validate(args) -> int:
     from .campaign import load_campaign
-    from .identify import identify_joint
+    from .identify import identify_joint, require_runs
     from .simulator import JunoFMU
     from .validate import validate_run
     say = _progress(args.quiet)
     campaign = load_campaign(args.campaign)
     _check_plausibility(campaign, args)
+    require_runs(campaign, "validate")
     with JunoFMU(args.fmu) as fmu:
         if args.params:
             soil = _load_soil(args.params)

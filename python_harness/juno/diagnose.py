@@ -5,7 +5,7 @@
    training and held-out data (the model is simulated over the whole run,
    driven by the measured inputs; only the comparison is split).
 2. Show the base model's residuals against time, position, slip and side.
-3. Fit each candidate extension of model-notes section 7 (its own
+3. Fit each candidate extension (CANDIDATES: its own
    parameters together with the four soil parameters refitted), on the
    training blocks.  Each starts at the base optimum; the physical ones with
    few parameters are also started from the paper's initial soil (the base fit
@@ -59,6 +59,13 @@
    after the charge, both get a second round, and the final models are
    compared by the rules of step 4 (choose_branch).
 
+Every terrain run is replayed on the grid of its own scan.  The campaign needs at least one
+drawbar run (the soil and every physical extension are fitted there); without a terrain run the
+candidates that need one are left out.  A fit over which more than identify.MAX_FAILED_FRACTION
+of the simulations failed, or whose fitted runs fail at its optimum, is a failed fit: the base
+model's is an error (exit status 2), a candidate's is reported with ``status`` "failed" and never
+named a cause.
+
 It never reads ``truth.json``.
 """
 
@@ -75,7 +82,8 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from .campaign import Campaign, load_campaign
-from .identify import PAPER_INITIAL, REPLAY_DRIVES, PreparedRun, from_search, prepare_run, to_search
+from .identify import (PAPER_INITIAL, REPLAY_DRIVES, EvaluationLog, PreparedRun, from_search, gridded_scans,
+                       prepare_run, require_runs, to_search)
 from .parallel import map_tasks
 from .registration import HELD_OUT_RATIO, HeldOutEvidence
 from .simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
@@ -110,10 +118,10 @@ OUTPUT_INTERVAL = 0.05
 LOST_RATIO = 2.0
 #: Integration step of the diagnosis (s).  The base model and every candidate share it; its error
 #: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run (README,
-#: "Solver step against accuracy").  A 2 ms terrain replay was tried after the stiffness fix and
-#: not kept: at the true parameters it replays terrain_offset seed 4005 to the noise (1.01
-#: against 14.1), but loss + slip-sinkage campaigns 3-10 times worse (seed 3199: 24.4 against
-#: 8.6), and it named both causes in 13 of the 16 two-effect draws (README).
+#: "Solver step against accuracy").  The terrain replay uses it too: at 2 ms it replays
+#: terrain_offset seed 4005 at the true parameters to the noise (1.01 against 14.1), but
+#: loss + slip-sinkage campaigns 3-10 times worse (seed 3199: 24.4 against 8.6), and with it
+#: the diagnosis named both causes in 13 of the 16 two-effect draws (README).
 DIAGNOSE_STEP = 5e-3
 #: How the terrain run is replayed: one of identify.REPLAY_DRIVES; drawbar runs always follow the
 #: measured spins.  choose_terrain_drive picks one per campaign, blind, for the candidates' fits:
@@ -254,25 +262,28 @@ class Problem:
     """Everything a fit needs; picklable so worker processes can rebuild it."""
 
     campaign_root: str
-    grid_file: str | None
+    grid_file: str | dict[str, str] | None   # each terrain run's gridded scan (run id -> file)
     fmu_path: str
     prepared: list[PreparedRun] = field(default_factory=list)
     train: np.ndarray | None = None      # boolean mask over the concatenated residuals
     meta: dict[str, np.ndarray] = field(default_factory=dict)   # per residual: run, signal, time, block
 
 
-def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | None,
+def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, str] | None,
                   terrain_segment: float | None = None, terrain_drive: str = "spin") -> Problem:
     """Prepares every run and labels each residual with its run, signal, time and block.
+    ``grid_file``: each terrain run's gridded scan (run id -> file; a run without one is left
+    out), or one file for every terrain run, or None (no terrain run).
     ``terrain_segment`` (s): replay terrain runs in segments restarted at the measured pose
     (identify.prepare_run; experimental, off by default).  ``terrain_drive``: how terrain runs
     are replayed (identify.REPLAY_DRIVES); drawbar runs follow the measured spins."""
     prepared = []
     for run in campaign.runs:
-        if run.kind == "terrain" and grid_file is None:
-            continue
         terrain = run.kind == "terrain"
-        prepared.append(prepare_run(campaign, run, terrain_file=grid_file if terrain else None,
+        grid = grid_file.get(run.id) if isinstance(grid_file, dict) else grid_file
+        if terrain and grid is None:
+            continue
+        prepared.append(prepare_run(campaign, run, terrain_file=grid if terrain else None,
                                     segment=terrain_segment, drive=terrain_drive if terrain else "spin"))
     runs, signals, times = [], [], []
     for p in prepared:
@@ -292,19 +303,35 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | None,
 
 def all_residuals(fmu: JunoFMU, problem: Problem, params: dict[str, object]) -> np.ndarray:
     """Residuals of every run; a run the model cannot simulate gets NaN (judged as failed)."""
-    parts = []
+    return residuals_by_run(fmu, problem, params)[0]
+
+
+def residuals_by_run(fmu: JunoFMU, problem: Problem, params: dict[str, object]
+                     ) -> tuple[np.ndarray, dict[str, str]]:
+    """all_residuals's residuals, and for each run that failed (run id), why (its run, file,
+    simulation time and FMU message)."""
+    parts, failures = [], {}
     for p in problem.prepared:
         one = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, [p])
-        r = residuals_for(fmu, one, params, (p.kind,))
+        r, failure = residuals_or_failure(fmu, one, params, (p.kind,))
         n = sum(len(v[0]) for v in p.targets.values())
         parts.append(r if r is not None else np.full(n, np.nan))
-    return np.concatenate(parts)
+        if failure is not None:
+            failures[p.run_id] = failure
+    return np.concatenate(parts), failures
 
 
 def residuals_for(fmu: JunoFMU, problem: Problem, params: dict[str, object],
                   kinds: tuple[str, ...] = ("drawbar", "terrain")) -> np.ndarray | None:
     """Scaled residuals of the runs of ``kinds`` for the FMU parameters ``params`` (in the
     order of ``problem.prepared``); None if a run fails."""
+    return residuals_or_failure(fmu, problem, params, kinds)[0]
+
+
+def residuals_or_failure(fmu: JunoFMU, problem: Problem, params: dict[str, object],
+                         kinds: tuple[str, ...] = ("drawbar", "terrain")) -> tuple[np.ndarray | None, str | None]:
+    """(residuals_for's residuals, None), or (None, why the first failed run failed: its run,
+    file, simulation time and FMU message)."""
     from .identify import run_residuals
     soil = {k: params[k] for k in SOIL_PARAMETERS}
     extra = {k: v for k, v in params.items() if k not in SOIL_PARAMETERS}
@@ -316,18 +343,23 @@ def residuals_for(fmu: JunoFMU, problem: Problem, params: dict[str, object],
         if p.kind not in kinds:
             continue
         try:
-            parts.append(run_residuals(fmu, p, soil, extra if "terrain.file" in p.params else flat_extra,
-                                       OUTPUT_INTERVAL))
-        except SimulationError:
-            return None
-    r = np.concatenate(parts)
-    return r if np.all(np.isfinite(r)) else None
+            part = run_residuals(fmu, p, soil, extra if "terrain.file" in p.params else flat_extra, OUTPUT_INTERVAL)
+        except SimulationError as exc:
+            return None, str(exc)
+        if not np.all(np.isfinite(part)):
+            return None, f"run '{p.run_id}' ({p.file}): the simulation gives non-finite values"
+        parts.append(part)
+    return (np.concatenate(parts) if parts else np.zeros(0)), None
 
 
 # ------------------------------------------------------------------ fits
 
 @dataclass
 class FitResult:
+    """One model's fit: its FMU parameters, training and held-out mean squared scaled residual,
+    residuals (NaN on a run it cannot simulate), ``evaluations`` and ``failed_evaluations`` of
+    its least-squares fits, and ``error`` when it failed (then ``status`` is "failed")."""
+
     name: str
     params: dict[str, float]
     train_mse: float
@@ -336,16 +368,29 @@ class FitResult:
     evaluations: int
     wall_time: float
     error: str | None = None
+    failed_evaluations: int = 0
+
+    @property
+    def status(self) -> str:
+        return "failed" if self.error else "ok"
 
 
 def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dict[str, float],
                   max_nfev: int = 60, start_ext: dict[str, float] | None = None) -> FitResult:
-    """Least squares of the soil parameters (and the candidate's) on the training residuals."""
+    """Least squares of the soil parameters (and the candidate's) on the training residuals.
+
+    A failed simulation during a least-squares fit gives that fit a constant stand-in residual;
+    the fits' evaluations are logged (identify.EvaluationLog), and a fit over which more than
+    identify.MAX_FAILED_FRACTION of them failed, or whose fitted runs cannot be simulated at
+    the optimum, is a failed fit (``error`` names the first failure), not a result.  A terrain
+    run that a physical candidate is not fitted to and that fails at its optimum gets NaN
+    residuals there (judged as failed)."""
     t0 = time.perf_counter()
     fmu = JunoFMU(problem.fmu_path)
     # One BLAS thread: the fit's matrices are (residuals x parameters), where threads gain
     # nothing and OpenBLAS's spinning takes CPU from the simulations (see identify_joint).
     blas = threadpool_limits(limits=1, user_api="blas")
+    log = EvaluationLog()
     try:
         ext = candidate.params if candidate else ()
         fixed = dict(candidate.fixed) if candidate else {}
@@ -353,6 +398,7 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         starts.update(start_ext or {})
         x0 = np.concatenate([to_search(start_soil), [starts[e.name] for e in ext]])
         count = [0]
+        fitted_kinds: set[str] = set()
         kind_of = {p.run_id: p.kind for p in problem.prepared}
         run_kind = np.array([kind_of[r_] for r_ in problem.meta["run"]])
 
@@ -367,11 +413,14 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
             train = problem.train[np.isin(run_kind, kinds)]
             n_train = int(np.sum(train))
 
+            fitted_kinds.update(kinds)
+
             def train_residuals(xf):
                 count[0] += 1
                 x = x_start.copy()
                 x[free] = xf
-                r = residuals_for(fmu, problem, unpack(x), kinds)
+                r, failure = residuals_or_failure(fmu, problem, unpack(x), kinds)
+                log.record(failure)
                 return np.full(n_train, 30.0) if r is None else r[train]
             lo = np.concatenate([SOIL_SEARCH_BOUNDS[0], [e.lower for e in ext]])[free]
             hi = np.concatenate([SOIL_SEARCH_BOUNDS[1], [e.upper for e in ext]])[free]
@@ -418,13 +467,18 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
             x = fit(x, ("terrain",), np.array(terrain_only), max_nfev)
 
         params = unpack(x)
-        r = all_residuals(fmu, problem, params)
+        r, failures = residuals_by_run(fmu, problem, params)
+        at_optimum = [f for run_id, f in failures.items() if kind_of[run_id] in fitted_kinds]
+        if at_optimum:
+            log.record(at_optimum[0])
+        log.check(f"{candidate.name if candidate else 'base model'} fit", optimum_failed=bool(at_optimum))
         train = problem.train
         return FitResult(candidate.name if candidate else "base", params, float(np.nanmean(r[train] ** 2)),
-                         float(np.nanmean(r[~train] ** 2)), r, count[0], time.perf_counter() - t0)
+                         float(np.nanmean(r[~train] ** 2)), r, count[0], time.perf_counter() - t0,
+                         failed_evaluations=log.failed)
     except Exception as exc:  # a candidate that cannot be fitted is reported, not fatal
         return FitResult(candidate.name if candidate else "base", {}, np.inf, np.inf, np.zeros(0), 0,
-                         time.perf_counter() - t0, error=str(exc))
+                         time.perf_counter() - t0, error=str(exc), failed_evaluations=log.failed)
     finally:
         blas.restore_original_limits()
         fmu.close()
@@ -494,10 +548,14 @@ def patch_grid(campaign: Campaign, spacing: float = 0.5) -> tuple[tuple[tuple[st
 
 
 def registration_evidence(campaign: Campaign, grid) -> HeldOutEvidence | None:
-    """The scan's registration fitted kinematically on the terrain run's training blocks (the
-    measured height, pitch and roll against the rover posed on the gridded scan, no simulation:
-    juno.registration), and how much better than the scan as it is it explains the held-out
-    blocks.  None when the run is too short to have both kinds of block."""
+    """The scan's registration fitted kinematically on the first terrain run's training blocks
+    (the measured height, pitch and roll against the rover posed on ``grid``, that run's gridded
+    scan, no simulation: juno.registration), and how much better than the scan as it is it
+    explains the held-out blocks.  None when the run is too short to have both kinds of block.
+
+    One registration for the campaign: the registration candidate's offsets are applied to every
+    terrain run's scan alike, and the evidence comes from the first terrain run only (a campaign
+    whose terrain runs were scanned separately gets no per-scan registration)."""
     from .registration import flat_height, held_out_evidence, traverse_of
     run = campaign.runs_of_kind("terrain")[0]
     traverse = traverse_of(campaign, run)
@@ -659,10 +717,10 @@ def training_objective(problem: Problem, res: FitResult) -> float:
 
 
 def _replayed(problem: Problem, name: str, params: dict[str, object], r: np.ndarray,
-              evaluations: int = 1, wall_time: float = 0.0) -> FitResult:
+              evaluations: int = 1, wall_time: float = 0.0, failed_evaluations: int = 0) -> FitResult:
     """A FitResult for ``params`` from its replayed residuals ``r`` (no fit of its own)."""
     return FitResult(name, params, float(np.mean(r[problem.train] ** 2)), float(np.mean(r[~problem.train] ** 2)),
-                     r, evaluations, wall_time)
+                     r, evaluations, wall_time, failed_evaluations=failed_evaluations)
 
 
 def drive_problems(campaign: Campaign, problem: Problem, terrain_segment: float | None = None
@@ -733,7 +791,8 @@ def settle_terrain_drive(problems: dict[str, Problem], current: str, fits: Seque
                     r = res.residuals.copy()
                     replayed = residuals_for(fmu, problem, res.params, ("terrain",))
                     r[terrain] = np.nan if replayed is None else replayed
-                replays[drive].append(_replayed(problem, res.name, res.params, r, res.evaluations, res.wall_time))
+                replays[drive].append(_replayed(problem, res.name, res.params, r, res.evaluations, res.wall_time,
+                                                res.failed_evaluations))
                 loss = fit_loss(r[train])
                 loss = float(loss) if np.isfinite(loss) else np.inf
                 if drive not in best or loss < best[drive]["loss"]:
@@ -799,7 +858,7 @@ def on_reference_soil(problem: Problem, run_kind: np.ndarray, reference: FitResu
         fmu.close()
     if not np.all(np.isfinite(r)):      # the replay failed on that soil: the scan as it is
         params, r = candidate.switched_off(params), reference.residuals.copy()
-    return _replayed(problem, res.name, params, r, res.evaluations + 1, res.wall_time)
+    return _replayed(problem, res.name, params, r, res.evaluations + 1, res.wall_time, res.failed_evaluations)
 
 
 def penalised_gain(judged: dict[str, Any]) -> float:
@@ -902,7 +961,8 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     know, sinks the rover as a lowered scan would (ratios up to 9.8 on 20 soil-patch campaigns)."""
     candidate = CANDIDATES[res.name]
     if res.error:
-        return {"name": res.name, "cause": candidate.cause, "error": res.error,
+        return {"name": res.name, "cause": candidate.cause, "error": res.error, "status": "failed",
+                "failed_evaluations": res.failed_evaluations,
                 "significant": False, "acts": False, "gain": 0.0, "z": 0.0}
     kinds = _judged_kinds(candidate, run_kind)
     mask = np.isin(run_kind, kinds)
@@ -928,7 +988,7 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     # (Bonferroni over the kinds: drawbar and terrain runs differ too much for one pooled rank
     # test, where hundreds of unchanged drawbar units would drown a validation run's gain), and
     # not significantly worse on any.  The gain that must be clear is the pooled one, not the
-    # best kind's: judged per kind (3ce0e72), the open-loop terrain replay alone named false
+    # best kind's: judged per kind, the open-loop terrain replay alone named false
     # causes in 2 of 20 no-effect campaigns (a 5-parameter soil patch 4 % stiffer than the rest,
     # on a 19 % terrain gain at z 2.9), and it found none of the 70 hidden effects that the
     # pooled gain missed (README).  gain_by_kind is reported, not judged.
@@ -958,7 +1018,8 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
             "train_mse": res.train_mse, "n_params": len(candidate.params),
             "soil": {k: res.params[k] for k in SOIL_PARAMETERS},
             "extension": {k: v for k, v in res.params.items() if k in own},
-            "evaluations": res.evaluations, "wall_time": res.wall_time}
+            "evaluations": res.evaluations, "failed_evaluations": res.failed_evaluations, "status": res.status,
+            "wall_time": res.wall_time}
 
 
 def _refit_from_paper_soil(problem: Problem, run_kind: np.ndarray, first: Candidate, both_fit: FitResult,
@@ -1053,7 +1114,7 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     # fit with its extension switched off is the start of one more fit of the first cause
     # alone, and that fit becomes the reference if it fits the training data better.  Why: the
     # extra parameter can merely carry the fit out of a local optimum of the first cause.
-    # Measured (slip-sinkage 1.15 hidden, seed 4011, before the FMU's stiffness fix):
+    # Measured (slip-sinkage 1.15 hidden, seed 4011, with an earlier FMU build):
     # slip-sinkage alone, from the base optimum and from the paper's soil, stopped at 1.03 with
     # a drawbar training loss of 1.48; with a drivetrain loss beside it the fit reached 1.13 at
     # 1.17, and the loss, 0.006, was named a second cause (at the true soil such a loss makes
@@ -1140,13 +1201,16 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     from .simulator import default_fmu_path
     fmu_path = str(fmu.fmu_path) if fmu is not None else str(default_fmu_path())
     names = list(candidates or CANDIDATES)
+    require_runs(campaign, "diagnose")
     with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp:
-        grid_file, grid = None, None
-        terrain_runs = campaign.runs_of_kind("terrain")
-        if terrain_runs:
-            from .validate import grid_terrain
-            path, grid = grid_terrain(campaign, terrain_runs[0], tmp)
-            grid_file = str(path)
+        # Every terrain run is gridded from its own scan and replayed on it; the registration's
+        # kinematic evidence comes from the first terrain run (registration_evidence).
+        grid_file: dict[str, str] | None = None
+        grid = None
+        if campaign.runs_of_kind("terrain"):
+            scans = gridded_scans(campaign, tmp, "validate")
+            grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
+            grid = next(iter(scans.values()))[1]
         else:
             names = [n for n in names if not CANDIDATES[n].needs_terrain]
         problem = build_problem(campaign, fmu_path, grid_file, terrain_segment)
@@ -1234,7 +1298,8 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
 
     causes = [r.name for r in chosen]
     baseline = {"soil": {k: base.params[k] for k in SOIL_PARAMETERS}, "test_mse": base.test_mse,
-                "train_mse": base.train_mse, "rms": per_signal_rms(problem, base.residuals)}
+                "train_mse": base.train_mse, "rms": per_signal_rms(problem, base.residuals),
+                "status": base.status, "failed_evaluations": base.failed_evaluations}
     out: dict[str, Any] = {
         "cause": causes[0] if causes else "none",
         "causes": causes,

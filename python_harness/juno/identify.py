@@ -16,6 +16,13 @@ Two ways:
   covariance from the Jacobian (inflated for time-correlated residuals)
   and an identifiability report.
 
+A failed fit is an error, never a result.  Every objective evaluation is logged
+(:class:`EvaluationLog`: how many, how many failed, the first failure's run, file, time
+and FMU message); a fit whose optimum failed, or over which more than
+MAX_FAILED_FRACTION of the evaluations failed, raises :class:`FitError` naming the first
+failure.  A parameter the data does not see (a zero Jacobian column) or a fit that did
+not move is reported "not identified", with no uncertainty, never "pinned".
+
 Both use every core (juno.parallel): the joint fit evaluates the runs of one residual
 vector, and the points of its finite-difference Jacobian, as parallel tasks (each worker
 process holds its own FMU instance); :func:`identify_paper_runs` fits the drawbar runs in
@@ -29,6 +36,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -36,6 +44,7 @@ from scipy.optimize import least_squares, minimize
 from threadpoolctl import threadpool_limits
 
 from .campaign import Campaign, RunData, RunSpec, forward_speed, read_run, steady_average
+from .errors import InputError
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import SOIL_PARAMETERS, InputSignals, JunoFMU, SimulationError
 
@@ -45,7 +54,100 @@ WHEEL_RADIUS = 0.2794
 #: Integration step used while identifying (s): 2 ms keeps the steady slip within 0.1 % of 1 ms
 #: (5 ms: 0.5 %, which biased K_vx by 2 sigma in noisy synthetic tests).
 IDENTIFY_STEP = 2e-3
+#: What a failed simulation costs a Nelder-Mead fit (far above any real cost, so the simplex
+#: moves away from it), and the scaled residual every sample gets in a least-squares fit.
 FAILED_COST = 1e6
+FAILED_RESIDUAL = 1e3
+#: The largest fraction of a fit's objective evaluations that may fail.  Why: a failed
+#: evaluation returns a made-up constant (FAILED_COST, FAILED_RESIDUAL), which the optimiser
+#: takes for a value of the objective.  A few, at the edge of the region the model can
+#: simulate, only turn the search back; beyond a small fraction the optimiser has explored a
+#: different function from the one it reports minimising, and its optimum, cost and Jacobian
+#: say nothing about the data.  A finite-difference Jacobian costs one evaluation per
+#: parameter, so 5 % is about one failed point in every fifth iteration.
+MAX_FAILED_FRACTION = 0.05
+#: A Jacobian column (d residuals / d search parameter) whose norm is at most this fraction of
+#: the largest column's is treated as zero: the data does not see that parameter (its
+#: pseudo-inverse variance would be 0, which would read as perfectly pinned).
+ZERO_COLUMN = 1e-12
+
+
+# ------------------------------------------------------ failures and shape
+
+class FitError(SimulationError):
+    """A fit whose simulations failed: its optimum, or more than MAX_FAILED_FRACTION of its
+    objective evaluations.  The CLI maps it (as every SimulationError) to exit status 2.
+
+    ``failed`` and ``evaluations`` count the failed and all evaluations; ``first`` is the
+    first failure (a SimulationError naming its run, file, time and FMU message)."""
+
+    def __init__(self, fit: str, failed: int, evaluations: int, first: str, reason: str = ""):
+        self.fit, self.failed, self.evaluations, self.first, self.reason = fit, int(failed), int(evaluations), \
+            str(first), str(reason)
+        what = f"{fit} failed: {reason or f'{failed} of {evaluations} simulations failed'}; first failure"
+        super().__init__(what, [self.first])
+
+    def __reduce__(self):
+        return (FitError, (self.fit, self.failed, self.evaluations, self.first, self.reason))
+
+
+@dataclass
+class EvaluationLog:
+    """How a fit's objective evaluations went: ``count`` evaluations, ``failed`` of them failed,
+    ``first_failure`` the first failure's text (run, file, simulation time, FMU message)."""
+
+    count: int = 0
+    failed: int = 0
+    first_failure: str | None = None
+
+    def record(self, failure: str | None = None) -> None:
+        """One evaluation; ``failure`` is its failure's text, or None if it succeeded."""
+        self.count += 1
+        if failure is not None:
+            self.failed += 1
+            if self.first_failure is None:
+                self.first_failure = failure
+
+    @property
+    def failed_fraction(self) -> float:
+        return self.failed / self.count if self.count else 0.0
+
+    def check(self, fit: str, optimum_failed: bool) -> None:
+        """Raises FitError if the optimum failed or more than MAX_FAILED_FRACTION of the
+        evaluations did."""
+        if optimum_failed:
+            reason = f"the model cannot be simulated at its optimum ({self.failed} of {self.count} " \
+                     f"simulations failed)"
+        elif self.failed_fraction > MAX_FAILED_FRACTION:
+            reason = f"{self.failed} of {self.count} simulations failed (more than " \
+                     f"{MAX_FAILED_FRACTION:.0%}: the optimiser minimised the failures' stand-in values)"
+        else:
+            return
+        raise FitError(fit, self.failed, self.count, self.first_failure or "no failure message recorded", reason)
+
+
+#: What each step needs: step -> (kind of run, what for).
+STEP_NEEDS = {
+    "identify": ("drawbar", "identification fits the soil to drawbar runs (flat ground, measured drawbar force)"),
+    "identify --with-terrain": ("terrain", "the terrain run is fitted together with the drawbar runs"),
+    "validate": ("terrain", "validation replays a terrain run on its own gridded scan"),
+    "report": ("drawbar", "the report identifies the soil on drawbar runs first"),
+    "diagnose": ("drawbar", "the diagnosis fits the soil and every candidate on the drawbar runs; "
+                            "terrain runs are judged on their own scans"),
+}
+
+
+def require_runs(campaign: Campaign, step: str) -> list[RunSpec]:
+    """The campaign's runs of the kind ``step`` needs (STEP_NEEDS), or an InputError naming the
+    manifest, the step and what it needs.  Called before any long computation."""
+    kind, why = STEP_NEEDS[step]
+    runs = campaign.runs_of_kind(kind)
+    if not runs:
+        counts = {k: sum(r.kind == k for r in campaign.runs) for k in ("drawbar", "terrain")}
+        have = " and ".join(f"{n} {k} run{'s' if n != 1 else ''}" for k, n in counts.items() if n)
+        raise InputError(f"'{step}' needs at least one {kind} run, and the campaign has none ({have}): {why}",
+                         campaign.manifest_path)
+    return runs
 
 
 # ----------------------------------------------------------------- transforms
@@ -72,6 +174,25 @@ def _jacobian_of_transform(params: dict[str, float]) -> np.ndarray:
 def base_parameters(campaign: Campaign) -> dict[str, object]:
     """Fixed FMU parameters for identification: the campaign's rover overrides."""
     return dict(campaign.rover)
+
+
+def terrain_grids(campaign: Campaign, out_dir: str | Path, step: str = "identify --with-terrain") -> dict[str, str]:
+    """Each terrain run's LIDAR scan gridded into its own file under ``out_dir`` (run id ->
+    path), so that every terrain run is replayed on the ground it was driven on; InputError
+    (require_runs) when the campaign has no terrain run."""
+    return {run_id: path for run_id, (path, _grid) in gridded_scans(campaign, out_dir, step).items()}
+
+
+def gridded_scans(campaign: Campaign, out_dir: str | Path, step: str) -> dict[str, tuple[str, object]]:
+    """terrain_grids with each run's grid (juno.pointcloud.Grid) as well: run id -> (path, grid)."""
+    from .validate import grid_terrain   # validate imports this module
+    grids = {}
+    for i, run in enumerate(require_runs(campaign, step)):
+        run_dir = Path(out_dir) / f"scan{i}"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        path, grid = grid_terrain(campaign, run, run_dir)
+        grids[run.id] = (str(path), grid)
+    return grids
 
 
 # --------------------------------------------------------- paper-style fit
@@ -111,12 +232,15 @@ def steady_averages(campaign: Campaign, run: RunSpec, data: RunData | None = Non
 
 
 def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
-               base: dict[str, object] | None = None, output_interval: float = 0.1) -> float:
+               base: dict[str, object] | None = None, output_interval: float = 0.1,
+               log: EvaluationLog | None = None, file: str | None = None) -> float:
     """Eqn 10: weighted squared residuals of speed/R and wheel spins over the simulated window.
 
     The rover starts at the measured average speed with rolling wheels,
     driven by the averaged torques against the averaged drawbar force
-    (``drive.mode = 0``), for the length of the steady window.
+    (``drive.mode = 0``), for the length of the steady window.  A simulation that fails (or
+    gives a non-finite cost) costs FAILED_COST and is recorded in ``log`` (naming the run and
+    its data file ``file``).
     """
     params = {**(base or {}), **soil, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP}
     inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
@@ -124,19 +248,35 @@ def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
     duration = avg.window[1] - avg.window[0]
     try:
         sim = fmu.simulate(params, inputs, duration, output_interval, outputs=("vx", "omegaLeft", "omegaRight"))
-    except SimulationError:
+    except SimulationError as exc:
+        if log is not None:
+            log.record(str(exc.located(avg.run_id, file)))
         return FAILED_COST
     w1, w2, w3 = avg.weights()
     res_v = (avg.speed - sim["vx"][1:]) / WHEEL_RADIUS
     res_r = avg.omega_right - sim["omegaRight"][1:]
     res_l = avg.omega_left - sim["omegaLeft"][1:]
     cost = float(np.sum(w1 * res_v**2 + w2 * res_r**2 + w3 * res_l**2))
+    if log is not None:
+        log.record(None if np.isfinite(cost) else
+                   f"run '{avg.run_id}'" + (f" ({file})" if file else "") + ": the simulated speed or spins "
+                   f"are not finite at {_soil_text(soil)}")
     return cost if np.isfinite(cost) else FAILED_COST
+
+
+def _soil_text(soil: dict[str, float]) -> str:
+    return ", ".join(f"{k} = {v:.4g}" for k, v in soil.items())
 
 
 @dataclass
 class PaperResult:
-    """One run's paper-style identification (the form of Tables 1-3)."""
+    """One run's paper-style identification (the form of Tables 1-3).
+
+    ``status``: "ok", or "not identified" when the fit did not move from its start or the
+    objectives see no parameter direction (``jacobian_rank`` 0); ``converged`` is then False
+    whatever the optimiser said.  A fit whose simulations failed is not a result: it raises
+    FitError.  ``failed_evaluations``: simulations that failed along the way (at most
+    MAX_FAILED_FRACTION of ``evaluations``)."""
 
     run_id: str
     initial: dict[str, float]
@@ -147,6 +287,8 @@ class PaperResult:
     averages: SteadyAverages
     jacobian_rank: int = 0
     wall_time: float = 0.0
+    status: str = "ok"
+    failed_evaluations: int = 0
 
 
 def identify_paper(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str,
@@ -154,31 +296,40 @@ def identify_paper(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str,
                    progress: Callable[[str], None] | None = None) -> PaperResult:
     """The paper's identification on one drawbar run (unconstrained Nelder-Mead)."""
     run = campaign.run(run) if isinstance(run, str) else run
+    if run.kind != "drawbar":
+        raise InputError(f"run '{run.id}' is a {run.kind} run; the paper-style fit needs a drawbar run",
+                         campaign.manifest_path)
     initial = dict(initial or PAPER_INITIAL)
     avg = steady_averages(campaign, run)
     base = base_parameters(campaign)
     scale = np.array([initial[k] for k in SOIL_PARAMETERS])
     start = time.perf_counter()
-    count = [0]
+    log = EvaluationLog()
 
     def cost(y: np.ndarray) -> float:
-        count[0] += 1
         soil = dict(zip(SOIL_PARAMETERS, (y * scale).tolist()))
-        value = paper_cost(fmu, soil, avg, base)
-        if progress and count[0] % 50 == 0:
-            progress(f"{run.id}: {count[0]} evaluations, cost {value:.3g}")
+        value = paper_cost(fmu, soil, avg, base, log=log, file=run.file)
+        if progress and log.count % 50 == 0:
+            progress(f"{run.id}: {log.count} evaluations, cost {value:.3g}")
         return value
 
     res = minimize(cost, np.ones(4), method="Nelder-Mead",
                    options={"xatol": 1e-4, "fatol": 1e-12, "maxfev": max_evaluations, "adaptive": False})
+    fit = f"paper-style fit of run '{run.id}'"
+    log.check(fit, optimum_failed=not res.fun < FAILED_COST)
     final = dict(zip(SOIL_PARAMETERS, (res.x * scale).tolist()))
-    rank = _paper_rank(fmu, final, avg, base)
-    return PaperResult(run.id, initial, final, float(res.fun), int(res.nfev), bool(res.success), avg,
-                       rank, time.perf_counter() - start)
+    rank = _paper_rank(fmu, final, avg, base, log, run.file)
+    log.check(fit, optimum_failed=rank is None)
+    moved = bool(np.any(res.x != 1.0))
+    status = "ok" if moved and rank else "not identified"
+    return PaperResult(run.id, initial, final, float(res.fun), int(res.nfev), bool(res.success) and status == "ok",
+                       avg, int(rank or 0), time.perf_counter() - start, status, log.failed)
 
 
-def _paper_rank(fmu, soil, avg, base) -> int:
-    """Numerical rank of d(steady objectives)/d(log a): how many directions the data sees."""
+def _paper_rank(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages, base: dict[str, object],
+                log: EvaluationLog | None = None, file: str | None = None) -> int | None:
+    """Numerical rank of d(steady objectives)/d(log a): how many directions the data sees;
+    None if a simulation failed (recorded in ``log``)."""
     def objectives(s):
         params = {**base, **s, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP}
         inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
@@ -186,27 +337,38 @@ def _paper_rank(fmu, soil, avg, base) -> int:
         try:
             sim = fmu.simulate(params, inputs, avg.window[1] - avg.window[0], 0.5,
                                outputs=("vx", "omegaLeft", "omegaRight"))
-        except SimulationError:
+        except SimulationError as exc:
+            if log is not None:
+                log.record(str(exc.located(avg.run_id, file)))
             return None
-        return np.array([sim["vx"][-1] / WHEEL_RADIUS, sim["omegaLeft"][-1], sim["omegaRight"][-1]])
+        y = np.array([sim["vx"][-1] / WHEEL_RADIUS, sim["omegaLeft"][-1], sim["omegaRight"][-1]])
+        if log is not None:
+            log.record(None if np.all(np.isfinite(y)) else f"run '{avg.run_id}': non-finite objectives at "
+                       f"{_soil_text(s)}")
+        return y if np.all(np.isfinite(y)) else None
     y0 = objectives(soil)
     if y0 is None:
-        return 0
+        return None
     cols = []
     for k in SOIL_PARAMETERS:
         s = dict(soil)
         s[k] = s[k] * 1.01 if k != "soil.gamma" else min(s[k] * 1.01, 0.999)
         y = objectives(s)
         if y is None:
-            return 0
+            return None
         cols.append((y - y0) / 0.01)
     sv = np.linalg.svd(np.array(cols).T, compute_uv=False)
     return int(np.sum(sv > 1e-3 * sv[0])) if sv[0] > 0 else 0
 
 
-def _paper_task(args) -> PaperResult:
+def _paper_task(args) -> PaperResult | FitError:
+    """One run's paper-style fit; a FitError is returned, not raised, so the caller raises it
+    as it is (a task's raised error would come back wrapped with the task's arguments)."""
     handle, campaign, run_id, initial, max_evaluations = args
-    return identify_paper(handle.get(), campaign, run_id, initial, max_evaluations)
+    try:
+        return identify_paper(handle.get(), campaign, run_id, initial, max_evaluations)
+    except FitError as exc:
+        return exc
 
 
 def identify_paper_runs(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec | str] | None = None,
@@ -215,15 +377,21 @@ def identify_paper_runs(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec
                         progress: Callable[[str], None] | None = None) -> list[PaperResult]:
     """:func:`identify_paper` on each of ``runs`` (default: every drawbar run) as parallel tasks
     (juno.parallel: ``workers`` local processes, default one per core, or the Dask cluster at
-    ``scheduler``).  Results in the order of ``runs``, identical to fitting them one by one."""
-    ids = [r if isinstance(r, str) else r.id for r in (runs or campaign.runs_of_kind("drawbar"))]
+    ``scheduler``).  Results in the order of ``runs``, identical to fitting them one by one.
+    Raises FitError for the first run (in that order) whose fit failed, InputError when the
+    campaign has no drawbar run (require_runs)."""
+    ids = [r if isinstance(r, str) else r.id for r in (runs or require_runs(campaign, "identify"))]
     handle = FMUHandle(fmu)
     jobs = [(handle, campaign, run_id, initial, max_evaluations) for run_id in ids]
 
-    def done(i: int, p: PaperResult) -> None:
-        if progress:
+    def done(i: int, p: PaperResult | FitError) -> None:
+        if progress and isinstance(p, PaperResult):
             progress(f"{p.run_id}: paper-style fit done ({p.evaluations} evaluations, cost {p.cost:.3g})")
-    return map_tasks(_paper_task, jobs, workers=workers, scheduler=scheduler, on_result=done)
+    results = map_tasks(_paper_task, jobs, workers=workers, scheduler=scheduler, on_result=done)
+    for r in results:
+        if isinstance(r, FitError):
+            raise r
+    return results
 
 
 # ------------------------------------------------------------- joint fit
@@ -315,6 +483,7 @@ class PreparedRun:
     targets: dict[str, tuple[np.ndarray, np.ndarray, str, float, float]]
     # column -> (t, value, output, sigma, lag): compare value(t) - value(t - lag) when lag > 0
     segments: list[Segment] = field(default_factory=list)   # empty: one replay of the whole run
+    file: str | None = None     # the run's data file (as in the manifest), named in failures
 
 
 def _column_signal(data: RunData, name: str, grid: np.ndarray) -> np.ndarray:
@@ -434,17 +603,21 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
         for seg in segments[1:]:
             keep &= ~((ts >= seg.start) & (ts < seg.start + SEGMENT_SETTLE))
         targets[column] = (ts[keep][::stride], vs[keep][::stride], output, sigma, lag)
-    return PreparedRun(run.id, run.kind, duration, inputs, params, targets, segments)
+    return PreparedRun(run.id, run.kind, duration, inputs, params, targets, segments, run.file)
 
 
 def run_residuals(fmu: JunoFMU, prepared: PreparedRun, soil: dict[str, float],
                   extra: dict[str, object] | None = None, output_interval: float = 0.05) -> np.ndarray:
-    """Scaled residuals (measured - simulated) / sigma of one prepared run, all signals concatenated."""
+    """Scaled residuals (measured - simulated) / sigma of one prepared run, all signals
+    concatenated.  A failed simulation raises SimulationError naming the run and its file."""
     outputs = sorted({target[2] for target in prepared.targets.values()})
     params = {**prepared.params, **soil, **(extra or {})}
     pieces = prepared.segments or [Segment(0.0, prepared.duration, {})]
-    sims = [fmu.simulate({**params, **seg.init}, prepared.inputs, seg.stop, output_interval, outputs=outputs,
-                         start_time=seg.start) for seg in pieces]
+    try:
+        sims = [fmu.simulate({**params, **seg.init}, prepared.inputs, seg.stop, output_interval, outputs=outputs,
+                             start_time=seg.start) for seg in pieces]
+    except SimulationError as exc:
+        raise exc.located(prepared.run_id, prepared.file) from exc
     parts = []
     for column, (ts, vs, out, sigma, lag) in prepared.targets.items():
         model = np.empty(len(ts))
@@ -460,19 +633,27 @@ def run_residuals(fmu: JunoFMU, prepared: PreparedRun, soil: dict[str, float],
 
 @dataclass
 class JointResult:
-    """A joint identification with uncertainty and identifiability."""
+    """A joint identification with uncertainty and identifiability.
+
+    ``status``: "ok", or "not identified" when the fit did not move from its start or the data
+    does not see some parameter (a zero Jacobian column); such a parameter has an infinite
+    ``std`` (null in JSON) and the identifiability "not identified".  A fit whose simulations
+    failed is not a result: it raises FitError.  ``failed_evaluations``: simulations that
+    failed along the way (at most MAX_FAILED_FRACTION of ``evaluations``)."""
 
     params: dict[str, float]
     std: dict[str, float]            # 1 sigma, physical units
     relative_std: dict[str, float]
     correlation: np.ndarray
-    identifiability: dict[str, str]  # parameter -> "pinned" / "weak" / "not identifiable"
+    identifiability: dict[str, str]  # parameter -> "pinned" / "weak" / "not identifiable" / "not identified"
     cost: float                      # mean squared scaled residual
     evaluations: int
     wall_time: float
     runs: list[str] = field(default_factory=list)
     singular_values: list[float] = field(default_factory=list)
     inflation: float = 1.0           # variance inflation for correlated residuals
+    status: str = "ok"
+    failed_evaluations: int = 0
 
 
 def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int]) -> float:
@@ -496,7 +677,10 @@ def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int])
 
 
 def classify(relative_std: float) -> str:
-    """Identifiability of one parameter from its relative 1-sigma uncertainty."""
+    """Identifiability of one parameter from its relative 1-sigma uncertainty (not finite: the
+    data does not see it)."""
+    if not np.isfinite(relative_std):
+        return "not identified"
     if relative_std < 0.05:
         return "pinned"
     if relative_std < 0.25:
@@ -506,8 +690,10 @@ def classify(relative_std: float) -> str:
 
 class JointResiduals:
     """The joint fit's residual function: search vector x -> scaled residuals (measured -
-    simulated) / sigma of every prepared run, concatenated; a constant 1e3 everywhere when
+    simulated) / sigma of every prepared run, concatenated; FAILED_RESIDUAL everywhere when
     a run fails or gives a non-finite value (so the trust region shrinks away from it).
+    ``log`` (EvaluationLog) records every evaluation made for the owning process, and the
+    first failure's run, file, time and FMU message.
 
     Picklable (the FMU travels as an :class:`~juno.parallel.FMUHandle`, the pool not at all),
     so SciPy can send it to worker processes for the finite-difference Jacobian.  In the
@@ -523,7 +709,12 @@ class JointResiduals:
         self.extra = extra
         self.size = sum(len(v[0]) for p in self.prepared for v in p.targets.values())
         self.pool = pool
-        self.evaluations = 0
+        self.log = EvaluationLog()
+        self._failed_points: list[np.ndarray] = []
+
+    @property
+    def evaluations(self) -> int:
+        return self.log.count
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -532,52 +723,75 @@ class JointResiduals:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         soil = from_search(x)
+        if self.handle.is_local and self.pool is not None and self.pool.parallel:
+            jobs = [(self.handle, p, soil, self.extra) for p in self.prepared]
+            outcomes = self.pool.map(_run_task, jobs)
+        else:
+            fmu = self.handle.get()
+            outcomes = []
+            for p in self.prepared:
+                outcomes.append(_run_or_failure(fmu, p, soil, self.extra))
+                if outcomes[-1][1] is not None:
+                    break
+        failure = next((f for _r, f in outcomes if f is not None), None)
         if self.handle.is_local:
-            self.evaluations += 1
-            if self.pool is not None and self.pool.parallel:
-                jobs = [(self.handle, p, soil, self.extra) for p in self.prepared]
-                return self._combine(self.pool.map(_run_task, jobs))
-        fmu = self.handle.get()
-        parts = []
-        for p in self.prepared:
-            part = _run_or_none(fmu, p, soil, self.extra)
-            if part is None:
-                break
-            parts.append(part)
-        return self._combine(parts)
-
-    def _combine(self, parts: list[np.ndarray | None]) -> np.ndarray:
-        if len(parts) == len(self.prepared) and all(part is not None for part in parts):
-            r = np.concatenate(parts)
-            if np.all(np.isfinite(r)):
-                return r
-        return np.full(self.size, 1e3)
+            self.log.record(failure)
+        if failure is not None:
+            return np.full(self.size, FAILED_RESIDUAL)
+        return np.concatenate([r for r, _f in outcomes])
 
     def map(self, fn: Callable[[np.ndarray], np.ndarray], points) -> list[np.ndarray]:
         """Map-like callable for SciPy's ``workers``: ``fn`` (SciPy's wrapper of this object)
-        at each point, as parallel tasks when there is a parallel pool."""
+        at each point, as parallel tasks when there is a parallel pool.  A point evaluated in
+        a worker process is logged here; if it failed (FAILED_RESIDUAL everywhere), the point
+        is kept, so that its failure can be named by simulating it here (failure_at)."""
         points = list(points)
         if self.pool is None or not self.pool.parallel:
             return list(map(fn, points))
-        self.evaluations += len(points)
-        return self.pool.map(fn, points)
+        results = self.pool.map(fn, points)
+        for x, r in zip(points, results):
+            failed = bool(np.all(np.asarray(r) == FAILED_RESIDUAL))
+            self.log.record(f"simulation failed in a worker process at {_soil_text(from_search(x))}"
+                            if failed else None)
+            if failed:
+                self._failed_points.append(np.array(x, float))
+        return results
+
+    def first_failure(self) -> str | None:
+        """The first failure's text; a failure seen only in a worker process is simulated
+        again here (the model is deterministic) to name its run, time and FMU message."""
+        if self._failed_points and self.log.first_failure is not None and \
+                self.log.first_failure.startswith("simulation failed in a worker process"):
+            soil = from_search(self._failed_points[0])
+            fmu = self.handle.get()
+            for p in self.prepared:
+                _r, failure = _run_or_failure(fmu, p, soil, self.extra)
+                if failure is not None:
+                    return failure
+        return self.log.first_failure
 
 
-def _run_or_none(fmu: JunoFMU, prepared: PreparedRun, soil: dict[str, float],
-                 extra: dict[str, object] | None) -> np.ndarray | None:
+def _run_or_failure(fmu: JunoFMU, prepared: PreparedRun, soil: dict[str, float],
+                    extra: dict[str, object] | None) -> tuple[np.ndarray | None, str | None]:
+    """(scaled residuals, None) of one run, or (None, why it failed: run, file, time, FMU
+    message) when its simulation fails or gives non-finite values."""
     try:
-        return run_residuals(fmu, prepared, soil, extra)
-    except SimulationError:
-        return None
+        r = run_residuals(fmu, prepared, soil, extra)
+    except SimulationError as exc:
+        return None, str(exc)
+    if not np.all(np.isfinite(r)):
+        where = f"run '{prepared.run_id}'" + (f" ({prepared.file})" if prepared.file else "")
+        return None, f"{where}: the simulation gives non-finite values at {_soil_text(soil)}"
+    return r, None
 
 
-def _run_task(args) -> np.ndarray | None:
+def _run_task(args) -> tuple[np.ndarray | None, str | None]:
     handle, prepared, soil, extra = args
-    return _run_or_none(handle.get(), prepared, soil, extra)
+    return _run_or_failure(handle.get(), prepared, soil, extra)
 
 
 def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | None = None,
-                   include_terrain: bool = False, terrain_file: str | None = None,
+                   include_terrain: bool = False, terrain_file: str | dict[str, str] | None = None,
                    initial: dict[str, float] | None = None, max_evaluations: int = 400,
                    extra: dict[str, object] | None = None, optimizer: str = "least-squares",
                    progress: Callable[[str], None] | None = None, workers: int | None = None,
@@ -592,12 +806,23 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     ``fmu``); ``scheduler``: a Dask scheduler address instead.  In parallel, each residual
     evaluation simulates its runs as parallel tasks and the finite-difference Jacobian's points
     (one per parameter) are evaluated as parallel tasks; the fit is identical to the serial one.
+
+    ``terrain_file``: the gridded scan of each terrain run (run id -> file), or one file for
+    all of them.  Raises InputError when the campaign lacks the runs the fit needs
+    (require_runs), FitError when its simulations failed (EvaluationLog.check).
     """
     start = time.perf_counter()
-    runs = [campaign.run(r) for r in run_ids] if run_ids else campaign.runs_of_kind("drawbar")
+    runs = [campaign.run(r) for r in run_ids] if run_ids else require_runs(campaign, "identify")
     if include_terrain:
-        runs = runs + [r for r in campaign.runs_of_kind("terrain") if r not in runs]
-    prepared = [prepare_run(campaign, r, terrain_file=terrain_file) for r in runs]
+        runs = runs + [r for r in require_runs(campaign, "identify --with-terrain") if r not in runs]
+    if not runs:
+        raise InputError("the joint fit was given no run", campaign.manifest_path)
+
+    def grid_of(run: RunSpec) -> str | None:
+        if isinstance(terrain_file, dict):
+            return terrain_file.get(run.id)
+        return terrain_file
+    prepared = [prepare_run(campaign, r, terrain_file=grid_of(r) if r.kind == "terrain" else None) for r in runs]
     if optimizer not in ("least-squares", "nelder-mead"):
         raise ValueError(f"unknown optimizer '{optimizer}' (least-squares or nelder-mead)")
     # Tasks per batch: the runs of one evaluation, or the Jacobian's four points.
@@ -638,6 +863,10 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     J = ls.jac
     # ls.fun holds the residuals at ls.x (the model is deterministic): no need to simulate again.
     r = np.array(ls.fun, float) if x_best is ls.x else fun(x_best)
+    optimum_failed = bool(np.all(r == FAILED_RESIDUAL))
+    if optimum_failed or fun.log.failed_fraction > MAX_FAILED_FRACTION:
+        fun.log.first_failure = fun.first_failure()
+    fun.log.check("joint fit of " + ", ".join(f"'{r_.id}'" for r_ in runs), optimum_failed)
     dof = max(len(r) - 4, 1)
     # Residuals are correlated in time (model mismatch, smoothing), so the
     # white-noise covariance is too optimistic: inflate the variance by the
@@ -653,6 +882,12 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     T = _jacobian_of_transform(params)
     cov = T @ cov_search @ T
     std = np.sqrt(np.maximum(np.diag(cov), 0))
+    # A parameter the residuals do not depend on (its Jacobian column is zero), or every
+    # parameter of a fit that never left its start, is not identified: the pseudo-inverse gives
+    # it zero variance, which would read as perfectly pinned.
+    moved = bool(np.any(x_best != to_search(initial or PAPER_INITIAL)))
+    seen = _seen_columns(J) & moved
+    std = np.where(seen, std, np.inf)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
     rel = {k: float(std[i] / abs(params[k])) for i, k in enumerate(SOIL_PARAMETERS)}
@@ -660,14 +895,26 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
                        correlation=corr, identifiability={k: classify(v) for k, v in rel.items()},
                        cost=float(np.mean(r * r)), evaluations=fun.evaluations,
                        wall_time=time.perf_counter() - start, runs=[r_.id for r_ in runs],
-                       singular_values=sv.tolist(), inflation=inflation)
+                       singular_values=sv.tolist(), inflation=inflation,
+                       status="ok" if np.all(seen) else "not identified", failed_evaluations=fun.log.failed)
+
+
+def _seen_columns(J: np.ndarray) -> np.ndarray:
+    """Which parameters the residuals depend on: Jacobian columns whose norm exceeds ZERO_COLUMN
+    times the largest column's (none if the Jacobian is zero or not finite)."""
+    norms = np.linalg.norm(np.asarray(J, float), axis=0)
+    if not np.all(np.isfinite(norms)) or norms.max(initial=0.0) <= 0:
+        return np.zeros(J.shape[1], bool)
+    return norms > ZERO_COLUMN * norms.max()
 
 
 # ---------------------------------------------------------- multi-start fit
 
 @dataclass
 class MultiStartResult:
-    """Joint fits from several starting points; ``best`` has the lowest cost (first on a tie)."""
+    """Joint fits from several starting points; ``best`` has the lowest cost (first on a tie)
+    among the fits that did not fail.  A start whose fit failed (FitError) is in ``fits`` with
+    ``status`` "failed", its start as ``params``, an infinite cost and no uncertainty."""
 
     best: JointResult
     fits: list[JointResult]
@@ -695,9 +942,22 @@ def multistart_points(n: int, initial: dict[str, float] | None = None, spread: f
     return points
 
 
-def _joint_task(args) -> JointResult:
+def _joint_task(args) -> JointResult | FitError:
+    """One start's joint fit; a FitError is returned (see _paper_task)."""
     handle, campaign, start, kwargs = args
-    return identify_joint(handle.get(), campaign, initial=start, workers=1, **kwargs)
+    try:
+        return identify_joint(handle.get(), campaign, initial=start, workers=1, **kwargs)
+    except FitError as exc:
+        return exc
+
+
+def _failed_start(start: dict[str, float], error: FitError) -> JointResult:
+    """The entry of a start whose fit failed: its start, no cost, no uncertainty."""
+    none = {k: float("inf") for k in SOIL_PARAMETERS}
+    return JointResult(params=dict(start), std=dict(none), relative_std=dict(none),
+                       correlation=np.full((4, 4), np.nan), identifiability={k: "not identified" for k in none},
+                       cost=float("inf"), evaluations=error.evaluations, wall_time=0.0,
+                       status="failed", failed_evaluations=error.failed)
 
 
 def identify_multistart(fmu: JunoFMU, campaign: Campaign, starts: int | Sequence[dict[str, float]] = 4,
@@ -713,10 +973,14 @@ def identify_multistart(fmu: JunoFMU, campaign: Campaign, starts: int | Sequence
     handle = FMUHandle(fmu)
     jobs = [(handle, campaign, p, joint_kwargs) for p in points]
 
-    def done(i: int, j: JointResult) -> None:
+    def done(i: int, j: JointResult | FitError) -> None:
         if progress:
-            progress(f"start {i + 1}/{len(jobs)}: cost {j.cost:.4g} after {j.evaluations} evaluations")
-    fits = map_tasks(_joint_task, jobs, workers=workers, scheduler=scheduler, on_result=done)
-    costs = [f.cost if np.isfinite(f.cost) else np.inf for f in fits]
+            progress(f"start {i + 1}/{len(jobs)}: " + (f"failed: {j}" if isinstance(j, FitError) else
+                                                      f"cost {j.cost:.4g} after {j.evaluations} evaluations"))
+    outcomes = map_tasks(_joint_task, jobs, workers=workers, scheduler=scheduler, on_result=done)
+    if all(isinstance(o, FitError) for o in outcomes):
+        raise outcomes[0]
+    fits = [_failed_start(p, o) if isinstance(o, FitError) else o for p, o in zip(points, outcomes)]
+    costs = [f.cost if np.isfinite(f.cost) and f.status != "failed" else np.inf for f in fits]
     best = fits[int(np.argmin(costs))]
     return MultiStartResult(best, fits, points, time.perf_counter() - t0)

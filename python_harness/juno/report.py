@@ -134,6 +134,13 @@ def figure_path(v: ValidationResult, out: Path) -> str:
     return _save(fig, out / f"path_{v.run_id}.png")
 
 
+def _paper_outcome(p: PaperResult) -> str:
+    """How a paper-style fit ended, in words (never "converged" for a fit that did not move)."""
+    if p.status != "ok":
+        return "not identified: the fit did not move, or the averaged objectives see no parameter"
+    return "converged" if p.converged else "stopped at the evaluation limit"
+
+
 def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperResult],
                  joint: JointResult | None, validations: Sequence[tuple[str, ValidationResult]],
                  diagnosis: dict[str, Any] | None = None, figures_extra: Sequence[str] = (),
@@ -165,7 +172,7 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                 for k in SOIL_PARAMETERS:
                     lines.append(f"| {LABELS[k]} | {_fmt(p.initial[k])} | {_fmt(p.final[k])} |")
                 lines += ["", f"Cost {p.cost:.3g} after {p.evaluations} evaluations "
-                          f"({'converged' if p.converged else 'stopped at the evaluation limit'}); "
+                          f"({_paper_outcome(p)}); "
                           f"the three averaged objectives see {p.jacobian_rank} of the 4 parameter directions, "
                           "so this fit cannot pin all four parameters.", "",
                           f"![run {p.run_id}]({figure_run(campaign, p.run_id, a.window, tmp)})", ""]
@@ -197,6 +204,10 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         if paper or joint is not None:
             name = figure_traction(paper, joint, measured_traction_points(paper), tmp)
             lines += ["## 3. Traction ratio against slip (Figure 10)", "", f"![traction]({name})", ""]
+        if not campaign.runs_of_kind("terrain"):
+            lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
+                      "Not done: validation needs a terrain run (a run with its LIDAR scan), and the campaign has "
+                      "none.", ""]
         if validations:
             lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
                       "The LIDAR scan is gridded and the rover simulated on it, a PID on torque following the "

@@ -17,7 +17,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -48,13 +48,39 @@ def default_fmu_path() -> Path:
 class SimulationError(RuntimeError):
     """The FMU refused a parameter or input, or the simulation diverged.
 
-    ``messages`` holds what the FMU logged (its reasons).
+    ``what`` says which step failed, ``messages`` holds what the FMU logged (its reasons),
+    ``time`` the simulation time (s) at which it stopped (None before the first step), and
+    ``run`` / ``file`` the measured run being replayed and its data file, once a caller that
+    knows them has attached them (:meth:`located`).  The text reads, for example::
+
+        run 'dbp1' (runs/dbp1.csv): simulation stopped at t = 3.250 s: Wheel FL sank below ...
     """
 
-    def __init__(self, what: str, messages: list[str]):
-        detail = "; ".join(messages[-3:]) if messages else "no message logged"
-        super().__init__(f"{what}: {detail}")
-        self.messages = list(messages)
+    def __init__(self, what: str, messages: Sequence[str], time: float | None = None,
+                 run: str | None = None, file: str | None = None):
+        self.what = str(what)
+        self.messages = [str(m) for m in messages]
+        self.time = None if time is None else float(time)
+        self.run = run
+        self.file = file
+        super().__init__(self._text())
+
+    def _text(self) -> str:
+        detail = "; ".join(self.messages[-3:]) if self.messages else "no message logged"
+        where = ""
+        if self.run is not None:
+            where = f"run '{self.run}'" + (f" ({self.file})" if self.file else "") + ": "
+        elif self.file:
+            where = f"{self.file}: "
+        return f"{where}{self.what}: {detail}"
+
+    def located(self, run: str | None, file: str | None) -> "SimulationError":
+        """A copy naming the measured run ``run`` and its data file ``file``."""
+        return SimulationError(self.what, self.messages, self.time, run, file)
+
+    def __reduce__(self):
+        # Rebuilt from its fields when it crosses a process boundary (a task's error).
+        return (SimulationError, (self.what, self.messages, self.time, self.run, self.file))
 
 
 @dataclass
@@ -142,11 +168,11 @@ class JunoFMU:
             self._slave.reset()
         return self._slave
 
-    def _call(self, what: str, fn, *args):
+    def _call(self, what: str, fn, *args, time: float | None = None):
         try:
             return fn(*args)
         except Exception as exc:  # fmpy raises on fmi2Error
-            raise SimulationError(what, self._messages or [str(exc)]) from exc
+            raise SimulationError(what, self._messages or [str(exc)], time) from exc
 
     # -- variables --------------------------------------------------------
     def _set(self, slave: FMU2Slave, values: Mapping[str, object]) -> None:
@@ -169,7 +195,7 @@ class JunoFMU:
             else:
                 raise KeyError(f"variable '{name}' has unsupported type {var.type}")
         if reals:
-            self._call("setting " + ", ".join(n for n in values if self.variables[n].type == "Real"),
+            self._call("setting parameters",
                        slave.setReal, list(reals), list(reals.values()))
         if ints:
             self._call("setting integers", slave.setInteger, list(ints), list(ints.values()))
@@ -214,12 +240,12 @@ class JunoFMU:
         data = np.empty((n_steps + 1, len(names)))
         if inputs is not None:
             in_table = np.column_stack([np.interp(times, inputs.time, inputs.values[n]) for n in in_names])
-        self._call("setupExperiment", slave.setupExperiment, None, start_time)
+        self._call("setupExperiment", slave.setupExperiment, None, start_time, time=start_time)
         self._set(slave, params)
         if inputs is not None:
             self._call("setting inputs", slave.setReal, in_vrs, list(in_table[0]))
-        self._call("initialisation", slave.enterInitializationMode)
-        self._call("initialisation", slave.exitInitializationMode)
+        self._call("initialisation", slave.enterInitializationMode, time=start_time)
+        self._call("initialisation", slave.exitInitializationMode, time=start_time)
         # The stepping loop calls the FMI functions through ctypes directly (_RawFMI): fmpy's
         # getReal/setReal build ctypes arrays and Python lists on every call.  Outputs go straight
         # into their row of `data`; an input row equal to the one already set (sample-and-hold of
@@ -232,7 +258,7 @@ class JunoFMU:
         in_val = (ctypes.c_double * n_in)()
         row0, row_bytes = data.ctypes.data, data.strides[0]
         if n_out and raw.get_real(comp, out_vr, n_out, row0) > _FMI2_WARNING:
-            raise SimulationError("reading outputs after initialisation", self._messages)
+            raise SimulationError("reading outputs after initialisation", self._messages, start_time)
         changed = np.ones(n_steps, bool)
         if inputs is not None:
             changed[1:] = np.any(in_table[1:n_steps] != in_table[:n_steps - 1], axis=1)
@@ -242,11 +268,11 @@ class JunoFMU:
             if inputs is not None and changed[k]:
                 in_val[:] = in_table[k].tolist()
                 if set_real(comp, in_vr, n_in, in_val) > _FMI2_WARNING:
-                    raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages)
+                    raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages, times[k])
             if do_step(comp, times[k], output_interval, 1) > _FMI2_WARNING:
-                raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages)
+                raise SimulationError(f"simulation stopped at t = {times[k]:.3f} s", self._messages, times[k])
             if n_out and get_real(comp, out_vr, n_out, row0 + (k + 1) * row_bytes) > _FMI2_WARNING:
-                raise SimulationError(f"reading outputs at t = {times[k + 1]:.3f} s", self._messages)
+                raise SimulationError(f"reading outputs at t = {times[k + 1]:.3f} s", self._messages, times[k + 1])
         self._call("terminate", slave.terminate)
         result = {"time": times}
         for i, n in enumerate(names):

@@ -18,7 +18,7 @@ import numpy as np
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import Grid, grid_from_points, gross_outliers, write_esri_ascii
-from .simulator import InputSignals, JunoFMU
+from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: Default terrain grid resolution (m).
 #: Measured on the synthetic campaign (5 mm point noise, ~1200 points per m^2): at 5 cm cells
@@ -75,7 +75,9 @@ COMPARED = {
 def simulate_terrain_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec, soil: dict[str, float],
                          grid_file: str | Path, extra: dict[str, object] | None = None,
                          output_interval: float = 0.02) -> dict[str, np.ndarray]:
-    """Simulates a terrain run following the measured wheel spins on ``grid_file``."""
+    """Simulates a terrain run following the measured wheel spins on ``grid_file``.  Raises
+    SimulationError naming the run, its file, the simulation time and the FMU's message when
+    the replay fails."""
     data = read_run(campaign, run)
     t = data.time
     grid_t = np.arange(t[0], t[-1] + 1e-9, 0.01)
@@ -90,8 +92,11 @@ def simulate_terrain_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec, soil: d
     if data.has("yaw"):
         params["init.yaw"] = float(data.samples("yaw")[1][0])
     params.update(extra or {})
-    return fmu.simulate(params, inputs, float(t[-1] - t[0]), output_interval,
-                        outputs=tuple(COMPARED.values()) + ("pitch", "roll", "yaw"))
+    try:
+        return fmu.simulate(params, inputs, float(t[-1] - t[0]), output_interval,
+                            outputs=tuple(COMPARED.values()) + ("pitch", "roll", "yaw"))
+    except SimulationError as exc:    # a failed replay is an error naming the run, never a result
+        raise exc.located(run.id, run.file) from exc
 
 
 def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dict[str, float],
