@@ -216,7 +216,6 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
         r.z = m->out.z;
     }
     model_free(m);
-    free(m->terrain_file);
     free(m);
     r.total = now() - t0;
     r.cpu = cpu_now() - c0;

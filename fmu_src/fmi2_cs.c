@@ -1,8 +1,10 @@
 /*
  * A thin, generic FMI 2.0 Co-Simulation layer: argument checks, the FMI
  * state machine, log-category filtering and FMU state (de)serialisation.
- * Everything model-specific is behind model.h.  No global mutable state:
- * all data hangs off the fmi2Component.
+ * It knows no model: variables, string values, resource paths, time, the
+ * step size limit and the checks of a deserialised state all go through
+ * model.h (as in the Reference FMUs of the Modelica Association).  No
+ * global mutable state: all data hangs off the fmi2Component.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -10,7 +12,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "fmi2.h"
 #include "juno_guid.h"
@@ -43,10 +44,10 @@ typedef struct {
     fmi2ComponentEnvironment env;
     unsigned log_mask;
     FmiState state;
-    int initialized;               /* initialised since instantiation or the last reset: the
-                                    * terrain and derived data a stepping state relies on exist */
+    int initialized;               /* initialised since instantiation or the last reset: what
+                                    * the model loads at initialisation (outside ModelState)
+                                    * and a stepping state relies on exists */
     Model model;
-    char string_buffer[8];         /* returned for empty strings */
 } Instance;
 
 /* ------------------------------------------------------------------ logging */
@@ -168,14 +169,6 @@ static char *resource_uri_to_path(const char *uri)
     return out;
 }
 
-static void reset_model(Instance *inst)
-{
-    model_free(&inst->model);
-    memset(&inst->model, 0, sizeof inst->model);
-    model_set_defaults(&inst->model);
-    terrain_init_flat(&inst->model.terrain);
-}
-
 /* ----------------------------------------------------- inquiry, logging */
 
 FMI2_EXPORT const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -223,7 +216,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuT
     }
     if (fmuType != fmi2CoSimulation) {
         logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-               "fmi2Instantiate: JunoRover supports Co-Simulation only");
+               "fmi2Instantiate: " MODEL_IDENTIFIER " supports Co-Simulation only");
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, JUNO_GUID) != 0) {
@@ -244,7 +237,7 @@ FMI2_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuT
         free(inst);
         return NULL;
     }
-    reset_model(inst);
+    model_reset(&inst->model);
     LOG_CALL(inst, "fmi2Instantiate");
     return inst;
 }
@@ -255,7 +248,6 @@ FMI2_EXPORT void fmi2FreeInstance(fmi2Component c)
     if (!inst) return;
     LOG_CALL(inst, "fmi2FreeInstance");
     model_free(&inst->model);
-    free(inst->model.terrain_file);
     free(inst->resource_dir);
     free(inst->name);
     free(inst);
@@ -271,7 +263,7 @@ FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranc
         return refuse(inst, "fmi2SetupExperiment", "startTime is not finite");
     if (stopTimeDefined && !(stopTime >= startTime))
         return refuse(inst, "fmi2SetupExperiment", "stopTime %g is before startTime %g", stopTime, startTime);
-    inst->model.s.time = startTime;
+    model_set_time(&inst->model, startTime);
     return fmi2OK;
 }
 
@@ -287,28 +279,10 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     CHECK(c, "fmi2ExitInitializationMode", ST_INIT_MODE);
     char err[768];
     Model *m = &inst->model;
-    /* A relative terrain path that does not exist here is looked up in the FMU's resources. */
-    char *resolved = NULL;
-    if (m->terrain_file && m->terrain_file[0] && m->terrain_file[0] != '/' && inst->resource_dir) {
-        struct stat st;   /* stat, not fopen: opening a FIFO would wait for a writer */
-        if (stat(m->terrain_file, &st) != 0) {
-            size_t n = strlen(inst->resource_dir) + strlen(m->terrain_file) + 2;
-            resolved = (char *)malloc(n);
-            if (resolved) {
-                snprintf(resolved, n, "%s/%s", inst->resource_dir, m->terrain_file);
-                if (stat(resolved, &st) == 0) {
-                    free(m->terrain_file);
-                    m->terrain_file = resolved;
-                    resolved = NULL;
-                }
-            }
-        }
-    }
-    free(resolved);
+    model_resolve_resources(m, inst->resource_dir);
     if (model_initialize(m, err, sizeof err) != 0) return model_error(inst, "fmi2ExitInitializationMode", err);
-    log_message(inst, fmi2OK, LOG_EVENTS,
-                "initialised: A1 = %.4f, Vint = %.4g m3, static sinkage FL %.4f m, chassis z %.4f m",
-                m->d.contact.A1, m->d.contact.Vint, m->out.wheel[0].sinkage, m->out.z);
+    model_describe(m, err, sizeof err);
+    log_message(inst, fmi2OK, LOG_EVENTS, "initialised: %s", err);
     inst->state = ST_STEP_COMPLETE;
     inst->initialized = 1;
     return fmi2OK;
@@ -324,9 +298,7 @@ FMI2_EXPORT fmi2Status fmi2Terminate(fmi2Component c)
 FMI2_EXPORT fmi2Status fmi2Reset(fmi2Component c)
 {
     CHECK(c, "fmi2Reset", ST_ANY_ALIVE);
-    free(inst->model.terrain_file);
-    inst->model.terrain_file = NULL;
-    reset_model(inst);
+    model_reset(&inst->model);
     inst->initialized = 0;
     inst->state = ST_INSTANTIATED;
     return fmi2OK;
@@ -371,10 +343,8 @@ FMI2_EXPORT fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference v
     CHECK_ARRAY(vr, nvr, "fmi2GetString");
     CHECK_ARRAY(value, nvr, "fmi2GetString");
     for (size_t i = 0; i < nvr; ++i) {
-        if (!model_is_string_var(vr[i]))
-            return refuse(inst, "fmi2GetString", "unknown String value reference %u", vr[i]);
-        inst->string_buffer[0] = '\0';
-        value[i] = inst->model.terrain_file ? inst->model.terrain_file : inst->string_buffer;
+        value[i] = model_get_string(&inst->model, vr[i]);
+        if (!value[i]) return refuse(inst, "fmi2GetString", "unknown String value reference %u", vr[i]);
     }
     return fmi2OK;
 }
@@ -447,32 +417,25 @@ FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference v
     for (size_t i = 0; i < nvr; ++i) {
         if (!model_is_string_var(vr[i]))
             return refuse(inst, "fmi2SetString", "unknown String value reference %u", vr[i]);
-        if (!settable(inst, 'P'))
-            return refuse(inst, "fmi2SetString", "'terrain.file' cannot be set in state %s", state_name(inst->state));
-        if (!value[i]) return refuse(inst, "fmi2SetString", "NULL string for 'terrain.file'");
+        const char *name = model_var_name(vr[i], 's');
+        if (!settable(inst, model_var_kind(vr[i], 's')))
+            return refuse(inst, "fmi2SetString", "'%s' cannot be set in state %s", name, state_name(inst->state));
+        if (!value[i]) return refuse(inst, "fmi2SetString", "NULL string for '%s'", name);
     }
-    for (size_t i = 0; i < nvr; ++i) {
-        char *copy = dup_string(value[i]);
-        if (!copy) return model_error(inst, "fmi2SetString", "out of memory");
-        free(inst->model.terrain_file);
-        inst->model.terrain_file = copy;
-    }
+    for (size_t i = 0; i < nvr; ++i)
+        if (model_set_string(&inst->model, vr[i], value[i]) != 0)
+            return model_error(inst, "fmi2SetString", "out of memory");
     return fmi2OK;
 }
 
 /* ------------------------------------------------------------ FMU state */
 
-/* Everything that evolves is plain data: a snapshot is a byte copy of it,
- * plus the FMI state.  The terrain grid and file name are not part of it
- * (they cannot change after initialisation). */
+/* A snapshot: the model's state (plain data, a byte copy) and the FMI
+ * state. */
 typedef struct {
     uint64_t magic;
     uint32_t version, fmi_state;
-    Params p;
-    Derived d;
-    Inputs in;
-    State s;
-    Outputs out;
+    ModelState model;
 } Snapshot;
 
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
@@ -484,11 +447,7 @@ static void take_snapshot(const Instance *inst, Snapshot *snap)
     snap->magic = SNAPSHOT_MAGIC;
     snap->version = SNAPSHOT_VERSION;
     snap->fmi_state = (uint32_t)inst->state;
-    snap->p = inst->model.p;
-    snap->d = inst->model.d;
-    snap->in = inst->model.in;
-    snap->s = inst->model.s;
-    snap->out = inst->model.out;
+    model_get_state(&inst->model, &snap->model);
 }
 
 FMI2_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
@@ -514,16 +473,12 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
     if (!snap || snap->magic != SNAPSHOT_MAGIC || snap->version != SNAPSHOT_VERSION)
         return refuse(inst, "fmi2SetFMUstate", "FMUstate is NULL or was not made by this FMU");
     FmiState target = (FmiState)snap->fmi_state;
-    /* What a stepping state needs is an instance that has been initialised (its terrain and
-     * derived data exist), whatever FMI mode an earlier restored state left it in. */
+    /* What a stepping state needs is an instance that has been initialised (what the model
+     * loads at initialisation exists), whatever FMI mode an earlier restored state left it in. */
     if ((target == ST_STEP_COMPLETE || target == ST_TERMINATED) && !inst->initialized)
         return refuse(inst, "fmi2SetFMUstate",
                       "the state was taken after initialisation; this instance has not been initialised");
-    inst->model.p = snap->p;
-    inst->model.d = snap->d;
-    inst->model.in = snap->in;
-    inst->model.s = snap->s;
-    inst->model.out = snap->out;
+    model_set_state(&inst->model, &snap->model);
     inst->state = target;
     return fmi2OK;
 }
@@ -551,62 +506,6 @@ static uint64_t fnv1a(const unsigned char *bytes, size_t n)
 }
 
 #define SERIAL_SIZE (sizeof(Snapshot) + sizeof(uint64_t))
-
-/* A deserialized state passed its checksum, but its bytes may still come
- * from elsewhere (a tool's storage, a crafted file): it must hold values
- * the FMU itself could have had.  Parameters and inputs are checked
- * against the variable table as fmi2SetReal/fmi2SetInteger would, and a
- * state that can be stepped (StepComplete) must have a finite, bounded
- * integrator state.  Returns NULL, or what is wrong in why. */
-#define KIND_PARAM_ 'P'
-#define KIND_CALC_ 'C'
-#define KIND_INPUT_ 'I'
-#define KIND_OUTPUT_ 'O'
-static const char *snapshot_invalid(const Snapshot *snap, char *why, size_t n)
-{
-    Model tmp;
-    const Model *m = &tmp;
-    memset(&tmp, 0, sizeof tmp);
-    tmp.p = snap->p;
-    tmp.in = snap->in;
-#define PARAM KIND_PARAM_
-#define CALC KIND_CALC_
-#define INPUT KIND_INPUT_
-#define OUTPUT KIND_OUTPUT_
-#define REAL(vr_, name, kind, unit, start, lo, hi, field, desc)                                                  \
-    if ((kind == PARAM || kind == INPUT) && !(isfinite(m->field) && m->field >= (lo) && m->field <= (hi))) {    \
-        snprintf(why, n, "'%s' = %g is outside its range [%g, %g]", name, m->field, (double)(lo), (double)(hi)); \
-        return why;                                                                                            \
-    }
-#define INT(vr_, name, kind, start, lo, hi, field, desc)                                               \
-    if (kind == PARAM && !(m->field >= (lo) && m->field <= (hi))) {                                    \
-        snprintf(why, n, "'%s' = %d is outside its range [%d, %d]", name, m->field, (int)(lo), (int)(hi)); \
-        return why;                                                                                    \
-    }
-#define STR(vr_, name, kind, start, field, desc)
-#include "variables.h"
-    JUNO_VARIABLES
-#undef REAL
-#undef INT
-#undef STR
-#undef PARAM
-#undef CALC
-#undef INPUT
-#undef OUTPUT
-    if (snap->fmi_state == ST_STEP_COMPLETE) {
-        /* State is plain data made of doubles (model.h); none may be NaN, infinite or absurd */
-        const unsigned char *bytes = (const unsigned char *)&snap->s;
-        for (size_t i = 0; i + sizeof(double) <= sizeof snap->s; i += sizeof(double)) {
-            double v;
-            memcpy(&v, bytes + i, sizeof v);
-            if (!(fabs(v) <= 1e15)) {
-                snprintf(why, n, "the integrator state holds %g at byte %zu", v, i);
-                return why;
-            }
-        }
-    }
-    return NULL;
-}
 
 FMI2_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
@@ -645,14 +544,16 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte s
     memcpy(&tmp, serializedState, sizeof tmp);
     memcpy(&sum, serializedState + sizeof tmp, sizeof sum);
     if (tmp.magic != SNAPSHOT_MAGIC || tmp.version != SNAPSHOT_VERSION)
-        return refuse(inst, "fmi2DeSerializeFMUstate", "not a JunoRover state of this version");
+        return refuse(inst, "fmi2DeSerializeFMUstate", "not a " MODEL_IDENTIFIER " state of this version");
     if (fnv1a((const unsigned char *)&tmp, sizeof tmp) != sum)
         return refuse(inst, "fmi2DeSerializeFMUstate", "checksum mismatch: the serialized state is corrupted");
     if (tmp.fmi_state != ST_INSTANTIATED && tmp.fmi_state != ST_INIT_MODE && tmp.fmi_state != ST_STEP_COMPLETE &&
         tmp.fmi_state != ST_TERMINATED && tmp.fmi_state != ST_ERROR)
         return refuse(inst, "fmi2DeSerializeFMUstate", "the serialized state has an invalid FMI state");
+    /* It passed its checksum, but its bytes may still come from elsewhere
+     * (a tool's storage, a crafted file): the model checks them. */
     char why[256];
-    if (snapshot_invalid(&tmp, why, sizeof why))
+    if (model_state_invalid(&tmp.model, tmp.fmi_state == ST_STEP_COMPLETE, why, sizeof why))
         return refuse(inst, "fmi2DeSerializeFMUstate", "the serialized state is not valid: %s", why);
     Snapshot *snap = (Snapshot *)*FMUstate;
     if (!snap) {
@@ -699,25 +600,23 @@ FMI2_EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunication
     CHECK(c, "fmi2DoStep", ST_STEP_COMPLETE);
     (void)noSetFMUStatePriorToCurrentPoint;
     Model *m = &inst->model;
+    char err[768];
     if (!isfinite(communicationStepSize) || communicationStepSize <= 0)
         return refuse(inst, "fmi2DoStep", "communicationStepSize = %g must be positive and finite",
                       communicationStepSize);
     if (communicationStepSize > 1e4)
         return refuse(inst, "fmi2DoStep", "communicationStepSize = %g s is larger than 1e4 s",
                       communicationStepSize);
-    /* the model takes ceil(h / solver.step) internal steps: keep that an affordable int */
-    if (!(communicationStepSize / m->p.solver_step <= 1e7))
-        return refuse(inst, "fmi2DoStep",
-                      "communicationStepSize = %g s needs %.3g internal steps of solver.step = %g s (at most 1e7)",
-                      communicationStepSize, communicationStepSize / m->p.solver_step, m->p.solver_step);
+    if (model_check_step_size(m, communicationStepSize, err, sizeof err) != 0)
+        return refuse(inst, "fmi2DoStep", "communicationStepSize = %g s %s", communicationStepSize, err);
+    const double time = model_get_time(m);
     double tol = 1e-9 * fmax(1.0, fabs(currentCommunicationPoint)) + 1e-6 * communicationStepSize;
-    if (!isfinite(currentCommunicationPoint) || fabs(currentCommunicationPoint - m->s.time) > tol)
+    if (!isfinite(currentCommunicationPoint) || fabs(currentCommunicationPoint - time) > tol)
         return refuse(inst, "fmi2DoStep", "currentCommunicationPoint = %.17g differs from the FMU's time %.17g",
-                      currentCommunicationPoint, m->s.time);
-    m->s.time = currentCommunicationPoint;   /* follow the master's clock exactly */
-    char err[768];
+                      currentCommunicationPoint, time);
+    model_set_time(m, currentCommunicationPoint);   /* follow the master's clock exactly */
     if (model_do_step(m, communicationStepSize, err, sizeof err) != 0) return model_error(inst, "fmi2DoStep", err);
-    m->s.time = currentCommunicationPoint + communicationStepSize;
+    model_set_time(m, currentCommunicationPoint + communicationStepSize);
     return fmi2OK;
 }
 
@@ -743,7 +642,7 @@ FMI2_EXPORT fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s
     CHECK(c, "fmi2GetRealStatus", ST_STEP_COMPLETE | ST_TERMINATED | ST_ERROR);
     if (!value) return refuse(inst, "fmi2GetRealStatus", "NULL value");
     if (s == fmi2LastSuccessfulTime) {
-        *value = inst->model.s.time;
+        *value = model_get_time(&inst->model);
         return fmi2OK;
     }
     return refuse(inst, "fmi2GetRealStatus", "status kind %d is not available", (int)s);

@@ -6,6 +6,7 @@
  */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "rover_internal.h"
@@ -358,4 +359,34 @@ int model_initialize(Model *m, char *err, size_t errlen)
 void model_free(Model *m)
 {
     terrain_free(&m->terrain);
+    free(m->terrain_file);
+    m->terrain_file = NULL;
+}
+
+void model_reset(Model *m)
+{
+    model_free(m);
+    memset(m, 0, sizeof *m);
+    model_set_defaults(m);
+    terrain_init_flat(&m->terrain);
+}
+
+double model_get_time(const Model *m) { return m->s.time; }
+
+void model_set_time(Model *m, double time) { m->s.time = time; }
+
+/* The model takes ceil(h / solver.step) internal steps: that must stay an
+ * affordable int. */
+int model_check_step_size(const Model *m, double h, char *why, size_t n)
+{
+    if (h / m->p.solver_step <= 1e7) return 0;
+    snprintf(why, n, "needs %.3g internal steps of solver.step = %g s (at most 1e7)", h / m->p.solver_step,
+             m->p.solver_step);
+    return -1;
+}
+
+void model_describe(const Model *m, char *buf, size_t n)
+{
+    snprintf(buf, n, "A1 = %.4f, Vint = %.4g m3, static sinkage FL %.4f m, chassis z %.4f m", m->d.contact.A1,
+             m->d.contact.Vint, m->out.wheel[0].sinkage, m->out.z);
 }
