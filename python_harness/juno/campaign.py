@@ -1,4 +1,4 @@
-"""Measured campaigns (``interfaces.md`` section 3): read, check, align, derive, write.
+"""Measured campaigns: read, check, align, derive, write.
 
 A campaign is a folder::
 

@@ -298,15 +298,15 @@ def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
         i = int(np.argmax(np.abs(vs)))
         peak = abs(float(vs[i]))
         where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+        hint = ""
+        if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
+            hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
         if peak > SPIN_ERROR * w0:
-            hint = ""
-            if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
-                hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
             out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, more than "
                                f"{SPIN_ERROR:g} times the motors' no-load spin of {_g(w0)} rad/s{hint}"))
         elif peak > SPIN_WARN * w0:
             out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, beyond the "
-                               f"motors' no-load spin of {_g(w0)} rad/s (the wheel overran the motor)"))
+                               f"motors' no-load spin of {_g(w0)} rad/s{hint or ' (the wheel overran the motor)'}"))
     return out
 
 

@@ -287,8 +287,8 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
 #: and roll, each with the attitude gains fitted on the training samples) to count as evidence
 #: of a misregistration.  Measured on synthetic campaigns (seeds 4000-4019, blocks of 4 s):
 #: 0.61-1.36 with nothing hidden, 0.54-1.50 with multi-pass, slip-sinkage or a grouser,
-#: 6.5-158 misregistered; 3.0 is near the geometric middle of 1.5 and 6.5.  (README, "Session
-#: 19": measured with the roll gain free to 0.7-1.5.)  A soft soil patch reached 9.8: its deeper
+#: 6.5-158 misregistered; 3.0 is near the geometric middle of 1.5 and 6.5 (measured with the
+#: roll gain free to 0.7-1.5).  A soft soil patch reached 9.8: its deeper
 #: sinkage looks like a lowered scan, which this kinematic model cannot tell apart, so the
 #: diagnosis uses the evidence in its first round only, where a soil patch outranks the
 #: registration by its replayed gain; on top of another cause the replay judges (diagnose._judge).

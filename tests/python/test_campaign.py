@@ -1,4 +1,4 @@
-"""Specification of the measured-campaign format (interfaces.md section 3) as read by juno.campaign."""
+"""Specification of the measured-campaign format as read by juno.campaign."""
 
 from __future__ import annotations
 
@@ -488,3 +488,55 @@ def test_forward_speed_is_signed_by_yaw_when_reversing(tmp_path: Path) -> None:
     p.write_text(format_run_csv(run))
     v = forward_speed(read_run_csv(p, "terrain"), np.arange(1.0, 19.0, 0.1))
     assert abs(v.mean() + 0.2) < 0.01
+
+
+# ---------------------------------------------------------------------------------------------
+# Plausibility of the values (juno.plausibility)
+# ---------------------------------------------------------------------------------------------
+
+def wide_terrain() -> np.ndarray:
+    """make_terrain spread over +-3.2 m: the runs' wheels (0.7 m ahead of the 1.8 m the rover
+    reaches, 0.8 m to the side) stay on it."""
+    pts = make_terrain()
+    return np.column_stack([1.6 * pts[:, :2], pts[:, 2]])
+
+
+def test_a_plausible_campaign_raises_no_finding(tmp_path: Path) -> None:
+    """The format's example campaign (SI units, a rover at 0.3 m/s on a mound scanned wide enough
+    for its wheels) is plausible."""
+    from juno.plausibility import check_campaign
+
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), make_runs(), {"scan": wide_terrain()})
+    assert check_campaign(load_campaign(root)) == []
+
+
+def test_implausible_values_are_named_by_file_column_and_evidence(tmp_path: Path) -> None:
+    """Spins written in rpm (a warning: 11.4 could be a wheel overrunning downhill) and a pitch in
+    degrees (an error: the rover would lie on its side), naming the file, the column and the value."""
+    from juno.plausibility import check_campaign
+
+    runs = make_runs()
+    runs["dbp2"]["omega_right"] = runs["dbp2"]["omega_right"] * 60 / (2 * math.pi)
+    runs["t3d"]["pitch"] = np.full(len(runs["t3d"]["time"]), 12.5)
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), runs, {"scan": wide_terrain()})
+    found = {(f.severity, f.file, f.column): f.message for f in check_campaign(load_campaign(root))}
+    assert set(found) == {("warning", "runs/dbp2.csv", "omega_right"), ("error", "runs/t3d.csv", "pitch")}
+    assert "looks like rpm" in found[("warning", "runs/dbp2.csv", "omega_right")]
+    assert "12.5" in found[("error", "runs/t3d.csv", "pitch")] and "degrees" in found[("error", "runs/t3d.csv", "pitch")]
+
+
+def test_a_scan_too_small_for_the_path_names_the_run_and_the_time(campaign_dir: Path) -> None:
+    """On the +-2 m scan the front wheels (0.69 m ahead of the prism) pass its edge when the rover
+    reaches x = 1.3 m, at 4.4 s; a footprint point counts as off the scan one wheel radius
+    (0.28 m) beyond the last scan point, from about 5.3 s to the end (5.8 s): over 10 % of the
+    run, an error."""
+    from juno.plausibility import check_campaign
+
+    found = check_campaign(load_campaign(campaign_dir))
+    assert [(f.severity, f.file, f.column) for f in found] == [("error", "runs/t3d.csv", "pos_x")]
+    message = found[0].message
+    assert message.startswith("run 't3d': the rover's wheel footprint leaves the scan terrain/scan.xyz during ")
+    start, end = message.split(" during ")[1].split(" s ")[0].split("-")
+    assert 4.4 <= float(start) <= 5.6 and float(end) == 5.8

@@ -331,3 +331,18 @@ def test_atomic_directory(tmp_path: Path) -> None:
     with atomic_directory(tmp_path / "empty") as tmp:
         (tmp / "c.txt").write_text("three")
     assert files_in(tmp_path / "empty") == ["c.txt"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Gross outliers
+# ---------------------------------------------------------------------------------------------
+
+def test_gross_outliers_of_a_scan() -> None:
+    """A clean scan of a mound has none; a point 1e6 m away and a 2 m spike are found, nothing else."""
+    from juno.pointcloud import gross_outliers
+
+    pts = scan()
+    assert not gross_outliers(pts).any()
+    pts = np.vstack([pts, [[1.0e6, 0.0, 0.0]]])
+    pts[100, 2] += 2.0
+    assert np.flatnonzero(gross_outliers(pts)).tolist() == [100, len(pts) - 1]
