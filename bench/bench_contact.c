@@ -1,5 +1,5 @@
 /*
- * Benchmark (issue 6): nanoseconds per contact evaluation of
+ * Benchmark: nanoseconds per contact evaluation of
  *   - the volumetric model, closed form (contact_patch with
  *     CONTACT_CLOSED_FORM, then contact_shear with its Jacobian, as one
  *     substep of the FMU calls them),
@@ -21,7 +21,7 @@
  * What one evaluation is: what one step of the FMU's implicit integrator
  * needs from the law at a wheel.  Volumetric: contact_patch (with the
  * normal stiffness dFn/dz) and contact_shear with its Jacobian.  Wong-Reece
- * (the headline comparison, as before): one wong_reece_forces call; and,
+ * (the headline comparison): one wong_reece_forces call; and,
  * for the record, "as the FMU uses it": three calls (forces, and the
  * differences in slip and sinkage that give its damping and stiffness,
  * rover_wheel_contact.c, wong_reece_contact).

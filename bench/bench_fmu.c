@@ -1,5 +1,5 @@
 /*
- * Benchmark (issue 6): real-time factor (simulated time / wall time) of the
+ * Benchmark: real-time factor (simulated time / wall time) of the
  * JunoRover model called from C, two ways:
  *   direct - model_set_defaults, model_initialize, model_do_step (the
  *            juno_model library, no FMI layer);

@@ -121,7 +121,8 @@ void contact_cuts(const ContactModel *m, const ContactMemory *mem,
 
 /* Factor in [-1, 1] on the tilt alpha of the normal force (Eqn 7) at hub
  * speed v_long (m/s): sign(travel) * clamp(v_long / slip_v_eps, -1, 1).
- * Assumption (model-notes section 2): rolling resistance always opposes
+ * Assumption: rebound acts only on soil the wheel has passed over, so
+ * rolling resistance always opposes
  * the motion, a standing wheel is supported vertically (a rover that
  * stops does not creep), and rolling at slip_v_eps or faster in the
  * direction that shaped the patch gives the paper's model exactly.  The

@@ -37,11 +37,12 @@ typedef struct {
     double init_x, init_y, init_yaw, init_vx;
     int contact_method;
     double contact_slipVelocityEps, solver_step;
-    /* contact law (contact.model) and the Wong-Reece soil (model-notes section 6) */
+    /* contact law (contact.model) and the Wong-Reece/Ishigami soil (wong_reece.h) */
     int contact_model;
     double wr_n, wr_kc, wr_kphi, wr_K, wr_a0, wr_a1;
     int wr_points;
-    /* extensions (model-notes section 7), off at their defaults */
+    /* extensions beyond the paper's model (soil patch, multi-pass, slip-sinkage, grousers,
+     * drive loss, terrain registration), off at their defaults */
     double patch_x, patch_y, patch_radius, patch_khFactor, patch_strengthFactor;
     double multipass_rutFraction, multipass_khFactor;
     double slipSinkage_coefficient, grouser_thrustGain, grouser_lugHeight, drive_lossFraction;

@@ -42,7 +42,7 @@ static void derive(Model *m)
     Derived *d = &m->d;
     const double L = p->rover_wheelbase, W = p->rover_track, hp = p->rover_pivotHeight;
     d->chassis_mass = p->rover_mass - 4 * p->wheel_mass - 2 * p->rover_rockerMass;
-    /* Assumption (model-notes 4): chassis inertia of a uniform 1.38 x 1.6 x 0.5 m box. */
+    /* Assumption (the paper gives no inertias): chassis inertia of a uniform 1.38 x 1.6 x 0.5 m box. */
     const double bx = 1.38, by = 1.6, bz = 0.5;
     d->chassis_inertia[0] = d->chassis_mass * (by * by + bz * bz) / 12;
     d->chassis_inertia[1] = d->chassis_mass * (bx * bx + bz * bz) / 12;
@@ -276,7 +276,7 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
 
 /* ------------------------------------------------------------- life cycle */
 
-/* The Wong-Reece law's constants (model-notes section 6), from wongReece.*,
+/* The Wong-Reece/Ishigami law's constants (wong_reece.h), from wongReece.*,
  * the shared soil.cohesion, soil.phi, the rebound lambda = soil.gamma and
  * the wheel.  Checked whatever contact.model is, so a bad value is
  * reported when it is set, not when the law is switched on later; the

@@ -163,11 +163,11 @@ static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
 /* The evaluation at the end of a communication step (for the outputs) is
  * that of the state the next step starts from.  Only its drive and drawbar
  * terms depend on the inputs, which the importer may change in between;
- * so the input-independent part (evaluate_passive, with matrices) is kept
- * in m->eval and the next step's first substep adds the input terms to it
- * (evaluate_inputs), the same operations in the same order as evaluating
- * afresh.  It is used only if nothing it was computed from has changed
- * since, byte for byte (EvalKey: parameters, derived data, terrain, the
+ * so the input-independent part (rover_evaluate_passive, with matrices) is
+ * kept in m->eval and the next step's first substep adds the input terms
+ * to it (rover_evaluate_inputs), the same operations in the same order as
+ * evaluating afresh.  It is used only if nothing it was computed from has
+ * changed since, byte for byte (EvalKey: parameters, derived data, terrain, the
  * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
  * failed step make the next step evaluate afresh. */
 static void eval_key_store(Model *m)

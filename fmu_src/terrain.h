@@ -25,8 +25,9 @@ void terrain_init_flat(Terrain *t);
  * north to south.  NODATA cells are filled from valid neighbours.
  * Returns 0, or -1 with a message naming the file and line written to err
  * (missing/unreadable file, a path that is not a regular file (a
- * directory, a device, a FIFO: refused before it is opened), bad header, non-numeric value, too few/many
- * values, non-finite value, grid smaller than 2x2, all NODATA).
+ * directory, a device, a FIFO: refused before it is opened), bad header,
+ * non-numeric value, too few/many values, non-finite value, grid smaller
+ * than 2x2, all NODATA).
  * *t is overwritten, not freed (it may be uninitialised): call
  * terrain_free first if it holds a grid.  On error *t is flat ground. */
 int terrain_load(Terrain *t, const char *path, char *err, size_t errlen);

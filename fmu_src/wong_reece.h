@@ -17,10 +17,11 @@
  *   peak   theta_m = (a0 + a1 s) theta_f       (largest normal stress)
  * lambda is the rebound of the soil behind the wheel as a fraction of h: the
  * rear surface sits (1 - lambda) h below the original one, which is exactly
- * the volumetric model's gamma (model-notes section 2).  lambda = 0 is
+ * the volumetric model's gamma (contact.h).  lambda = 0 is
  * front-only contact (theta_r = 0), Wong and Reece's driven-wheel case.
  *
- * Stresses (model-notes section 6), with k = r^n (kc/b + kphi):
+ * Stresses (Wong and Reece 1967, with the peak angle of Ishigami et al.
+ * 2007), with k = r^n (kc/b + kphi):
  *   front (theta_m..theta_f): sigma = k (cos t - cos t_f)^n
  *   rear  (theta_r..theta_m): sigma = k (cos t* - cos t_f)^n,
  *         t* = t_f - (t - t_r)/(t_m - t_r) (t_f - t_m)  (the front profile

@@ -77,7 +77,7 @@
     REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    1e-6, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
     REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  1e-3, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
     REAL(159, "motor.efficiency",  PARAM, "1",   0.85,   0, 1,     p.motor_efficiency, "Gear and chain efficiency (assumed)") \
-    /* ---- Wong-Reece/Ishigami contact law (contact.model = 1; model-notes section 6).  Defaults: the dry \
+    /* ---- Wong-Reece/Ishigami contact law (contact.model = 1; fmu_src/wong_reece.h).  Defaults: the dry \
      * sand set (Wong, Land Locomotion Lab); cohesion and phi are soil.cohesion and soil.phi (defaults \
      * 1 kPa, 30 deg; the set has 1.04 kPa, 28 deg), the rear rebound lambda is soil.gamma ---- */ \
     REAL(160, "wongReece.n",    PARAM, "1",          1.1,     0.01, 5,    p.wr_n,    "Wong-Reece (contact.model 1): Bekker sinkage exponent n (> 0); default dry sand 1.1") \
@@ -97,7 +97,7 @@
     REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 1e-6, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor (> 0): below this speed the shear law is viscous") \
     INT (183, "contact.model",     PARAM, 0, 0, 1, p.contact_model, "Contact law: 0 = volumetric (Petersen-McPhee, the paper); 1 = Wong-Reece/Ishigami integrated rim stresses (wongReece.*, soil.cohesion, soil.phi, rebound soil.gamma)") \
     REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Largest internal integration step") \
-    /* ---- model extensions (model-notes section 7); each is off at its default ---- */ \
+    /* ---- model extensions: effects real data shows and the paper's model leaves out; each is off at its default ---- */ \
     REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \
     REAL(191, "soilPatch.y",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_y,      "Soil patch centre, world y") \
     REAL(192, "soilPatch.radius",   PARAM, "m",   1.0, 0.01, NOLIM, p.patch_radius,   "Soil patch radius (Gaussian sigma)") \

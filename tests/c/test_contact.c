@@ -491,7 +491,8 @@ static void test_memory(void)
     /* the same rolled wheel standing still, or creeping slower than the
      * regularisation speed: it keeps its rut (the force magnitude is
      * continuous) but its support turns vertical, so a stopped rover does
-     * not push itself backwards (model-notes section 2) */
+     * not push itself backwards (rebound acts only on soil the wheel has
+     * passed over) */
     contact_cuts(&m, &mem, s, &cf, &cr);
     CHECK(cf == 0.0 && rel_err(cr, (1.0 - m.gamma) * s) < 1e-12, "standing still keeps the rear cut (the rut)");
     CHECK(contact_rolling_factor(&m, &mem, 0.0) == 0.0, "rolled wheel at standstill: normal force not tilted");

@@ -7,8 +7,8 @@
  * sinkage at the Juno static load for both soil sets and the cost of one
  * wong_reece_forces call.
  *
- * Values: the published soil sets of model-notes section 6 (Toyoura sand,
- * dry sand), the Juno wheel R = 0.2794 m, b = 0.254 m, and a quarter of
+ * Values: the published soil sets (Toyoura sand, Ishigami et al. 2007;
+ * dry sand, Wong's Land Locomotion Lab set), the Juno wheel R = 0.2794 m, b = 0.254 m, and a quarter of
  * the rover's weight, 317.7 kg * 9.81 / 4 = 779 N.
  */
 #include "wong_reece.h"
@@ -52,8 +52,8 @@ static int all_finite(const WRForces *f)
 
 /* ---------------------------------------------------------------------
  * Closed form for n = 1 and no shear (c = 0, phi = 0 makes tau = 0
- * exactly).  Written from the stress laws in model-notes section 6, not
- * from wong_reece.c:
+ * exactly).  Written from the stress laws (Wong and Reece 1967; Ishigami
+ * et al. 2007), not from wong_reece.c:
  *   Fz = r b k [ int_front (cos t - cos tf) cos t
  *              + int_rear (cos(A - alpha t) - cos tf) cos t ],
  *   Fx = -r b k [ same with sin t ],

@@ -1,4 +1,4 @@
-"""Specification of the JunoRover FMU as an FMI 2.0 Co-Simulation component (interfaces.md, section 1).
+"""Specification of the JunoRover FMU as an FMI 2.0 Co-Simulation component (its public interface).
 
 What a co-simulation master and the juno harness rely on: the model description, the names, types,
 causalities and units of the public variables, the FMU state (get/set, serialise, into another
@@ -29,7 +29,7 @@ from fmu_helpers import (
 )
 
 # ---------------------------------------------------------------------------------------------
-# The public interface (interfaces.md, section 1): name -> (causality, type, unit)
+# The public interface: name -> (causality, type, unit)
 # ---------------------------------------------------------------------------------------------
 
 PARAMETERS = {
@@ -68,7 +68,8 @@ OUTPUTS = {
     "torqueLeftApplied": "N.m", "torqueRightApplied": "N.m",
     **{f"wheel{w}.{q}": WHEEL_UNITS[q] for w in WHEELS for q in WHEEL_QUANTITIES},
 }
-# Paper Table 2 (run 2) and model-notes section 4: the documented defaults.
+# Paper Table 2 (run 2) and the Juno rover's data (assumptions where the paper is silent): the
+# documented defaults.
 DEFAULTS = {
     "soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx": 0.819,
     "wheel.radius": 0.2794, "wheel.width": 0.254, "wheel.mass": 9.6, "rover.mass": 317.7,

@@ -1,5 +1,5 @@
-"""Specification of the grouser extension (model-notes section 7: "the lugged tires shear soil at
-a larger radius and gain thrust beyond the Mohr-Coulomb limit of a smooth rim").
+"""Specification of the grouser extension: the lugged tires shear soil at a larger radius and gain
+thrust beyond the Mohr-Coulomb limit of a smooth rim.
 
 grouser.thrustGain g scales the traction limit F_taumax by (1 + g); grouser.lugHeight h moves the
 shear surface to the lug tips, at R + h, while the soil's pressure stays on the rim of radius R.

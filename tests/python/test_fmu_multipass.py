@@ -1,5 +1,5 @@
-"""Specification of the multi-pass extension (model-notes section 7: rear wheels roll in the front
-wheels' rut, on soil the front wheels compacted).
+"""Specification of the multi-pass extension: rear wheels roll in the front wheels' rut, on soil the
+front wheels compacted.
 
 Each side remembers the residual rut its front wheel leaves along its forward travel,
 (1 - gamma) z_max; the rear wheel, one wheelbase behind, sinks that much less

@@ -1,4 +1,4 @@
-"""Specification of the physics of the JunoRover FMU (model-notes.md, sections 1-5).
+"""Specification of the physics of the JunoRover FMU (Petersen & McPhee 2013 and the Juno rover).
 
 Defaults are the paper's Table 2 values.  drive.mode: 0 = torque inputs, 1 = PID on the wheel-spin
 references, 2 = DC motors at a throttle.  The drawbarForce input defaults to 400 N, so every test
@@ -51,7 +51,7 @@ def _all_finite(r):
 
 def _reference_static_sinkage() -> float:
     """Independent reference: sinkage z of a rigid wheel (R, b) on flat soil where
-    k_h * integral over the symmetric patch of d(x)^eta dA = m g / 4 (model-notes 1)."""
+    k_h * integral over the symmetric patch of d(x)^eta dA = m g / 4 (Petersen & McPhee 2013, Eqn 2)."""
 
     def hypervolume(z):
         half = math.sqrt(z * (2 * R - z))
@@ -351,8 +351,8 @@ def test_compaction_resistance_falls_as_gamma_rises(fmu_unzipped):
     assert resistance[0] > 0.05 * MASS * G, "front-only contact (gamma 0) must resist noticeably"
 
 
-# Regression: a rover that rolled and stopped once kept its backward-tilted normal force and
-# crept into an undamped limit cycle (the creep at rest of model-notes section 2).
+# A rover that rolled and stopped must not keep its backward-tilted normal force: it would creep
+# into an undamped limit cycle (rebound acts only on soil the wheel has passed over).
 def test_coasting_rover_comes_to_rest_and_stays(fmu_unzipped):
     """A passive rover released at 0.3 m/s stops and stays: it rolls back no more than 5 mm from
     its furthest point (the chassis pitches as it stops, so the reference point's speed may

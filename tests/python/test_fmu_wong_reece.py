@@ -1,5 +1,5 @@
 """Specification of the Wong-Reece/Ishigami contact law in the FMU (contact.model = 1;
-model-notes section 6, README "Contact laws").
+Wong and Reece 1967, Ishigami et al. 2007; README "Contact laws").
 
 The law integrates normal and shear stress around the rim (fmu_src/wong_reece.c); the FMU applies
 its drawbar pull Fx, vertical load Fz and resisting torque T at each wheel.  Defaults: the dry sand
@@ -52,7 +52,7 @@ def _sum(r, quantity):
 
 def _wong_reece_fz(h: float, soil=DRY_SAND, c=COHESION, phi=PHI, lam=GAMMA) -> float:
     """Vertical load (N) a rigid wheel (R, B) carries at sinkage h (m) and slip 0 by the equations of
-    model-notes section 6: sigma = r^n (kc/b + kphi) (cos t - cos t_f)^n in front of the peak
+    Wong and Reece with Ishigami's peak angle: sigma = r^n (kc/b + kphi) (cos t - cos t_f)^n in front of the peak
     t_m = a0 t_f, the front profile mapped linearly onto [t_r, t_m] behind it, t_r from the rebound
     lambda h; j = r [(t_f - t) - (sin t_f - sin t)], tau = (c + sigma tan phi)(1 - exp(-j/K))."""
     n, K = soil["n"], soil["K"]
