@@ -305,11 +305,11 @@ static int prepare_wong_reece(Model *m, char *err, size_t errlen)
     return wong_reece_prepare(wm, err, errlen);
 }
 
-int model_initialize(Model *m, char *err, size_t errlen)
+/* The volumetric law's constants (contact.h) from soil.*, the wheel and
+ * contact.*: checked, and the Eqn 3 fit made. */
+static int prepare_volumetric(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
-    m->eval_valid = 0;
-    if (check_params(p, err, errlen) != 0) return -1;
     ContactModel *cm = &m->d.contact;
     memset(cm, 0, sizeof *cm);
     cm->kh = p->soil_kh;
@@ -323,7 +323,15 @@ int model_initialize(Model *m, char *err, size_t errlen)
     cm->width = p->wheel_width;
     cm->slip_v_eps = p->contact_slipVelocityEps;
     cm->method = p->contact_method;
-    if (contact_model_prepare(cm, err, errlen) != 0) return -1;
+    return contact_model_prepare(cm, err, errlen);
+}
+
+int model_initialize(Model *m, char *err, size_t errlen)
+{
+    const Params *p = &m->p;
+    m->eval_valid = 0;
+    if (check_params(p, err, errlen) != 0) return -1;
+    if (prepare_volumetric(m, err, errlen) != 0) return -1;
     if (prepare_wong_reece(m, err, errlen) != 0) return -1;
     derive(m);
 
