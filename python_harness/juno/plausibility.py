@@ -37,7 +37,8 @@ the campaign's ``rover`` entry):
   radius: the same margins as the torque, times 2 / radius.
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
   typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
-  more apart, are milliseconds (error); a run over an hour alone is a warning.
+  more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
+  over an hour between rows typically less than half a second apart is an error (not one run).
 * **Single absurd samples** (any known column): each sample is compared with the median of the
   five samples around it (its column's own samples; a step or a monotone transient has no
   residual, a lone spike has). The noise's standard deviation is estimated robustly from the
@@ -47,8 +48,8 @@ the campaign's ``rover`` entry):
   The residual from the median of five then has the tails of a Gaussian of deviation
   ``RESIDUAL_TAIL * s`` (1.14: the other four samples' median has a variance of 0.3 s^2;
   measured 1.09 over 2 million samples). A sample is an outlier when its residual exceeds both
-  ``k * RESIDUAL_TAIL * s`` and a quarter of the column's robust span (1st to 99th
-  percentile); ``k`` is chosen so that Gaussian noise over the column's n samples raises a
+  ``k * RESIDUAL_TAIL * s`` and a quarter of the column's robust span (the range of the
+  running median of five, which no lone spike reaches); ``k`` is chosen so that Gaussian noise over the column's n samples raises a
   false alarm with probability ``FALSE_ALARM`` (``k = Phi^-1(1 - FALSE_ALARM / (2 n))``, 5.5
   for 2000 samples). The span term keeps noise-free data (MAD = 0) from flagging its own
   curvature. An outlier is an error when its residual exceeds ten times the column's span
@@ -72,7 +73,7 @@ from numpy.typing import NDArray
 
 from .campaign import KNOWN_COLUMNS, Campaign, RunData, RunSpec, aligned, read_run, read_terrain_points
 from .errors import InputError
-from .pointcloud import gross_outliers
+from .pointcloud import GRID_MARGIN, gross_outliers
 
 FloatArray = NDArray[np.float64]
 
@@ -256,7 +257,14 @@ def check_time(run: RunData, file: str) -> list[Finding]:
     if len(t) < 2:
         return []
     duration = float(t[-1] - t[0])
-    step = float(np.median(np.diff(t)))
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    gap = int(np.argmax(steps))
+    lines = run.lines if run.lines is not None else np.arange(len(t)) + 2
+    if steps[gap] > LONGEST_RUN and step < SLOW_STEP:
+        return [Finding("error", file, "time", f"{_g(steps[gap])} s pass between line {int(lines[gap])} "
+                        f"(t = {_g(t[gap])} s) and line {int(lines[gap + 1])} (t = {_g(t[gap + 1])} s), where rows "
+                        f"are typically {_g(step)} s apart: not one run")]
     if step >= ABSURD_STEP:
         return [Finding("error", file, "time", f"rows are typically {_g(step)} s apart (the rover's sensors sample "
                         f"at 5-100 Hz): time looks like milliseconds")]
@@ -279,8 +287,11 @@ def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
         i = int(np.argmax(np.abs(vs)))
         peak = abs(float(vs[i]))
         if peak > ANGLE_ERROR:
+            beyond = int(np.sum(np.abs(vs) > ANGLE_ERROR))
+            hint = ": looks like degrees" if math.radians(peak) <= tip else ""
             out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} (> {ANGLE_ERROR} rad, the rover "
-                               f"on its side) at line {int(lines[i])}: looks like degrees"))
+                               f"on its side) at line {int(lines[i])}; {beyond} of {len(vs)} samples beyond "
+                               f"{ANGLE_ERROR} rad{hint}"))
         elif peak > tip:
             out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad at line {int(lines[i])}, "
                                f"beyond the rover's static tip-over angle of {_g(tip)} rad"))
@@ -425,10 +436,11 @@ def check_outliers(run: RunData, file: str, columns: Iterable[str]) -> list[Find
         if len(vs) < 5:
             continue
         with np.errstate(over="ignore", invalid="ignore"):
-            r = vs - _median_of_five(vs)
+            smooth = _median_of_five(vs)
+            r = vs - smooth
             r = np.where(np.isfinite(r), r, np.sign(vs) * np.inf)
-            lo, hi = np.percentile(vs, [1.0, 99.0])
-            span = float(hi - lo) if np.isfinite(hi - lo) else np.inf
+            lo, hi = float(np.min(smooth)), float(np.max(smooth))
+            span = hi - lo if np.isfinite(hi - lo) else np.inf
             d2 = vs[2:] - 2.0 * vs[1:-1] + vs[:-2]
             d2 = d2[d2 != 0]  # exact zeros are held samples (a frozen stretch), not noise
             if d2.size == 0:
@@ -480,10 +492,13 @@ def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tupl
 
     The footprint (:func:`footprint_offsets`) is placed at each position sample, turned by the
     measured yaw (without a yaw column it is turned to every heading: a disc of its
-    half-diagonal, sampled at 16 headings). A footprint point is on the scan when a scan point
-    lies within one wheel radius of it: the contact region of a wheel spans that much, so a
-    narrower gap is bridged by the gridding's interpolation, while farther out the grid only
-    repeats the nearest edge height (invented ground).
+    half-diagonal, sampled at 16 headings). A footprint point is on the gridded scan when a scan
+    point lies within ``GRID_MARGIN`` (1 m) of it: the gridding extends the scan by that margin
+    with its nearest edge height, so that wheels may hang over an edge of the scan; farther from
+    every scan point (beyond the grid, where the simulation clamps the edge height, or in a hole
+    of the scan wider than twice the margin) the ground under the wheel is not measured at all.
+    (Closer to the edge the synthetic campaigns' wheels do leave the scanned area for the last
+    seconds of a full-length run: their scan ends 0.7 m ahead of where the rover stops.)
 
     Returns:
         (times of the position samples (s), True where part of the footprint is off the scan).
@@ -504,8 +519,8 @@ def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tupl
         ang = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
         px = x[:, None] + radius * np.cos(ang)[None, :]
         py = y[:, None] + radius * np.sin(ang)[None, :]
-    dist, _ = tree.query(np.column_stack([px.ravel(), py.ravel()]), distance_upper_bound=2 * limits.wheel_radius)
-    off_scan = (dist > limits.wheel_radius).reshape(px.shape).any(axis=1)
+    dist, _ = tree.query(np.column_stack([px.ravel(), py.ravel()]), distance_upper_bound=2 * GRID_MARGIN)
+    off_scan = (dist > GRID_MARGIN).reshape(px.shape).any(axis=1)
     return t, off_scan
 
 

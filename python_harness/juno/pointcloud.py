@@ -42,7 +42,13 @@ __all__ = [
     "write_esri_ascii",
     "read_esri_ascii",
     "MAX_GRID_CELLS",
+    "GRID_MARGIN",
 ]
+
+GRID_MARGIN = 1.0
+"""Border (m) by which a terrain run's scan is gridded beyond its points (nearest edge height), so
+that the rover's wheels may hang over an edge of the scan; the path's wheel footprint must stay
+within it (:func:`juno.plausibility.path_off_scan`)."""
 
 MAX_GRID_CELLS = 40_000_000
 """Largest grid :func:`grid_from_points` builds (cells); beyond that the cell size is surely wrong."""

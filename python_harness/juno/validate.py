@@ -45,7 +45,7 @@ def grid_terrain(campaign: Campaign, run: RunSpec, out_dir: str | Path, cell: fl
         points = points[~bad]
         if say is not None:
             say(f"{run.terrain}: dropped {int(bad.sum())} gross outlier(s) of the scan before gridding")
-    grid = grid_from_points(points, cell=cell, margin=1.0)
+    grid = grid_from_points(points, cell=cell, margin=GRID_MARGIN)
     path = Path(out_dir) / (Path(run.terrain).stem + f"_{int(round(cell * 1000))}mm.asc")
     write_esri_ascii(path, grid)
     return path, grid

@@ -527,16 +527,20 @@ def test_implausible_values_are_named_by_file_column_and_evidence(tmp_path: Path
     assert "12.5" in found[("error", "runs/t3d.csv", "pitch")] and "degrees" in found[("error", "runs/t3d.csv", "pitch")]
 
 
-def test_a_scan_too_small_for_the_path_names_the_run_and_the_time(campaign_dir: Path) -> None:
-    """On the +-2 m scan the front wheels (0.69 m ahead of the prism) pass its edge when the rover
-    reaches x = 1.3 m, at 4.4 s; a footprint point counts as off the scan one wheel radius
-    (0.28 m) beyond the last scan point, from about 5.3 s to the end (5.8 s): over 10 % of the
-    run, an error."""
+def test_a_scan_too_small_for_the_path_names_the_run_and_the_time(tmp_path: Path) -> None:
+    """On a scan of +-1 m the front wheels' footprint (0.69 m ahead of the prism) passes the
+    gridded margin (1 m beyond the last scan point) when the rover reaches x = 1.3 m, at about
+    4.4 s, and stays off to the end (5.8 s): over 10 % of the run, an error naming the run and
+    the time span."""
     from juno.plausibility import check_campaign
 
-    found = check_campaign(load_campaign(campaign_dir))
+    pts = make_terrain()
+    small = np.column_stack([0.5 * pts[:, :2], pts[:, 2]])
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), make_runs(), {"scan": small})
+    found = check_campaign(load_campaign(root))
     assert [(f.severity, f.file, f.column) for f in found] == [("error", "runs/t3d.csv", "pos_x")]
     message = found[0].message
     assert message.startswith("run 't3d': the rover's wheel footprint leaves the scan terrain/scan.xyz during ")
     start, end = message.split(" during ")[1].split(" s ")[0].split("-")
-    assert 4.4 <= float(start) <= 5.6 and float(end) == 5.8
+    assert 4.0 <= float(start) <= 4.8 and float(end) == 5.8

@@ -24,7 +24,7 @@ from harness_fixtures import run_juno
 from juno.campaign import format_run_csv, load_campaign, read_run_csv
 from juno.plausibility import (Finding, PlausibilityError, check_campaign, enforce_plausibility,
                                outlier_threshold_k, rover_limits)
-from juno.pointcloud import format_xyz, gross_outliers, read_xyz
+from juno.pointcloud import GRID_MARGIN, format_xyz, gross_outliers, read_xyz
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -121,10 +121,9 @@ def crop_scan(points: np.ndarray, root: Path, share: float) -> np.ndarray:
     """The scan without the part beyond where the rover is after ``share`` of the terrain run."""
     run = read_run_csv(root / "runs" / "t3d.csv", "terrain")
     t, x = run.time[~np.isnan(run["pos_x"])], run["pos_x"][~np.isnan(run["pos_x"])]
-    # The footprint reaches half_length ahead of the prism, and counts as on the scan within one
-    # wheel radius of a scan point: it leaves the cropped scan at ``share`` of the run.
-    lim = rover_limits()
-    x_cut = float(np.interp(t[0] + share * (t[-1] - t[0]), t, x)) + lim.half_length - lim.wheel_radius
+    # The footprint reaches half_length ahead of the prism, and counts as on the scan within
+    # GRID_MARGIN of a scan point: it leaves the cropped scan at ``share`` of the run.
+    x_cut = float(np.interp(t[0] + share * (t[-1] - t[0]), t, x)) + rover_limits().half_length - GRID_MARGIN
     return points[points[:, 0] < x_cut]
 
 
