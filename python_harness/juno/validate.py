@@ -17,7 +17,7 @@ import numpy as np
 
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
 from .identify import SPIN_TRACKER, base_parameters
-from .pointcloud import Grid, grid_from_points, gross_outliers, write_esri_ascii
+from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: Default terrain grid resolution (m).
