@@ -46,11 +46,11 @@ from threadpoolctl import threadpool_limits
 from .campaign import Campaign, RunData, RunSpec, forward_speed, read_run, steady_average
 from .errors import InputError
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
-from .simulator import SOIL_PARAMETERS, InputSignals, JunoFMU, SimulationError
+from .rover_model import SOIL_PARAMETERS, rover
+from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: The paper's initial guess (Tables 1-3).
 PAPER_INITIAL = {"soil.kh": 2.5e5, "soil.eta": 0.5, "soil.gamma": 0.15, "soil.Kvx": 0.5}
-WHEEL_RADIUS = 0.2794
 #: Integration step used while identifying (s): 2 ms keeps the steady slip within 0.1 % of 1 ms
 #: (5 ms: 0.5 %, which biased K_vx by 2 sigma in noisy synthetic tests).
 IDENTIFY_STEP = 2e-3
@@ -209,10 +209,11 @@ class SteadyAverages:
     speed: float        # m/s, forward speed from the total station
     omega_left: float   # rad/s
     omega_right: float
+    wheel_radius: float  # m, the rover's (the campaign's, else the FMU's)
 
     def weights(self) -> tuple[float, float, float]:
         """The paper's weights w1, w2, w3 from the measured averages."""
-        v_r = self.speed / WHEEL_RADIUS
+        v_r = self.speed / self.wheel_radius
         w = 0.5 * (self.omega_left + self.omega_right)
         return w / (v_r + w), 0.5 * v_r / (v_r + w), 0.5 * v_r / (v_r + w)
 
@@ -228,7 +229,7 @@ def steady_averages(campaign: Campaign, run: RunSpec, data: RunData | None = Non
                           steady_average(data, "torque_left", window),
                           steady_average(data, "torque_right", window), speed,
                           steady_average(data, "omega_left", window),
-                          steady_average(data, "omega_right", window))
+                          steady_average(data, "omega_right", window), rover(campaign.rover).wheel_radius)
 
 
 def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
@@ -253,7 +254,7 @@ def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
             log.record(str(exc.located(avg.run_id, file)))
         return FAILED_COST
     w1, w2, w3 = avg.weights()
-    res_v = (avg.speed - sim["vx"][1:]) / WHEEL_RADIUS
+    res_v = (avg.speed - sim["vx"][1:]) / avg.wheel_radius
     res_r = avg.omega_right - sim["omegaRight"][1:]
     res_l = avg.omega_left - sim["omegaLeft"][1:]
     cost = float(np.sum(w1 * res_v**2 + w2 * res_r**2 + w3 * res_l**2))
@@ -341,7 +342,7 @@ def _paper_rank(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages, base:
             if log is not None:
                 log.record(str(exc.located(avg.run_id, file)))
             return None
-        y = np.array([sim["vx"][-1] / WHEEL_RADIUS, sim["omegaLeft"][-1], sim["omegaRight"][-1]])
+        y = np.array([sim["vx"][-1] / avg.wheel_radius, sim["omegaLeft"][-1], sim["omegaRight"][-1]])
         if log is not None:
             log.record(None if np.all(np.isfinite(y)) else f"run '{avg.run_id}': non-finite objectives at "
                        f"{_soil_text(s)}")

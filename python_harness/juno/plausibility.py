@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 from .campaign import KNOWN_COLUMNS, Campaign, RunData, RunSpec, aligned, read_run, read_terrain_points
 from .errors import InputError
 from .pointcloud import GRID_MARGIN, gross_outliers
+from .rover_model import fmu_defaults
 
 FloatArray = NDArray[np.float64]
 
@@ -90,12 +91,11 @@ __all__ = [
     "outlier_threshold_k",
 ]
 
-#: FMU defaults of the parameters the limits derive from (the campaign's ``rover`` overrides them).
-ROVER_DEFAULTS: dict[str, float] = {
-    "wheel.radius": 0.2794, "wheel.width": 0.254, "rover.track": 1.35, "rover.wheelbase": 0.82,
-    "rover.cgHeight": 0.25, "motor.voltage": 24.0, "motor.kt": 0.0465, "motor.resistance": 0.2,
-    "motor.gearRatio": 129.0, "motor.efficiency": 0.85, "drive.torqueMax": 400.0,
-}
+#: The FMU parameters the limits derive from: the FMU's defaults (juno.rover_model), which the
+#: campaign's ``rover`` overrides.
+ROVER_PARAMETERS = ("wheel.radius", "wheel.width", "rover.track", "rover.wheelbase", "rover.cgHeight",
+                    "motor.voltage", "motor.kt", "motor.resistance", "motor.gearRatio", "motor.efficiency",
+                    "drive.torqueMax")
 
 #: Torque (and drawbar force) warning: beyond this times the drive's limit, min(stall,
 #: drive.torqueMax): the current sensor's noise (1.5 N m + 1 %) and the motor constants'
@@ -178,7 +178,8 @@ class RoverLimits:
 
 def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
     """The limits of the rover with the FMU defaults overridden by ``rover`` (numbers only)."""
-    p = dict(ROVER_DEFAULTS)
+    defaults = fmu_defaults()
+    p = {k: defaults[k] for k in ROVER_PARAMETERS}
     for k, v in (rover or {}).items():
         if k in p and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0:
             p[k] = float(v)

@@ -63,6 +63,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .pointcloud import Grid
+from .rover_model import rover
 
 #: Trial offsets of the starting grid: shifts (m) in x and y, yaw (rad).
 START_SHIFTS = (-0.3, -0.15, 0.0, 0.15, 0.3)
@@ -98,18 +99,13 @@ EVIDENCE_RATIO = 4.0
 #: registrations of the other 19 campaigns of seeds 4000-4019 moved the mound by under 1 cm).
 GAIN_LIMITS = ((0.7, 1.5), (0.9, 1.1))
 
-#: The FMU's defaults (modelDescription), used when the campaign does not override them (m).
-DEFAULT_WHEELBASE = 0.82
-DEFAULT_TRACK = 1.35
-DEFAULT_PIVOT_HEIGHT = 0.15
-DEFAULT_WHEEL_RADIUS = 0.2794
-
 
 @dataclass(frozen=True)
 class Traverse:
     """A measured terrain run at the total station's sample times: position (m), yaw, pitch
     and roll (rad, interpolated from the IMU), and the rover's geometry (m): wheelbase and track
-    (between wheel centres), the rocker pivots' height above the axles, the wheel radius."""
+    (between wheel centres), the rocker pivots' height above the axles, the wheel radius.
+    ``pivot_height`` and ``wheel_radius`` not given are the FMU's (juno.rover_model)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -119,10 +115,18 @@ class Traverse:
     wheelbase: float
     track: float
     roll: np.ndarray | None = None
-    pivot_height: float = DEFAULT_PIVOT_HEIGHT
-    wheel_radius: float = DEFAULT_WHEEL_RADIUS
+    pivot_height: float | None = None     # None: the FMU's, filled in on construction
+    wheel_radius: float | None = None     # None: the FMU's, filled in on construction
     #: sample times (s), where known: they say which samples fall in which held-out block
     t: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.pivot_height is None or self.wheel_radius is None:
+            fmu = rover()
+            if self.pivot_height is None:
+                object.__setattr__(self, "pivot_height", fmu.pivot_height)
+            if self.wheel_radius is None:
+                object.__setattr__(self, "wheel_radius", fmu.wheel_radius)
 
     def subset(self, keep: np.ndarray) -> "Traverse":
         """The samples where ``keep`` (boolean, one per sample) is true."""
@@ -376,11 +380,10 @@ def traverse_of(campaign, run) -> Traverse:
         if data.has(name):
             ta, a = data.samples(name)
             attitude[name] = np.interp(t, ta, a)
-    rover = campaign.rover or {}
-    return Traverse(x, y, z, yaw, attitude.get("pitch"), float(rover.get("rover.wheelbase", DEFAULT_WHEELBASE)),
-                    float(rover.get("rover.track", DEFAULT_TRACK)), roll=attitude.get("roll"),
-                    pivot_height=float(rover.get("rover.pivotHeight", DEFAULT_PIVOT_HEIGHT)),
-                    wheel_radius=float(rover.get("wheel.radius", DEFAULT_WHEEL_RADIUS)), t=t)
+    geometry = rover(campaign.rover)
+    return Traverse(x, y, z, yaw, attitude.get("pitch"), geometry.wheelbase, geometry.track,
+                    roll=attitude.get("roll"), pivot_height=geometry.pivot_height,
+                    wheel_radius=geometry.wheel_radius, t=t)
 
 
 def flat_height(campaign) -> float | None:

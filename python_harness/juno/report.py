@@ -21,8 +21,9 @@ import numpy as np  # noqa: E402
 
 from .atomic import atomic_directory  # noqa: E402
 from .campaign import Campaign, forward_speed, read_run  # noqa: E402
-from .identify import WHEEL_RADIUS, JointResult, PaperResult  # noqa: E402
-from .simulator import SOIL_PARAMETERS  # noqa: E402
+from .identify import JointResult, PaperResult  # noqa: E402
+from . import rover_model  # noqa: E402
+from .rover_model import SOIL_PARAMETERS, Rover  # noqa: E402
 from .validate import ValidationResult  # noqa: E402
 
 LABELS = {"soil.kh": "Foundation stiffness k_h [N/m^(2+eta)]", "soil.eta": "Nonlinearity exponent eta",
@@ -66,20 +67,30 @@ def figure_run(campaign: Campaign, run_id: str, window, out: Path) -> str:
     return _save(fig, out / f"run_{run_id}.png")
 
 
-def traction_ratio(soil: dict[str, float], slip: np.ndarray, load: float, cohesion: float = 1000.0,
-                   phi: float = 0.5236, area: float = 0.049) -> np.ndarray:
-    """F_t / F_n of Eqn 5 at normal load ``load`` (N) and patch ``area`` (m^2) against slip."""
-    return (area * cohesion / load + np.tan(phi)) * np.tanh(slip / soil["soil.Kvx"])
+#: Contact patch area (m^2) at which Figure 10 draws Eqn 5: a harness choice for the figure (a
+#: patch 0.19 m long under the 0.254 m wide wheel, as at a sinkage of about 1.7 cm).  It scales
+#: only the cohesion term, A C / F_n = 0.06 beside tan(phi) = 0.58 at the FMU's defaults.
+FIGURE10_PATCH_AREA = 0.049
 
 
-def figure_traction(paper: Sequence[PaperResult], joint: JointResult | None, points, out: Path) -> str:
+def traction_ratio(soil: dict[str, float], slip: np.ndarray, rover: Rover,
+                   area: float = FIGURE10_PATCH_AREA) -> np.ndarray:
+    """F_t / F_n of Eqn 5 against slip for the soil ``soil`` (its K_vx), at a quarter of the
+    rover's weight on each wheel and a contact patch of ``area`` (m^2), with the rover's soil
+    strength (cohesion, friction angle)."""
+    return rover_model.traction_ratio(slip, soil["soil.Kvx"], rover.weight / 4, area, rover.cohesion,
+                                      rover.friction_angle)
+
+
+def figure_traction(paper: Sequence[PaperResult], joint: JointResult | None, points, rover: Rover,
+                    out: Path) -> str:
     """Figure 10: traction ratio against slip for every identified parameter set, with measured points."""
     s = np.linspace(0, 1, 200)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for p in paper:
-        ax.plot(s, traction_ratio(p.final, s, 779.0), lw=1, label=f"paper-style, {p.run_id}")
+        ax.plot(s, traction_ratio(p.final, s, rover), lw=1, label=f"paper-style, {p.run_id}")
     if joint is not None:
-        ax.plot(s, traction_ratio(joint.params, s, 779.0), "k", lw=2, label="joint fit")
+        ax.plot(s, traction_ratio(joint.params, s, rover), "k", lw=2, label="joint fit")
     if points:
         ax.plot([q[0] for q in points], [q[1] for q in points], "ro", label="measured steady states")
     ax.set_xlabel("longitudinal slip [-]")
@@ -89,16 +100,16 @@ def figure_traction(paper: Sequence[PaperResult], joint: JointResult | None, poi
     return _save(fig, out / "fig10_traction_ratio.png")
 
 
-def measured_traction_points(paper: Sequence[PaperResult], mass: float = 317.7) -> list[tuple[float, float]]:
-    """(slip, traction ratio) of each run's steady state: total wheel force / weight."""
+def measured_traction_points(paper: Sequence[PaperResult], rover: Rover) -> list[tuple[float, float]]:
+    """(slip, traction ratio) of each run's steady state: total wheel force / the rover's weight."""
     pts = []
     for p in paper:
         a = p.averages
         w = 0.5 * (a.omega_left + a.omega_right)
-        if w * WHEEL_RADIUS <= 0:
+        if w * a.wheel_radius <= 0:
             continue
-        slip = 1 - a.speed / (w * WHEEL_RADIUS)
-        ratio = (a.torque_left + a.torque_right) / WHEEL_RADIUS / (mass * 9.81)
+        slip = 1 - a.speed / (w * a.wheel_radius)
+        ratio = (a.torque_left + a.torque_right) / a.wheel_radius / rover.weight
         pts.append((slip, ratio))
     return pts
 
@@ -202,7 +213,8 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                 lines.append(f"| {k} | " + " | ".join(f"{corr[i, j]:+.2f}" for j in range(4)) + " |")
             lines.append("")
         if paper or joint is not None:
-            name = figure_traction(paper, joint, measured_traction_points(paper), tmp)
+            geometry = rover_model.rover(campaign.rover)
+            name = figure_traction(paper, joint, measured_traction_points(paper, geometry), geometry, tmp)
             lines += ["## 3. Traction ratio against slip (Figure 10)", "", f"![traction]({name})", ""]
         if not campaign.runs_of_kind("terrain"):
             lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",

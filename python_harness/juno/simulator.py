@@ -24,6 +24,8 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 
+from .rover_model import SOIL_PARAMETERS  # noqa: F401  (re-exported: the names the harness fits)
+
 WHEELS = ("FL", "RL", "FR", "RR")
 WHEEL_SIGNALS = ("sinkage", "slip", "Fn", "Ft", "Fx", "Fy", "Fz")
 
@@ -32,9 +34,6 @@ DEFAULT_OUTPUTS = (
     "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",
     "torqueLeftApplied", "torqueRightApplied", "rocker",
 ) + tuple(f"wheel{w}.{s}" for w in WHEELS for s in WHEEL_SIGNALS)
-
-#: The four soil parameters the paper identifies, by FMU name.
-SOIL_PARAMETERS = ("soil.kh", "soil.eta", "soil.gamma", "soil.Kvx")
 
 
 def default_fmu_path() -> Path:

@@ -17,6 +17,7 @@ import pytest
 
 from juno import registration as reg
 from juno.pointcloud import Grid, write_esri_ascii
+from juno.rover_model import rover
 from juno.simulator import InputSignals, JunoFMU
 from juno.synthesize import mound_surface
 
@@ -31,8 +32,8 @@ def _plane(slope_x: float, slope_y: float) -> Grid:
 def _at_origin(yaw: float = 0.0) -> reg.Traverse:
     """One measured pose at the origin, heading ``yaw`` (the height and attitude are not used)."""
     one = np.zeros(1)
-    return reg.Traverse(one, one.copy(), one.copy(), np.array([yaw]), one.copy(), reg.DEFAULT_WHEELBASE,
-                        reg.DEFAULT_TRACK, roll=one.copy())
+    return reg.Traverse(one, one.copy(), one.copy(), np.array([yaw]), one.copy(), rover().wheelbase,
+                        rover().track, roll=one.copy())
 
 
 def test_on_flat_ground_the_rover_stands_level_at_its_flat_ground_height():
@@ -97,8 +98,8 @@ def test_posed_rover_tilts_the_way_the_fmu_rover_does(fmu_path, tmp_path, slope_
                            InputSignals.constant(drawbarForce=0.0, throttleLeft=0.0, throttleRight=0.0),
                            2.0, 0.1, outputs=["x", "y", "roll", "pitch", "yaw"])
     at = {k: np.array([sim[k][-1]]) for k in ("x", "y", "yaw")}
-    traverse = reg.Traverse(at["x"], at["y"], np.zeros(1), at["yaw"], np.zeros(1), reg.DEFAULT_WHEELBASE,
-                            reg.DEFAULT_TRACK, roll=np.zeros(1))
+    traverse = reg.Traverse(at["x"], at["y"], np.zeros(1), at["yaw"], np.zeros(1), rover().wheelbase,
+                            rover().track, roll=np.zeros(1))
     pose = reg.pose_on_ground(grid, traverse, np.zeros(4), 0.41)[0]
     assert sim["roll"][-1] == pytest.approx(pose[1], abs=0.01)
     assert sim["pitch"][-1] == pytest.approx(pose[2], abs=0.01)
@@ -128,12 +129,12 @@ def _flank_traverse(scan: Grid, offset: np.ndarray, pitch_gain: float, roll_gain
     x = np.linspace(1.0, 6.5, n)
     y = -0.2 + 0.05 * np.sin(x)
     yaw = np.arctan(0.05 * np.cos(x))
-    probe = reg.Traverse(x, y, np.zeros(n), yaw, np.zeros(n), reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK,
+    probe = reg.Traverse(x, y, np.zeros(n), yaw, np.zeros(n), rover().wheelbase, rover().track,
                          roll=np.zeros(n))
     z, roll, pitch, _beta = reg.pose_on_ground(scan, probe, offset, h0).T
     return reg.Traverse(x, y, z + 0.003 * rng.standard_normal(n), yaw,
-                        pitch_gain * pitch + 0.003 * rng.standard_normal(n), reg.DEFAULT_WHEELBASE,
-                        reg.DEFAULT_TRACK, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
+                        pitch_gain * pitch + 0.003 * rng.standard_normal(n), rover().wheelbase,
+                        rover().track, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
 
 
 @pytest.mark.parametrize("pitch_gain, roll_gain", [(1.0, 1.0), (1.15, 1.05)])
@@ -229,7 +230,7 @@ def test_flat_traverse_leaves_the_registration_near_neutral():
     n = 100
     x = np.linspace(1.0, 5.0, n)
     zeros = np.zeros(n)
-    tr = reg.Traverse(x, zeros, 0.41 + zeros, zeros, zeros, reg.DEFAULT_WHEELBASE, reg.DEFAULT_TRACK, roll=zeros)
+    tr = reg.Traverse(x, zeros, 0.41 + zeros, zeros, zeros, rover().wheelbase, rover().track, roll=zeros)
     found = reg.register(flat, tr, 0.41)
     assert abs(found["terrain.offsetZ"]) < 1e-3
     for name, limit in zip(("terrain.offsetX", "terrain.offsetY", "terrain.offsetYaw"), reg.LIMITS[[0, 1, 3]]):

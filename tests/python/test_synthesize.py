@@ -24,8 +24,7 @@ from harness_fixtures import (NOISY_TIME_SCALE, PAPER_WINDOWS, RUN_LENGTHS, SMAL
                               tree_snapshot)
 from juno.campaign import REQUIRED_COLUMNS, load_campaign, read_run, read_terrain_points
 from juno.effects import EFFECTS
-from juno.simulator import SOIL_PARAMETERS
-from juno.identify import WHEEL_RADIUS
+from juno.rover_model import SOIL_PARAMETERS, rover
 from juno.synthesize import TERRAIN_X, TERRAIN_Y, synthesize
 
 pytest_plugins = ["harness_fixtures"]
@@ -295,7 +294,7 @@ def _steady_slips(root: Path) -> dict[str, tuple[float, float]]:
         _, wr = d.samples("omega_right")
         omega = float(np.mean((wl + wr)[tw > t[-1] / 2]) / 2)
         tf, f = d.samples("drawbar_force")
-        out[run.id] = (1.0 - v / (omega * WHEEL_RADIUS), float(np.median(f[tf > t[-1] / 2])))
+        out[run.id] = (1.0 - v / (omega * rover(c.rover).wheel_radius), float(np.median(f[tf > t[-1] / 2])))
     return out
 
 
