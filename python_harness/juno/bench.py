@@ -66,10 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           "nothing.")
     parser.add_argument("--quick", action="store_true",
                         help="5 repeats of the micro-benchmarks and shorter contact batches, 1 joint fit")
-    parser.add_argument("--repeats", type=int, default=None, metavar="N",
+    from .cli import int_at_least, positive_int
+    parser.add_argument("--repeats", type=int_at_least(5), default=None, metavar="N",
                         help="repeats of the micro-benchmarks (contact, FMU runs, cost function); >= 5, "
                              "default 7 (5 with --quick)")
-    parser.add_argument("--long-repeats", type=int, default=None, metavar="N",
+    parser.add_argument("--long-repeats", type=positive_int, default=None, metavar="N",
                         help="repeats of the joint identification, default 3 (1 with --quick)")
     parser.add_argument("--with-diagnose", action="store_true",
                         help="also time juno diagnose on the synthetic campaign (takes minutes; one run)")

@@ -1360,13 +1360,16 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
 
 def add_arguments(p) -> None:
     p.add_argument("campaign", metavar="CAMPAIGN")
-    p.add_argument("--workers", type=int, default=None, help="processes for the candidate fits (default: cores)")
+    from .cli import positive_float, positive_int
+    p.add_argument("--workers", type=positive_int, default=None,
+                   help="processes for the candidate fits (default: cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="fit the candidates on the Dask distributed cluster at ADDRESS (tcp://host:port); its "
                         "workers need the FMU and the campaign folder at the same paths as here")
     p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
-    p.add_argument("--plots", metavar="DIR", help="write residual plots to DIR")
-    p.add_argument("--terrain-segments", type=float, metavar="SECONDS",
+    p.add_argument("--plots", metavar="DIR",
+                   help="write residual plots to DIR (new, empty, or written by diagnose --plots before)")
+    p.add_argument("--terrain-segments", type=positive_float, metavar="SECONDS",
                    help="experimental: replay the terrain run in pieces of SECONDS, each restarted at the "
                         "measured pose and speed (needs a 'yaw' column), so that a heading drift cannot grow")
     p.set_defaults(func=cmd_diagnose)
@@ -1390,8 +1393,9 @@ def cmd_diagnose(args) -> int:
                       candidates=args.candidates, progress=say, scheduler=args.scheduler,
                       terrain_segment=args.terrain_segments)
     if args.plots:
-        from .atomic import atomic_directory
-        with atomic_directory(args.plots, overwrite=True) as tmp:
+        from .outputs import PLOTS_MARKER, campaign_inputs, marked_directory
+        with marked_directory(args.plots, PLOTS_MARKER, "juno diagnose --plots",
+                              inputs=campaign_inputs(args.campaign), what="--plots") as tmp:
             residual_figures(result, Path(tmp))
     payload = _to_jsonable(public_json(result))
     if args.json:

@@ -31,14 +31,26 @@ process boundary.
 Local pools use the ``fork`` start method where the platform has it (workers start in
 milliseconds, with the parent's modules already imported), else the platform default.  A
 worker only runs the tasks it is sent, so the parent's other threads (if any) do not matter.
+
+Workers never outlive the process that started them, however it ends: each worker ignores
+SIGINT (Ctrl-C reaches the whole process group; the parent alone handles it), asks the kernel
+for SIGTERM when its parent dies (Linux ``prctl(PR_SET_PDEATHSIG)``), and, on every platform,
+a watchdog thread ends it when its parent process is gone (polled every
+:data:`WATCHDOG_PERIOD` seconds).  On SIGTERM a worker runs its exit finalizers (its FMU's
+extracted folder is removed) and exits.  A pool left by an exception (Ctrl-C, a failed task)
+terminates its workers instead of waiting for their running tasks.
 """
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import multiprocessing
 import os
+import signal
+import sys
 import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Iterable, Sequence
 
@@ -48,18 +60,30 @@ __all__ = ["map_tasks", "TaskPool", "TaskError", "SchedulerError", "resolve_work
 #: Seconds to wait for a Dask scheduler to answer before giving up.
 CONNECT_TIMEOUT = 10.0
 
+#: Seconds between a worker's checks that its parent process is still alive.
+WATCHDOG_PERIOD = 0.25
+
+#: prctl option asking for a signal when the parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
 
 class TaskError(RuntimeError):
     """A task of a batch raised.  ``index`` and ``item`` say which; ``__cause__`` is the error."""
 
     def __init__(self, index: int, item: Any, error: BaseException):
-        text = repr(item)
-        if len(text) > 300:
-            text = text[:297] + "..."
-        super().__init__(f"task {index} failed on item {text}: {type(error).__name__}: {error}")
+        super().__init__(f"task {index}{_describe(item)} failed: {type(error).__name__}: {error}")
         self.index = index
         self.item = item
         self.error = error
+
+
+def _describe(item: Any) -> str:
+    """`` on item X`` for a plain number or short text; nothing for other items (a message
+    never shows an object's repr)."""
+    if isinstance(item, bool) or not isinstance(item, (int, float, str)):
+        return ""
+    text = f"{item:g}" if isinstance(item, float) else str(item)
+    return f" on item {text}" if len(text) <= 80 else ""
 
 
 class SchedulerError(ConnectionError):
@@ -85,6 +109,43 @@ def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
 def _pool_context():
     methods = multiprocessing.get_all_start_methods()
     return multiprocessing.get_context("fork" if "fork" in methods else None)
+
+
+def _exit_worker(code: int) -> None:
+    """End this worker now, after its exit finalizers (FMU instances and their folders)."""
+    try:
+        from multiprocessing.util import _run_finalizers
+        _run_finalizers(0)
+    finally:
+        os._exit(code)
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        time.sleep(WATCHDOG_PERIOD)
+        if os.getppid() != parent_pid:
+            _exit_worker(1)
+
+
+def _worker_init(parent_pid: int, death_signal: bool) -> None:
+    """Initializer of every local pool worker: Ctrl-C is the parent's business, SIGTERM ends
+    the worker cleanly, and the worker dies with its parent (see the module docstring).
+
+    ``death_signal``: use prctl(PR_SET_PDEATHSIG); only when the pool was made on the main
+    thread (the kernel signals the child when the *thread* that forked it ends)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda signum, frame: _exit_worker(128 + signum))
+    if death_signal and sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):  # no prctl: the watchdog below still ends the worker
+            pass
+    if os.getppid() != parent_pid:   # the parent died before the death signal was armed
+        _exit_worker(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="juno-parent-watchdog",
+                     daemon=True).start()
 
 
 def _connect(scheduler: str, timeout: float):
@@ -119,7 +180,10 @@ class TaskPool:
         if self.scheduler is not None:
             self._client = _connect(self.scheduler, CONNECT_TIMEOUT if connect_timeout is None else connect_timeout)
         elif self.workers > 1:
-            self._executor = ProcessPoolExecutor(max_workers=self.workers, mp_context=_pool_context())
+            on_main_thread = threading.current_thread() is threading.main_thread()
+            self._executor = ProcessPoolExecutor(max_workers=self.workers, mp_context=_pool_context(),
+                                                 initializer=_worker_init,
+                                                 initargs=(os.getpid(), on_main_thread))
 
     @property
     def parallel(self) -> bool:
@@ -169,9 +233,23 @@ class TaskPool:
             raise
         return results
 
-    def close(self) -> None:
+    def close(self, terminate: bool = False) -> None:
+        """Release the workers: wait for them (normal end), or with ``terminate`` (the batch
+        was abandoned: Ctrl-C, SIGTERM, a failed task) stop them without waiting for their
+        running tasks."""
         if self._executor is not None:
-            self._executor.shutdown(wait=True, cancel_futures=True)
+            if terminate:
+                # The executor has no public way to stop running tasks; its worker processes do.
+                processes = list((getattr(self._executor, "_processes", None) or {}).values())
+                for proc in processes:
+                    with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
+                        proc.terminate()
+                self._executor.shutdown(wait=False, cancel_futures=True)
+                for proc in processes:
+                    with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
+                        proc.join(timeout=5.0)
+            else:
+                self._executor.shutdown(wait=True, cancel_futures=True)
             self._executor = None
         if self._client is not None:
             self._client.close()
@@ -180,8 +258,8 @@ class TaskPool:
     def __enter__(self) -> "TaskPool":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(terminate=exc_type is not None)
 
 
 def map_tasks(fn: Callable[[Any], Any], items: Iterable[Any], *, workers: int | None = None,

@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .atomic import atomic_directory  # noqa: E402
+from .outputs import REPORT_MARKER, OutputError, marked_directory  # noqa: E402
 from .campaign import Campaign, forward_speed, read_run  # noqa: E402
 from .identify import JointResult, PaperResult  # noqa: E402
 from . import rover_model  # noqa: E402
@@ -154,16 +154,21 @@ def _paper_outcome(p: PaperResult) -> str:
 
 def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperResult],
                  joint: JointResult | None, validations: Sequence[tuple[str, ValidationResult]],
-                 diagnosis: dict[str, Any] | None = None, figures_extra: Sequence[str] = (),
-                 overwrite: bool = True, truth: dict[str, Any] | None = None,
-                 timings: dict[str, float] | None = None) -> Path:
+                 diagnosis: dict[str, Any] | None = None, overwrite: bool = True,
+                 truth: dict[str, Any] | None = None, timings: dict[str, float] | None = None) -> Path:
     """Writes ``out_dir/report.md`` and its figures; returns the report path.
 
     ``validations``: (label, result) pairs, e.g. joint-fit and paper-style parameters.
     ``truth``: a synthetic campaign's truth, shown in its own clearly marked section.
+    ``overwrite``: replace an existing ``out_dir`` written by this function before (it holds
+    the marker file :data:`juno.outputs.REPORT_MARKER`); a folder holding anything else, or the
+    campaign folder, is never replaced (:class:`juno.outputs.OutputError`).
     """
     out_dir = Path(out_dir)
-    with atomic_directory(out_dir, overwrite=overwrite) as tmp:
+    if not overwrite and out_dir.is_dir() and any(out_dir.iterdir()):
+        raise OutputError(f"report folder {out_dir} exists and is not empty (overwrite=False)")
+    with marked_directory(out_dir, REPORT_MARKER, "juno report", inputs=[campaign.root],
+                          what="report folder") as tmp:
         tmp = Path(tmp)
         lines = [f"# Juno rover soil identification and validation: {campaign.name}", ""]
         lines += ["Volumetric wheel/soil model of Petersen and McPhee (2013) in the JunoRover FMU.",

@@ -14,7 +14,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -138,9 +138,11 @@ def add_arguments(p) -> None:
                    help="an FMU parameter and its values: v1,v2,... or start:stop:n (repeatable; all "
                         "combinations are simulated, the last --vary changing fastest)")
     p.add_argument("--param", action="append", metavar="NAME=VALUE", help="a fixed FMU parameter (repeatable)")
-    p.add_argument("--stop-time", type=float, help="seconds (default: the scenario's)")
-    p.add_argument("--output-interval", type=float, default=0.05, help="seconds (default 0.05)")
-    p.add_argument("--window", type=float, help="summarize the last WINDOW seconds (default: the last quarter)")
+    from .cli import positive_float
+    p.add_argument("--stop-time", type=positive_float, help="seconds (default: the scenario's)")
+    p.add_argument("--output-interval", type=positive_float, default=0.05, help="seconds (default 0.05)")
+    p.add_argument("--window", type=positive_float,
+                   help="summarize the last WINDOW seconds (default: the last quarter)")
     p.add_argument("--out", metavar="CSV", help="write one row per point to CSV")
     add_batch_options(p)
     p.set_defaults(func=cmd_sweep)
@@ -150,7 +152,8 @@ def cmd_sweep(args) -> int:
     import json
 
     from .atomic import atomic_write_text
-    from .cli import SCENARIOS, _parse_params, _progress, _require_positive, _to_jsonable
+    from .cli import (SCENARIOS, _fmu_variables, _parse_params, _progress, _require_positive, _to_jsonable,
+                      parameter_value)
     say = _progress(args.quiet)
     vary: dict[str, list[float]] = {}
     for item in args.vary:
@@ -160,11 +163,15 @@ def cmd_sweep(args) -> int:
         if name.strip() in vary:
             raise InputError(f"--vary {name.strip()} given twice")
         vary[name.strip()] = parse_values(values)
+    variables = _fmu_variables(args.fmu)
+    for name, values in vary.items():
+        vary[name] = [parameter_value(variables, name, v, "--vary") for v in values]
     text, stop, scen_params, scen_inputs = SCENARIOS[args.scenario]
     stop = args.stop_time if args.stop_time is not None else stop
     _require_positive("--stop-time", stop)
     _require_positive("--output-interval", args.output_interval)
-    fixed = {**scen_params, **_parse_params(args.param)}
+    fixed = {**scen_params, **{name: parameter_value(variables, name, value)
+                               for name, value in _parse_params(args.param).items()}}
     points = grid(vary)
     say(f"sweeping scenario '{args.scenario}' ({text.replace('%%', '%')}) over {len(points)} points")
     with JunoFMU(args.fmu) as fmu:

@@ -34,6 +34,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .campaign import write_campaign
+from .outputs import check_campaign_dir
 from .pointcloud import Grid, write_esri_ascii
 from .simulator import WHEELS, InputSignals, JunoFMU, SimulationError
 
@@ -238,12 +239,16 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
     ``time_scale`` < 1 shortens every run (for quick tests); windows scale too.
     ``heavy_run`` makes one drawbar run a heavy one, held at a slip of about HEAVY_SLIP.
     The folder is written whole or not at all; ``truth.json`` holds the truth.
+    ``overwrite`` replaces an existing ``out`` only when it holds exactly what this function
+    writes (:func:`juno.outputs.is_synthesized_campaign`); any other non-empty folder is refused
+    (:class:`juno.outputs.OutputError`) before anything is simulated.
     """
     from .effects import scan_transform
     say = progress or (lambda msg: None)
     out_path = Path(out)
-    if out_path.exists() and not overwrite and (not out_path.is_dir() or any(out_path.iterdir())):
-        raise FileExistsError(f"{out}: exists and is not empty (use --overwrite to replace it)")
+    # Before anything is simulated: OUT must be new, empty, or (with overwrite) a campaign this
+    # function wrote; a folder holding anything else is never replaced.
+    check_campaign_dir(out_path, [fmu.fmu_path] if fmu is not None else [], "OUT", overwrite)
     truth = draw_truth(effect, strength, seed)   # validates the effects before anything is written
     rng = np.random.default_rng([seed, 2])
     own_fmu = fmu is None

@@ -228,10 +228,19 @@ def test_cli_refuses_an_existing_nonempty_out_unless_overwrite(tmp_path):
     assert "overwrite" in message
     assert tree_snapshot(out) == before
 
-    report = tmp_path / "synth.json"
+    # --overwrite replaces only a campaign written by synthesize, never the user's notes.
     proc = run_juno("synthesize", out, "--seed", SEED_A, "--time-scale", SMALL_TIME_SCALE, "--overwrite",
-                    "--quiet", "--json", report)
-    assert proc.returncode == 0, proc.stderr
+                    "--quiet")
+    message = one_line_error(proc, str(out))
+    assert "juno synthesize" in message
+    assert tree_snapshot(out) == before
+
+    (out / "notes.txt").unlink()
+    report = tmp_path / "synth.json"
+    for _ in range(2):   # into the empty folder, then over the campaign it wrote
+        proc = run_juno("synthesize", out, "--seed", SEED_A, "--time-scale", SMALL_TIME_SCALE, "--overwrite",
+                        "--quiet", "--json", report)
+        assert proc.returncode == 0, proc.stderr
     assert files_of(out) == EXPECTED_FILES
     assert Path(json.loads(report.read_text())["campaign"]).resolve() == out.resolve()
     load_campaign(out)
