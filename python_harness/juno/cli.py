@@ -579,7 +579,8 @@ def _message(exc: BaseException) -> str:
         return exc.args[0]
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return f"{exc.filename}: {exc.strerror}"
-    return str(exc)
+    # A NumPy scalar's repr (np.float64(0.5)) read as its number, wherever a message took it from.
+    return re.sub(r"np\.(?:float|int|uint)\d*\(([^()]*)\)", r"\1", str(exc))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -592,7 +593,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_output_paths(args)
         return int(args.func(args) or 0)
     except (InputError, SimulationError, FileNotFoundError, FileExistsError, KeyError, ValueError,
-            TaskError, SchedulerError, PermissionError, IsADirectoryError, NotADirectoryError) as exc:
+            TaskError, SchedulerError, OSError) as exc:
         print(f"juno {args.command}: error: {_message(exc)}", file=sys.stderr)
         return 2
     except Terminated:
