@@ -1,7 +1,7 @@
-"""``juno bench``: the benchmark of issue 6.  Prints figures; asserts nothing.
+"""``juno bench``: the benchmark of the performance targets.  Prints figures; asserts nothing.
 
 Sections (each figure is a median of repeated runs, printed next to the
-issue's target, with the load average of the machine when it was taken and
+target, with the load average of the machine when it was taken and
 the CPU share of the measuring process: a share well below 100 % means other
 processes took the CPU and the wall-clock figure is inflated):
 
@@ -46,7 +46,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-#: The targets of issue 6.
+#: The performance targets.
 TARGETS = {
     "contact_speedup": 30.0,       # closed form >= 30x faster than Wong-Reece at matching sinkage
     "sinkage_match": 0.05,         # ... matching within 5 %
@@ -62,7 +62,7 @@ COMM_STEP = 0.01                   # s, the default experiment's step size (as b
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``juno bench`` (cli.py adds --json, --fmu and --quiet)."""
     parser.description = ("Benchmark the contact laws, the FMU (from C and through fmpy) and the identification "
-                          "workflow. Prints medians of repeated runs next to the targets of issue 6; asserts "
+                          "workflow. Prints medians of repeated runs next to the performance targets; asserts "
                           "nothing.")
     parser.add_argument("--quick", action="store_true",
                         help="5 repeats of the micro-benchmarks and shorter contact batches, 1 joint fit")
@@ -310,7 +310,7 @@ def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) ->
 
 
 def _terrain_target(scenario: str, rtf: float) -> tuple[str, bool | None]:
-    """The real-time target of issue 6 (terrain runs only) and whether ``rtf`` meets it."""
+    """The real-time target (terrain runs only) and whether ``rtf`` meets it."""
     if scenario != "terrain":
         return "", None
     return ">= 5000x", bool(rtf >= TARGETS["rtf_c_terrain"])

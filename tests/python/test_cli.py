@@ -1,4 +1,4 @@
-"""The ``juno`` command as a user runs it (.venv/bin/juno; README, interfaces.md section 2).
+"""The ``juno`` command as a user runs it (.venv/bin/juno, as the README describes it).
 
 * ``juno --help`` lists simulate, identify, validate, synthesize, report (and diagnose when the
   harness has it); every subcommand has ``--help``.
