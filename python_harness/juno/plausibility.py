@@ -49,11 +49,13 @@ the campaign's ``rover`` entry):
   ``RESIDUAL_TAIL * s`` (1.14: the other four samples' median has a variance of 0.3 s^2;
   measured 1.09 over 2 million samples). A sample is an outlier when its residual exceeds both
   ``k * RESIDUAL_TAIL * s`` and a quarter of the column's robust span (the range of the
-  running median of five, which no lone spike reaches); ``k`` is chosen so that Gaussian noise over the column's n samples raises a
-  false alarm with probability ``FALSE_ALARM`` (``k = Phi^-1(1 - FALSE_ALARM / (2 n))``, 5.5
-  for 2000 samples). The span term keeps noise-free data (MAD = 0) from flagging its own
-  curvature. An outlier is an error when its residual exceeds ten times the column's span
-  (nothing the run measured), else a warning.
+  running median of five, which no lone spike reaches). ``k`` is chosen so that Gaussian noise
+  over the column's n samples raises a false alarm with probability ``FALSE_ALARM``:
+  ``k = Phi^-1(1 - FALSE_ALARM / (2 n))``, with Student's t in place of Phi at the MAD's
+  0.37 n degrees of freedom because s is itself estimated (5.5 for 2000 samples, 9.4 for the
+  28 samples of a 5 Hz column over 5.5 s). The span term keeps noise-free data (MAD = 0) from
+  flagging its own curvature. An outlier is an error when its residual exceeds ten times the
+  column's span (nothing the run measured), else a warning.
 
 The scan (terrain runs): gross outliers are found by :func:`juno.pointcloud.gross_outliers`
 (a warning naming them: the gridding drops them), and the measured path, widened by the wheel
@@ -120,6 +122,8 @@ FROZEN_SPAN = 2.0
 TURNING = 0.2
 #: Probability that Gaussian noise over one column raises an outlier finding.
 FALSE_ALARM = 1e-4
+#: Gaussian efficiency of the MAD as a scale estimate (degrees of freedom per sample).
+MAD_EFFICIENCY = 0.37
 #: Tail deviation of a white Gaussian sample's residual from its median of five, per unit noise.
 RESIDUAL_TAIL = math.sqrt(1.3)
 #: An outlier's residual must also exceed this fraction of the column's robust span.
@@ -199,9 +203,20 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
 # Helpers
 # --------------------------------------------------------------------------------------------
 
-def outlier_threshold_k(n: int, false_alarm: float = FALSE_ALARM) -> float:
-    """k such that n Gaussian samples exceed k sigma (two-sided) with probability ~false_alarm."""
-    return float(NormalDist().inv_cdf(1.0 - false_alarm / (2.0 * max(n, 1))))
+def outlier_threshold_k(n: int, false_alarm: float = FALSE_ALARM, scale_samples: Optional[int] = None) -> float:
+    """k such that n Gaussian samples exceed k sigma (two-sided) with probability ~false_alarm.
+
+    With ``scale_samples``, sigma is itself estimated from that many samples by a MAD: k is then
+    Student's t quantile with ``MAD_EFFICIENCY * scale_samples`` degrees of freedom (the MAD's
+    Gaussian efficiency is 37 %), so that a scale estimated from a few samples (a 5 Hz column of
+    a short run) does not raise false alarms when it comes out low.
+    """
+    p = 1.0 - false_alarm / (2.0 * max(n, 1))
+    if scale_samples is None:
+        return float(NormalDist().inv_cdf(p))
+    from scipy.stats import t as student
+
+    return float(student.ppf(p, max(MAD_EFFICIENCY * scale_samples, 1.0)))
 
 
 def _g(x: float) -> str:
@@ -427,8 +442,13 @@ def _check_frozen(run: RunData, file: str) -> list[Finding]:
                     f"({_format_spans(out)}) while the wheels turn: the total station looks frozen")]
 
 
-def check_outliers(run: RunData, file: str, columns: Iterable[str]) -> list[Finding]:
-    """Single absurd samples, column by column (robust test of the module docstring)."""
+def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: RoverLimits) -> list[Finding]:
+    """Single absurd samples, column by column (robust test of the module docstring).
+
+    A position sample must also lie farther from the median of the five around it than the
+    rover travels at its top speed over two sample periods: closer, it may be where the rover
+    was (noise-free positions bounce by a centimetre at 5 Hz as the chassis settles).
+    """
     out = []
     for name in columns:
         if not run.has(name):
@@ -447,7 +467,9 @@ def check_outliers(run: RunData, file: str, columns: Iterable[str]) -> list[Find
             if d2.size == 0:
                 d2 = np.zeros(1)
             scale = RESIDUAL_TAIL * 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
-        limit = max(outlier_threshold_k(len(vs)) * scale, SPAN_FRACTION * span)
+        limit = max(outlier_threshold_k(len(vs), scale_samples=len(d2)) * scale, SPAN_FRACTION * span)
+        if name.startswith("pos_"):
+            limit = max(limit, 2.0 * limits.top_speed * float(np.median(np.diff(ts))))
         bad = np.flatnonzero(np.abs(r) > limit)
         if bad.size == 0:
             continue
@@ -470,7 +492,7 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
              + check_positions(run, file, limits))
     with_error = {f.column for f in found if f.severity == "error"}
     columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
-    return found + check_outliers(run, file, columns)
+    return found + check_outliers(run, file, columns, limits)
 
 
 # --------------------------------------------------------------------------------------------
