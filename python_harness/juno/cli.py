@@ -200,11 +200,16 @@ OUTPUT_OPTIONS = {"simulate": {"out": "file"}, "sweep": {"out": "file"}, "report
 
 
 def input_paths(args) -> list[Any]:
-    """The paths a command reads: the campaign folder, a --params file, the FMU, a build folder."""
+    """The paths a command reads: the campaign folder, a --params file, files given as --param
+    values, the FMU, a build folder."""
     from .simulator import default_fmu_path
     inputs: list[Any] = list(campaign_inputs(getattr(args, "campaign", None)))
     inputs.append(getattr(args, "params", None))
     inputs.append(getattr(args, "build_dir", None))
+    for item in getattr(args, "param", None) or ():   # a file given as a parameter (terrain.file=...)
+        value = item.split("=", 1)[-1].strip()
+        if value and os.path.exists(value):
+            inputs.append(value)
     try:
         inputs.append(getattr(args, "fmu", None) or default_fmu_path())
     except Exception:  # no default FMU: the command reports that itself

@@ -36,7 +36,7 @@ import numpy as np
 from .campaign import write_campaign
 from .outputs import check_campaign_dir
 from .pointcloud import Grid, write_esri_ascii
-from .simulator import WHEELS, InputSignals, JunoFMU, SimulationError
+from .simulator import WHEELS, InputSignals, JunoFMU, SimulationError, default_fmu_path
 
 #: The paper's Table 2 values, the centre of the synthetic truth.
 TABLE2 = {"soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx": 0.819}
@@ -248,7 +248,7 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
     out_path = Path(out)
     # Before anything is simulated: OUT must be new, empty, or (with overwrite) a campaign this
     # function wrote; a folder holding anything else is never replaced.
-    check_campaign_dir(out_path, [fmu.fmu_path] if fmu is not None else [], "OUT", overwrite)
+    check_campaign_dir(out_path, [fmu.fmu_path if fmu is not None else default_fmu_path()], "OUT", overwrite)
     truth = draw_truth(effect, strength, seed)   # validates the effects before anything is written
     rng = np.random.default_rng([seed, 2])
     own_fmu = fmu is None

@@ -4,7 +4,8 @@ Specification:
 
 * an output path (``--json``, ``--out``, ``--plots``, synthesize's ``OUT``) that is, contains or
   lies inside an input (the campaign folder and its files, a ``--params`` file, the FMU) is
-  refused with exit code 2 and one line naming both paths;
+  refused with exit code 2 and one line naming both paths (a file given as a ``--param`` value,
+  such as a terrain grid, is an input too);
 * a folder output that is replaced whole (``report --out``, ``diagnose --plots``) must be new,
   empty, or written by the same command before (its marker file); ``synthesize --overwrite``
   replaces only a campaign that synthesize wrote; a folder holding a user's files is refused;
@@ -106,6 +107,8 @@ CASES = {
     "simulate --campaign C --out C/runs/x.csv": (["simulate", "--campaign", "{w}/C", "--out", "{w}/C/runs/x.csv"],
                                                  ["{w}/C/runs/x.csv", "{w}/C"]),
     "simulate --fmu F --out F": (["simulate", "--fmu", "{w}/fmu.fmu", "--out", "{w}/fmu.fmu"], ["{w}/fmu.fmu"]),
+    "simulate --param terrain.file=T --out T": (["simulate", "--param", "terrain.file={w}/file.txt", "--out",
+                                                 "{w}/file.txt"], ["{w}/file.txt"]),
     "simulate --out D (a directory)": (["simulate", "--out", "{w}/U"], ["{w}/U", "directory"]),
     "simulate --out x --json x": (["simulate", "--out", "{w}/x.csv", "--json", "{w}/x.csv"], ["{w}/x.csv"]),
     "validate C --params p --json p": (["validate", "{w}/C", "--params", "{w}/params.json", "--json",
