@@ -7,7 +7,8 @@ kilometre away or a scan that does not cover the path. :func:`check_campaign` re
 (and every terrain run's scan) and returns :class:`Finding` s, each naming the file, the column
 and the evidence::
 
-    runs/dbp1.csv, column 'pitch': |pitch| reaches 15.3 (> 1.2 rad): looks like degrees
+    runs/t3d.csv, column 'pitch': |pitch| reaches 9.448 (> 1.2 rad, the rover on its side) at
+    line 1518; 41 of 751 samples beyond 1.2 rad: looks like degrees
 
 Severity follows one rule: **error** where no rover could have produced the data (beyond a
 physical limit of the rover with a margin), **warning** where the data may be legitimate but
@@ -33,6 +34,10 @@ the campaign's ``rover`` entry):
   ``atan(half wheelbase / CG height)`` in pitch (CG height = wheel radius + ``rover.cgHeight``):
   0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
   an error: such angles are degrees.
+* **Dead sensors.** A torque equal in every sample while the wheels turn is an error in a
+  drawbar run (pulling a load takes drive torque), a warning otherwise. A position (pos_x and
+  pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
+  total station that updates has noise in its last digits.
 * **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
   radius: the same margins as the torque, times 2 / radius.
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
@@ -59,7 +64,10 @@ the campaign's ``rover`` entry):
 
 The scan (terrain runs): gross outliers are found by :func:`juno.pointcloud.gross_outliers`
 (a warning naming them: the gridding drops them), and the measured path, widened by the wheel
-footprint, must lie on the scan (:func:`path_off_scan`).
+footprint, must lie on the gridded scan (:func:`path_off_scan`): off it for more than
+``OFF_SCAN_ERROR`` (10 %) of the run's position samples is an error (the replay would be
+compared with the measurements over unmeasured ground for a significant part of the run), a
+briefer excursion a warning; both name the run and the time spans.
 """
 
 from __future__ import annotations
