@@ -8,7 +8,7 @@ kilometre away or a scan that does not cover the path. :func:`check_campaign` re
 and the evidence::
 
     runs/t3d.csv, column 'pitch': |pitch| reaches 9.448 (> 1.2 rad, the rover on its side) at
-    line 1518; 41 of 751 samples beyond 1.2 rad: looks like degrees
+    line 1518; 516 of 750 samples beyond 1.2 rad: looks like degrees
 
 Severity follows one rule: **error** where no rover could have produced the data (beyond a
 physical limit of the rover with a margin), **warning** where the data may be legitimate but
