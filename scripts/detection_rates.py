@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Detection rates of `juno diagnose`, blind, over many seeds (issue 4, "Done means").
+"""Detection rates of `juno diagnose`, blind, over many seeds (the figures of docs/diagnosis.md).
 
 For every effect id and every seed: synthesize a campaign with the effect hidden at a strength
 drawn uniformly from [--min-strength, --max-strength] (the fraction of the effect's documented
@@ -24,7 +24,7 @@ seeds) use a 2-core machine better than one with two; --merge tables them togeth
 tables whether both were named and whether the first named is the stronger: the one whose
 one-cause model has the larger held-out gain (each judged alone against the base model).  It also
 counts the draws where the second step removed more held-out error than the first, a measure
-that depends on the order (README, "Session 22"):
+that depends on the order (the second step is judged against the first cause's model):
 
     .venv/bin/python scripts/detection_rates.py --pair drivetrain_loss slip_sinkage \
         --pair-strengths 0.7 0.8 0.9 1.0 --seeds 4 --workers 1 --json pairs.json

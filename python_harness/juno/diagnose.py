@@ -928,15 +928,6 @@ def leader_after_head_to_head(problem: Problem, run_kind: np.ndarray, significan
     return order, duels
 
 
-def _judged_kinds(candidate: Candidate, run_kind: np.ndarray) -> tuple[str, ...]:
-    """Where a candidate is judged: on the held-out blocks of every run, the same data for every
-    candidate so their gains compare.  A physical extension is fitted on the drawbar runs only,
-    so for it the terrain run is a validation run, as in the paper (an effect that drawbar
-    tests at moderate slip cannot tell from K_vx, grouser thrust, shows when the rover climbs);
-    the registration is chosen on the terrain run's training blocks."""
-    return tuple(sorted(set(run_kind.tolist())))
-
-
 def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
            switched_off: FitResult | None = None, registration: HeldOutEvidence | None = None) -> dict[str, Any]:
     """A candidate's held-out gain over ``reference`` (the base model, or the first cause).
@@ -964,7 +955,12 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
         return {"name": res.name, "cause": candidate.cause, "error": res.error, "status": "failed",
                 "failed_evaluations": res.failed_evaluations,
                 "significant": False, "acts": False, "gain": 0.0, "z": 0.0}
-    kinds = _judged_kinds(candidate, run_kind)
+    # Every candidate is judged on the held-out blocks of every run: the same data for every
+    # candidate, so their gains compare.  A physical extension is fitted on the drawbar runs
+    # only, so for it the terrain run is a validation run, as in the paper (grouser thrust, which
+    # drawbar tests at moderate slip cannot tell from K_vx, shows when the rover climbs); the
+    # registration is chosen on the terrain run's training blocks.
+    kinds = tuple(sorted(set(run_kind.tolist())))
     mask = np.isin(run_kind, kinds)
     test = ~problem.train
 
@@ -1321,7 +1317,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     }
     if chosen:
         res = chosen[-1]   # the model with every named cause
-        judged_on = sorted({k for c in causes for k in _judged_kinds(CANDIDATES[c], run_kind)})
+        judged_on = sorted(set(run_kind.tolist()))   # every run, as each cause was judged (_judge)
         judged = np.isin(run_kind, judged_on)
         test = ~problem.train
         before = float(np.nanmean(capped_square(base.residuals[test & judged])))

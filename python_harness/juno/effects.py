@@ -1,4 +1,4 @@
-"""Hidden effects for synthetic campaigns (model-notes section 7).
+"""Hidden effects for synthetic campaigns: what the paper's volumetric model leaves out.
 
 Each effect changes the synthetic truth in one physical way.  ``--strength``
 S in (0, 1] scales it linearly; S = 1 is the top of the documented range.
@@ -69,7 +69,7 @@ def effect_parameters(effect: str, strength: float, rng: np.random.Generator) ->
     elif effect == "slip_sinkage":
         ext = {"slipSinkage.coefficient": 1.5 * s}
     elif effect == "grouser":
-        # Both of model-notes' lug signatures: more thrust (the gain) and shear at the lug tips,
+        # Both signatures of lugs: more thrust (the gain) and shear at the lug tips,
         # beyond the rim the soil's pressure acts on (more torque per unit of thrust, and
         # thrust already where the rim speed equals the hub's).
         ext = {"grouser.thrustGain": 0.35 * s, "grouser.lugHeight": 0.025 * s}

@@ -429,15 +429,17 @@ SETTLING_TIME = 2.0    # s: residuals start after the PID has caught the measure
 #:   one, so the torque residual still says how much more or less torque the model needs.
 #:   Why: imposing the spins is ill-conditioned where the rover climbs a mound at high slip.
 #:   Measured on a noise-free synthetic terrain run (drivetrain loss 0.25 and slip-sinkage 1.43,
-#:   seed 3199): replayed with the spins imposed, even at the truth's own 1 ms step, a front wheel
+#:   the campaign tests/python/test_torque_replay.py builds): replayed with the spins imposed, even at the truth's own 1 ms step, a front wheel
 #:   lifted off for 10 s and the torque was 60 N m rms off (5 ms: 10 N m); replayed by torque it
 #:   is exact at 1 ms and 3.2 N m rms off at 5 ms.  On drawbar runs the spin replay is the better
 #:   conditioned one (at slips of 0.6 the traction hardly changes with spin, so a small traction
 #:   error moves a torque-driven wheel's spin a lot: 6.9 N m rms at 5 ms against 0.85 N m).
 REPLAY_DRIVES = ("spin", "torque")
-#: The DC motor the torque replay runs through (the FMU's assumed Juno motor, with a supply
-#: voltage ten times the real one, so that the throttle stays well inside [-1, 1] up to about
-#: 6000 N m per side; the voltage does not enter K).  K = efficiency gearRatio^2 kt^2 / resistance.
+#: The DC motor the torque replay runs through: a harness choice, set in full on the FMU, so it
+#: does not follow the FMU's defaults.  The constants of the FMU's assumed Juno motor, with a
+#: supply voltage ten times the real one, so that the throttle stays well inside [-1, 1] up to
+#: about 6000 N m per side (the voltage does not enter K).  K = efficiency gearRatio^2 kt^2 /
+#: resistance.
 REPLAY_MOTOR = {"motor.voltage": 240.0, "motor.kt": 0.0465, "motor.resistance": 0.2,
                 "motor.gearRatio": 129.0, "motor.efficiency": 0.85}
 REPLAY_SPIN_DAMPING = (REPLAY_MOTOR["motor.efficiency"]
@@ -546,8 +548,8 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     restart.  Why: over the terrain the spin-following replay drifts in
     heading, and a drift of a few degrees puts the rover on another part of
     a mound; measured, at the true parameters the 30 s replay of some
-    synthetic campaigns ended 0.3-0.5 m off the measured path (README,
-    "terrain run replayed in segments").
+    synthetic campaigns ended 0.3-0.5 m off the measured path
+    (docs/diagnosis.md, ``--terrain-segments``).
 
     ``drive``: ``"spin"`` (the spins imposed, as above) or ``"torque"`` (the
     measured torque drives the wheels, and a damping towards the measured
@@ -570,17 +572,7 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     inputs = InputSignals(grid - t[0], {"drawbarForce": drawbar, "omegaRefLeft": omega_left,
                                         "omegaRefRight": omega_right})
     if drive == "torque":
-        for side, omega in (("left", omega_left), ("right", omega_right)):
-            if not data.has(f"torque_{side}"):
-                raise ValueError(f"run '{run.id}': a torque-driven replay needs the measured drive torque "
-                                 f"(column 'torque_{side}'), and it has none")
-            throttle = torque_replay_throttle(_column_signal(data, f"torque_{side}", grid), omega)
-            worst = int(np.argmax(np.abs(throttle)))
-            if abs(throttle[worst]) > 1.0:
-                raise ValueError(f"run '{run.id}': at t = {grid[worst] - t[0]:.2f} s the measured torque_{side} and "
-                                 f"omega_{side} are beyond what the torque replay's motor can give "
-                                 f"(throttle {throttle[worst]:.2f})")
-            inputs.values[f"throttle{side.capitalize()}"] = throttle
+        inputs.values.update(_replay_throttles(run, data, grid, {"left": omega_left, "right": omega_right}))
         params.update({"drive.mode": 2, **REPLAY_MOTOR})
     duration = float(t[-1] - t[0])
     segments = restart_segments(data, duration, segment) if segment is not None and run.kind == "terrain" else []
@@ -591,12 +583,43 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
             raise ValueError(f"run '{run.id}': a terrain run needs a gridded terrain file")
         params["terrain.file"] = terrain_file
         signals = TERRAIN_SIGNALS
+    targets = _targets(data, signals, segments, stride)
+    return PreparedRun(run.id, run.kind, duration, inputs, params, targets, segments, run.file)
+
+
+def _replay_throttles(run: RunSpec, data: RunData, grid: np.ndarray,
+                      omega: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The throttle inputs (``throttleLeft``, ``throttleRight``) of a torque-driven replay on the
+    time ``grid`` (s, the run's clock), from the measured drive torques and the spins ``omega``
+    (side -> rad/s on the grid); ValueError when a torque column is missing or a throttle would
+    exceed the replay motor's range."""
+    throttles = {}
+    for side in ("left", "right"):
+        if not data.has(f"torque_{side}"):
+            raise ValueError(f"run '{run.id}': a torque-driven replay needs the measured drive torque "
+                             f"(column 'torque_{side}'), and it has none")
+        throttle = torque_replay_throttle(_column_signal(data, f"torque_{side}", grid), omega[side])
+        worst = int(np.argmax(np.abs(throttle)))
+        if abs(throttle[worst]) > 1.0:
+            raise ValueError(f"run '{run.id}': at t = {grid[worst] - data.time[0]:.2f} s the measured "
+                             f"torque_{side} and omega_{side} are beyond what the torque replay's motor can "
+                             f"give (throttle {throttle[worst]:.2f})")
+        throttles[f"throttle{side.capitalize()}"] = throttle
+    return throttles
+
+
+def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Sequence[Segment],
+             stride: int) -> dict[str, tuple]:
+    """The comparison targets of a run: measured column -> (times s from the run's start, values,
+    FMU output, sigma, lag s), every ``stride``-th sample after SETTLING_TIME, leaving out
+    SEGMENT_SETTLE s after each restart of a segmented replay; a position column becomes its
+    increments over POSITION_LAG."""
     targets = {}
     for column, (output, sigma) in signals.items():
         if not data.has(column):
             continue
         ts, vs = data.samples(column)
-        ts = ts - t[0]
+        ts = ts - data.time[0]
         lag = POSITION_LAG if column in INCREMENT_SIGNALS else 0.0
         if lag > 0:
             vs = vs - np.interp(ts - lag, ts, vs)
@@ -604,7 +627,7 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
         for seg in segments[1:]:
             keep &= ~((ts >= seg.start) & (ts < seg.start + SEGMENT_SETTLE))
         targets[column] = (ts[keep][::stride], vs[keep][::stride], output, sigma, lag)
-    return PreparedRun(run.id, run.kind, duration, inputs, params, targets, segments, run.file)
+    return targets
 
 
 def run_residuals(fmu: JunoFMU, prepared: PreparedRun, soil: dict[str, float],

@@ -22,18 +22,18 @@ between its wheels, because on a slope the load moves to the downhill wheels, wh
 (at the true registration of 40 synthetic campaigns climbing the mound, a_p 1.10-1.19 and a_r
 0.94-1.04).
 
-Why the exact pose: the earlier model took the ground directly below nominal wheel points, pitch
+Why the exact pose: a simpler model takes the ground directly below nominal wheel points, pitch
 and roll as the slopes between them, and the height as their mean.  On the mound's 0.2-0.35
 slopes a wheel of 0.28 m radius rests up to 1.6 cm above the point below its hub, the hubs sit
 0.15 m below the pivots (so they move fore and aft as the chassis pitches), and the measured
 angles are Euler angles of a tilted chassis, not slopes.  Measured at the true registration of
-the same 40 campaigns (terrain_offset and none, seeds 4000-4019; sensor noise 3 mm and 3 mrad),
+the same 40 campaigns (20 terrain_offset, 20 with nothing hidden; sensor noise 3 mm and 3 mrad),
 the RMS model error was
 
-    height 4.3-6.5 mm, pitch 6.5-11.7 mrad, roll 5.5-11.9 mrad    (earlier model)
+    height 4.3-6.5 mm, pitch 6.5-11.7 mrad, roll 5.5-11.9 mrad    (simpler model)
     height 3.2-4.2 mm, pitch 5.9-9.8 mrad,  roll 3.6-8.6 mrad     (exact pose)
 
-and the fit had spent that error on a sideways shift traded against a turn: on the 20
+and the simpler model's fit spent that error on a sideways shift traded against a turn: on the 20
 terrain_offset campaigns (the scan 9-40 cm off along the path) the registration left the path
 2.7-10.4 cm (median 7.2 cm) from where the true one puts it; with the exact pose, 1.7-15.2 cm
 (median 4.0 cm; 12 of 20 within 5 cm, against 5).  A shift along y and a turn about the scan's
@@ -81,9 +81,9 @@ LIMITS = np.array([0.6, 0.6, 0.1, 0.12])
 #: of the two least-squares costs, each with its best attitude gains) to be taken as evidence of
 #: a misregistration.  The kinematic model's own error leaves room for any registration to
 #: improve a little: on 20 synthetic campaigns with nothing misregistered the ratio was 1.10-2.58
-#: with the earlier kinematic model (module docstring), and in the detection studies such small
+#: with the simpler kinematic model (module docstring), and in the detection studies such small
 #: registrations were named as false causes by the terrain replay (which a 5 cm move of the mound
-#: can change by half): 2 of those 20 campaigns before the tilt gains, 1 after (ratio 1.10).  Set
+#: can change by half): 2 of those 20 campaigns without the attitude gains, 1 with them (ratio 1.10).  Set
 #: from that null distribution (1.5 times its largest value), not from the misregistered
 #: campaigns (ratios 5.3-74).  With the exact pose: 1.06-1.52 on those 20, 1.02-1.59 on 80 with
 #: a soil effect that leaves the sinkage uniform, 1.18-8.71 on 20 with a weak soil patch (over 4
@@ -94,9 +94,9 @@ EVIDENCE_RATIO = 4.0
 #: registration of 40 synthetic campaigns: 1.10-1.19 in pitch, 0.94-1.04 in roll).  Assumption,
 #: named: across the 1.35 m track the load moves little on a side slope, so the downhill wheels
 #: sink only millimetres deeper.  Why bounded so: a free roll gain trades against a turn of the
-#: scan; with the roll gain free down to 0.7, terrain_offset seed 4018 took 0.76 and a turn
-#: 0.05 rad off, which put the mound's flanks 14 cm from where they are (7 cm so bounded; the
-#: registrations of the other 19 campaigns of seeds 4000-4019 moved the mound by under 1 cm).
+#: scan; with the roll gain free down to 0.7, one of 20 terrain_offset campaigns took 0.76 and a
+#: turn 0.05 rad off, which put the mound's flanks 14 cm from where they are (7 cm so bounded; the
+#: bound moved the mound of the other 19 registrations by under 1 cm).
 GAIN_LIMITS = ((0.7, 1.5), (0.9, 1.1))
 
 
@@ -289,7 +289,7 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
 #: How much better than the scan as it is a registration fitted on the training samples must
 #: explain the held-out samples (ratio of their mean squared scaled residuals of height, pitch
 #: and roll, each with the attitude gains fitted on the training samples) to count as evidence
-#: of a misregistration.  Measured on synthetic campaigns (seeds 4000-4019, blocks of 4 s):
+#: of a misregistration.  Measured on 20 synthetic campaigns of each kind (blocks of 4 s):
 #: 0.61-1.36 with nothing hidden, 0.54-1.50 with multi-pass, slip-sinkage or a grouser,
 #: 6.5-158 misregistered; 3.0 is near the geometric middle of 1.5 and 6.5 (measured with the
 #: roll gain free to 0.7-1.5).  A soft soil patch reached 9.8: its deeper
@@ -354,7 +354,7 @@ def held_out_evidence(grid: Grid, tr: Traverse, h0: float | None, train: np.ndar
         return evidence
     # Where the scan is, once it is known to be misregistered, is measured on the whole run:
     # fitted on half the samples, the mound landed up to 15 cm from where the truth puts it on
-    # 20 synthetic campaigns (within 9 cm fitted on all; README).
+    # 20 synthetic campaigns (within 9 cm fitted on all).
     return replace(evidence, offsets_all=_offsets(_fit(grid, tr, h0)[0]))
 
 

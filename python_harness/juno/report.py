@@ -152,6 +152,97 @@ def _paper_outcome(p: PaperResult) -> str:
     return "converged" if p.converged else "stopped at the evaluation limit"
 
 
+def _paper_section(campaign: Campaign, paper: Sequence[PaperResult], out: Path) -> list[str]:
+    """Section 1: each drawbar run's paper-style fit (Tables 1-3, Figures 4-9) and their spread."""
+    lines = ["## 1. Identification the paper's way (Tables 1-3)", "",
+             "Per drawbar run: steady-window averages of drawbar force and drive torques are the "
+             "inputs, averages of forward speed and wheel spins the objectives; cost of Eqns 10-13 with "
+             "the paper's weights; unconstrained Nelder-Mead from the paper's initial guess.", ""]
+    for p in paper:
+        a = p.averages
+        lines += [f"### Run {p.run_id} (steady window {a.window[0]:g}-{a.window[1]:g} s)", "",
+                  f"Averages: drawbar {a.drawbar:.1f} N, torque L/R {a.torque_left:.1f}/{a.torque_right:.1f} "
+                  f"N m, speed {a.speed:.4f} m/s, spin L/R {a.omega_left:.4f}/{a.omega_right:.4f} rad/s.", "",
+                  "| Model parameter | Initial value | Final value |", "|---|---|---|"]
+        for k in SOIL_PARAMETERS:
+            lines.append(f"| {LABELS[k]} | {_fmt(p.initial[k])} | {_fmt(p.final[k])} |")
+        lines += ["", f"Cost {p.cost:.3g} after {p.evaluations} evaluations "
+                  f"({_paper_outcome(p)}); "
+                  f"the three averaged objectives see {p.jacobian_rank} of the 4 parameter directions, "
+                  "so this fit cannot pin all four parameters.", "",
+                  f"![run {p.run_id}]({figure_run(campaign, p.run_id, a.window, out)})", ""]
+    lines += ["### Spread between runs", "", "| Parameter | " + " | ".join(p.run_id for p in paper) +
+              " | spread (max/min - 1) |", "|---|" + "---|" * (len(paper) + 1)]
+    for k in SOIL_PARAMETERS:
+        vals = [p.final[k] for p in paper]
+        spread = max(vals) / min(vals) - 1 if min(vals) > 0 else float("nan")
+        lines.append(f"| {k} | " + " | ".join(_fmt(v) for v in vals) + f" | {spread:.1%} |")
+    lines.append("")
+    return lines
+
+
+def _joint_section(joint: JointResult) -> list[str]:
+    """Section 2: the joint fit's estimates, uncertainties, identifiability and correlations."""
+    lines = ["## 2. Joint identification (beyond the paper)", "",
+             f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
+             "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
+             "pitch; parameters searched as log/logit; trust-region Gauss-Newton on the scaled residuals; "
+             "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
+             "time-correlated residuals.", "",
+             "| Parameter | Estimate | 1 sigma | relative | identifiability |", "|---|---|---|---|---|"]
+    for k in SOIL_PARAMETERS:
+        lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
+                     f"{joint.relative_std[k]:.2%} | {joint.identifiability[k]} |")
+    corr = np.asarray(joint.correlation)
+    lines += ["", f"Mean squared scaled residual {joint.cost:.4g}; {joint.evaluations} model evaluations; "
+              f"{joint.wall_time:.1f} s.", "", "Correlation of the estimates:", "",
+              "| | " + " | ".join(SOIL_PARAMETERS) + " |", "|---|" + "---|" * 4]
+    for i, k in enumerate(SOIL_PARAMETERS):
+        lines.append(f"| {k} | " + " | ".join(f"{corr[i, j]:+.2f}" for j in range(4)) + " |")
+    lines.append("")
+    return lines
+
+
+def _validation_section(campaign: Campaign, validations: Sequence[tuple[str, ValidationResult]],
+                        out: Path) -> list[str]:
+    """Section 4: the terrain runs' RMS errors (Figures 12-14 for the first validation), or why
+    there is no validation."""
+    lines: list[str] = []
+    if not campaign.runs_of_kind("terrain"):
+        lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
+                  "Not done: validation needs a terrain run (a run with its LIDAR scan), and the campaign has "
+                  "none.", ""]
+    if validations:
+        lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
+                  "The LIDAR scan is gridded and the rover simulated on it, a PID on torque following the "
+                  "measured wheel spins.", "",
+                  "| Parameters | grid | x [m] | y [m] | z [m] | speed [m/s] | spin L/R [rad/s] | torque L/R [N m] |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for label, v in validations:
+            r = v.rms
+            lines.append(f"| {label} | {v.grid_cell * 100:.0f} cm | {r['pos_x']:.3f} | {r['pos_y']:.3f} | "
+                         f"{r['pos_z']:.3f} | {r['speed']:.3f} | {r['omega_left']:.3f}/{r['omega_right']:.3f} | "
+                         f"{r['torque_left']:.1f}/{r['torque_right']:.1f} |")
+        lines.append("")
+        label, v = validations[0]
+        lines += [f"RMS errors over the run. Figures for: {label}.", "",
+                  f"![validation]({figure_validation(v, out)})", "", f"![path]({figure_path(v, out)})", ""]
+    return lines
+
+
+def _truth_section(truth: dict[str, Any], joint: JointResult | None) -> list[str]:
+    """A synthetic campaign's truth against the joint fit, clearly marked as for checking only."""
+    lines = ["## Synthetic truth (for checking only)", "",
+             "This campaign is synthetic; its `truth.json` is read here, by the report, and never by "
+             "identification or diagnosis.", "", "| Parameter | truth | joint fit | error |", "|---|---|---|---|"]
+    for k in SOIL_PARAMETERS:
+        tv = truth["soil"][k]
+        jv = joint.params[k] if joint else float("nan")
+        lines.append(f"| {k} | {_fmt(tv)} | {_fmt(jv)} | {jv / tv - 1:+.1%} |")
+    lines += ["", f"Hidden effect: `{truth.get('effect')}` (strength {truth.get('strength')}).", ""]
+    return lines
+
+
 def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperResult],
                  joint: JointResult | None, validations: Sequence[tuple[str, ValidationResult]],
                  diagnosis: dict[str, Any] | None = None, overwrite: bool = True,
@@ -175,83 +266,19 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                   f"Campaign folder: `{campaign.root}`; runs: " +
                   ", ".join(f"{r.id} ({r.kind})" for r in campaign.runs) + ".", ""]
         if paper:
-            lines += ["## 1. Identification the paper's way (Tables 1-3)", "",
-                      "Per drawbar run: steady-window averages of drawbar force and drive torques are the "
-                      "inputs, averages of forward speed and wheel spins the objectives; cost of Eqns 10-13 with "
-                      "the paper's weights; unconstrained Nelder-Mead from the paper's initial guess.", ""]
-            for p in paper:
-                a = p.averages
-                lines += [f"### Run {p.run_id} (steady window {a.window[0]:g}-{a.window[1]:g} s)", "",
-                          f"Averages: drawbar {a.drawbar:.1f} N, torque L/R {a.torque_left:.1f}/{a.torque_right:.1f} "
-                          f"N m, speed {a.speed:.4f} m/s, spin L/R {a.omega_left:.4f}/{a.omega_right:.4f} rad/s.", "",
-                          "| Model parameter | Initial value | Final value |", "|---|---|---|"]
-                for k in SOIL_PARAMETERS:
-                    lines.append(f"| {LABELS[k]} | {_fmt(p.initial[k])} | {_fmt(p.final[k])} |")
-                lines += ["", f"Cost {p.cost:.3g} after {p.evaluations} evaluations "
-                          f"({_paper_outcome(p)}); "
-                          f"the three averaged objectives see {p.jacobian_rank} of the 4 parameter directions, "
-                          "so this fit cannot pin all four parameters.", "",
-                          f"![run {p.run_id}]({figure_run(campaign, p.run_id, a.window, tmp)})", ""]
-            lines += ["### Spread between runs", "", "| Parameter | " + " | ".join(p.run_id for p in paper) +
-                      " | spread (max/min - 1) |", "|---|" + "---|" * (len(paper) + 1)]
-            for k in SOIL_PARAMETERS:
-                vals = [p.final[k] for p in paper]
-                spread = max(vals) / min(vals) - 1 if min(vals) > 0 else float("nan")
-                lines.append(f"| {k} | " + " | ".join(_fmt(v) for v in vals) + f" | {spread:.1%} |")
-            lines.append("")
+            lines += _paper_section(campaign, paper, tmp)
         if joint is not None:
-            lines += ["## 2. Joint identification (beyond the paper)", "",
-                      f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
-                      "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
-                      "pitch; parameters searched as log/logit; trust-region Gauss-Newton on the scaled residuals; "
-                      "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
-                      "time-correlated residuals.", "",
-                      "| Parameter | Estimate | 1 sigma | relative | identifiability |", "|---|---|---|---|---|"]
-            for k in SOIL_PARAMETERS:
-                lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
-                             f"{joint.relative_std[k]:.2%} | {joint.identifiability[k]} |")
-            corr = np.asarray(joint.correlation)
-            lines += ["", f"Mean squared scaled residual {joint.cost:.4g}; {joint.evaluations} model evaluations; "
-                      f"{joint.wall_time:.1f} s.", "", "Correlation of the estimates:", "",
-                      "| | " + " | ".join(SOIL_PARAMETERS) + " |", "|---|" + "---|" * 4]
-            for i, k in enumerate(SOIL_PARAMETERS):
-                lines.append(f"| {k} | " + " | ".join(f"{corr[i, j]:+.2f}" for j in range(4)) + " |")
-            lines.append("")
+            lines += _joint_section(joint)
         if paper or joint is not None:
             geometry = rover_model.rover(campaign.rover)
             name = figure_traction(paper, joint, measured_traction_points(paper, geometry), geometry, tmp)
             lines += ["## 3. Traction ratio against slip (Figure 10)", "", f"![traction]({name})", ""]
-        if not campaign.runs_of_kind("terrain"):
-            lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
-                      "Not done: validation needs a terrain run (a run with its LIDAR scan), and the campaign has "
-                      "none.", ""]
-        if validations:
-            lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
-                      "The LIDAR scan is gridded and the rover simulated on it, a PID on torque following the "
-                      "measured wheel spins.", "",
-                      "| Parameters | grid | x [m] | y [m] | z [m] | speed [m/s] | spin L/R [rad/s] | torque L/R [N m] |",
-                      "|---|---|---|---|---|---|---|---|"]
-            for label, v in validations:
-                r = v.rms
-                lines.append(f"| {label} | {v.grid_cell * 100:.0f} cm | {r['pos_x']:.3f} | {r['pos_y']:.3f} | "
-                             f"{r['pos_z']:.3f} | {r['speed']:.3f} | {r['omega_left']:.3f}/{r['omega_right']:.3f} | "
-                             f"{r['torque_left']:.1f}/{r['torque_right']:.1f} |")
-            lines.append("")
-            label, v = validations[0]
-            lines += [f"RMS errors over the run. Figures for: {label}.", "",
-                      f"![validation]({figure_validation(v, tmp)})", "", f"![path]({figure_path(v, tmp)})", ""]
+        lines += _validation_section(campaign, validations, tmp)
         if diagnosis is not None:
             from .diagnose import report_section
             lines += report_section(diagnosis, tmp)
         if truth is not None:
-            lines += ["## Synthetic truth (for checking only)", "",
-                      "This campaign is synthetic; its `truth.json` is read here, by the report, and never by "
-                      "identification or diagnosis.", "", "| Parameter | truth | joint fit | error |", "|---|---|---|---|"]
-            for k in SOIL_PARAMETERS:
-                tv = truth["soil"][k]
-                jv = joint.params[k] if joint else float("nan")
-                lines.append(f"| {k} | {_fmt(tv)} | {_fmt(jv)} | {jv / tv - 1:+.1%} |")
-            lines += ["", f"Hidden effect: `{truth.get('effect')}` (strength {truth.get('strength')}).", ""]
+            lines += _truth_section(truth, joint)
         if timings:
             lines += ["## Timings", "", "| step | wall time [s] |", "|---|---|"]
             lines += [f"| {k} | {v:.1f} |" for k, v in timings.items()]

@@ -61,7 +61,7 @@ HELD_LOADS = (320.0, 520.0, 720.0)
 #: below a slip of about 0.5 the two bend the tanh law nearly alike.  It targets a slip rather
 #: than a force because at a fixed 1150 N a soil 10 % weaker settled at 0.93 slip, where a
 #: spin-following replay at the true parameters missed the torque by 200 sigma (a multi-pass
-#: campaign).  Measured (README): grouser found in 7 of 8 campaigns with a heavy run, multi-pass
+#: campaign).  Measured: grouser found in 7 of 8 campaigns with a heavy run, multi-pass
 #: in 1 of 4, so it is not the default.
 HEAVY_DESIGN_LOADS = (320.0, 620.0)
 HEAVY_SLIP = 0.7
@@ -163,9 +163,9 @@ def lidar_scan(rng: np.random.Generator, seed: int, n_points: int = 25000, noise
     return transform(pts) if transform is not None else pts
 
 
-def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float,
-            drawbar: InputSignals | None = None) -> dict[str, np.ndarray]:
-    """Turns a truth simulation into the columns of a run CSV (interfaces.md section 3).
+def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float) -> dict[str, np.ndarray]:
+    """Turns a truth simulation into the columns of a run CSV (the campaign format of
+    juno.campaign: a ``time`` column and one column per sensor).
 
     Each sensor samples on its own clock; the CSV rows are the union of all
     sample times with empty cells (NaN) where a sensor has no sample.

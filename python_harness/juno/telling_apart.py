@@ -10,7 +10,7 @@ and gives the load and throttle where the predicted slips differ most.
 Why a drawbar test at a heavier load: a grouser's lugs (shear at R + h) need more torque per unit
 of thrust, as if h / (R + h) of the torque were lost in the drivetrain, so at the campaign's
 moderate slips the two models fit alike; the grouser's thrust gain raises the traction limit, which
-only a run near that limit shows (README, "A heavy drawbar run makes lug thrust identifiable").
+only a run near that limit shows (docs/diagnosis.md, "Known limits").
 The difference is in the models' predictions, not a test: whether it is measurable depends on how
 steady the run can be held.
 """

@@ -67,8 +67,8 @@ def extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
         rel("grouser.lugHeight", 0.3)
     elif effect == "multipass":
         # The rear wheels follow the whole rut (fraction 1 in the truth) on soil compacted by
-        # 1.5-2.5x; measured fits: rut 0.87-1.0, compaction -18 % to +5 % of the truth (earlier
-        # studies); rut 0.94-1.0, compaction -12.5 % to +7.1 % on seeds 4000-4019 (session 20).
+        # 1.5-2.5x; measured fits over the synthetic studies: rut 0.87-1.0, compaction -18 % to
+        # +7.1 % of the truth.
         if not abs(fitted["multipass.rutFraction"] - truth["multipass.rutFraction"]) <= 0.25:
             far.append(f"multipass.rutFraction fitted {fitted['multipass.rutFraction']:.3f}, "
                        f"truth {truth['multipass.rutFraction']:.3f}")

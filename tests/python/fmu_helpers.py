@@ -2,7 +2,7 @@
 log messages, and write ESRI ASCII terrain grids.
 
 Nothing here knows the physics: it only moves numbers in and out of the FMU by the variable names of
-the modelDescription.xml (interfaces.md, section 1).
+the FMU's modelDescription.xml.
 """
 
 from __future__ import annotations

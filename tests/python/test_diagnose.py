@@ -7,23 +7,21 @@ be replayed (`juno synthesize OUT --effect E --strength S --seed N`).  Strengths
 [0.7, 1.0] of each effect's documented range (python_harness/juno/effects.py).
 
 Covered here: `none` (the no-effect reference the effect tests compare with), five of the six
-effect ids (each found in 20 of 20 cases on seeds 4000-4019 at the code of session 20, README
-"Session 21"; terrain_offset since session 19, where the registration is judged on the measured
-pose; multipass since session 20, where every model is judged on the terrain replay that the
-best-fitting model fits best), and a grouser (named in 17 of 20 on the same seeds, and reported
-tied with the drivetrain loss it mimics in the other 3: its own test says why that tie is the
-right answer).  How many causes are named (none on a second seed, two effects hidden together,
-no second cause from a parameter that only frees the first cause's fit) is tested in
+effect ids (each found in 20 of 20 synthetic campaigns of a 20-seed study; the registration is
+judged on the measured pose, and every model on the terrain replay that the best-fitting model
+fits best), and a grouser (named in 17 of 20 in the same study, and reported tied with the
+drivetrain loss it mimics in the other 3: its own test says why that tie is the right answer).
+How many causes are named (none on a second seed, two effects hidden together, no second cause
+from a parameter that only frees the first cause's fit) is tested in
 test_diagnose_how_many_causes.py, a file of its own so that the two files' diagnoses run on
 both pytest workers.  Detection rates per effect are measured offline by
-scripts/detection_rates.py (README, "What the diagnosis finds").
+scripts/detection_rates.py (docs/diagnosis.md, "How often it is right").
 
-multipass was left out of this test until session 20: 8 of 10 on seeds 4000-4009 with the FMU's
-stiffness fix of session 17 (4005 and 4008 `none`, again in sessions 18 and 19).  On 4005 the
-terrain run was judged on the spin replay chosen at the base model, where even the truth was
-worse than the base model; on 4008 the multi-pass fit kept was the one from the base optimum,
-which lost the rover on the terrain replay (diagnose.settle_terrain_drive and
-diagnose.better_of_two_fits say what changed).
+A hidden multi-pass is named only because the terrain run is judged on the replay that fits the
+chosen model best (diagnose.settle_terrain_drive) and the better of two fits of each candidate
+is kept (diagnose.better_of_two_fits): judged on the spin replay chosen at the base model, even
+the truth can look worse than the base model, and a multi-pass fit from the base optimum can
+lose the rover on the terrain replay.
 """
 
 from __future__ import annotations
@@ -73,7 +71,7 @@ def test_hidden_effect_is_found_blind(effect, tmp_path, none_case):
     diagnosis, truth, replay, summary = draw_and_diagnose(tmp_path, effect)
     assert diagnosis["cause"] == effect, f"[{replay}] named {diagnosis['cause']}: {summary}"
     # Only the first cause is asserted: a second cause is named falsely in 2 of 99 cases of the
-    # detection study (a small multi-pass on top of slip-sinkage; README), printed here.
+    # detection study (a small multi-pass on top of slip-sinkage; docs/diagnosis.md), printed here.
     print(f"[diagnose] causes {diagnosis['causes']}; second round: {candidates_summary(diagnosis, 'second_round')}")
     _assert_gain_beats_no_effect(diagnosis, none_case[0], effect, replay)
     far = extension_close(effect, diagnosis["extended"]["extension"], truth["extension"])
@@ -86,11 +84,10 @@ def test_a_hidden_grouser_is_named_or_reported_tied_with_the_loss_it_mimics(tmp_
     """A grouser's lugs shear the soil at R + h: the same thrust needs more torque, as if a
     fraction h / (R + h) of it were lost in the drivetrain.  Where the drawbar runs do not reach
     the slips at which its thrust gain shows, the data cannot tell the two apart.  Measured
-    (seeds 4005 and 4008 of the 20-seed study, README "What the diagnosis finds"): at the true
-    soil and grouser, the held-out mean squared residual of the drawbar runs is 1.085 and 1.069;
-    a drivetrain loss fitted on the true soil gets 1.084 and 1.071.  Those two campaigns, and
-    4012 at the code of session 20, name the loss and report the grouser as explaining the data
-    about as well (``equally_good``, within TIE_RATIO of the gain; the grouser's fit within 17 %
+    (two campaigns of the 20-seed study, docs/diagnosis.md): at the true soil and grouser, the
+    held-out mean squared residual of the drawbar runs is 1.085 and 1.069; a drivetrain loss
+    fitted on the true soil gets 1.084 and 1.071.  Those two campaigns, and a third, name the
+    loss and report the grouser as explaining the data about as well (``equally_good``, within TIE_RATIO of the gain; the grouser's fit within 17 %
     of the truth's thrust gain and 6 % of its lugs); the other 17 name the grouser.
 
     So the grouser must be named, or the loss named with the grouser reported tied with it, and

@@ -17,7 +17,7 @@ from blind_draws import DRAWS, candidates_summary, extension_close, hide_and_dia
 @pytest.mark.parametrize("draw", [1])
 def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
     """With nothing hidden, no cause is named, on further random seeds (the false-cause rate
-    over many seeds is measured by scripts/detection_rates.py; README)."""
+    over many seeds is measured by scripts/detection_rates.py; docs/diagnosis.md)."""
     seed = DRAWS.randrange(10_000, 20_000)
     print(f"\n[diagnose] effect none, seed {seed}")
     diagnosis, _ = hide_and_diagnose(tmp_path, "none", 1.0, seed)
@@ -31,28 +31,27 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     Stronger means: explains more of what the base model gets wrong.  Each effect's one-cause
     model (its parameter and the soil refitted) is judged against the same base model, so its
     held-out gain (the candidates' ``gain``) measures the effect alone, whatever is named first.
-    At these strengths the loss is the stronger: on 21 pair draws of session 22 (15 where
-    slip-sinkage is strongest against the loss, loss 0.72-0.79 and slip-sinkage 0.90-1.0, and 6
-    over the whole square), its gain was 36-84 % against slip-sinkage's -0.4 to +25 %, and all 21
-    named the loss, then slip-sinkage, with both parameters near the truth (README, "Session
-    22").  So the loss must be named first, slip-sinkage second, the loss's gain must be the
-    larger, each step must remove held-out error, and each parameter must be near the truth.
+    At these strengths the loss is the stronger: on 21 pair draws (15 where slip-sinkage is
+    strongest against the loss, loss 0.72-0.79 and slip-sinkage 0.90-1.0, and 6 over the whole
+    square), its gain was 36-84 % against slip-sinkage's -0.4 to +25 %, and all 21 named the
+    loss, then slip-sinkage, with both parameters near the truth.  So the loss must be named
+    first, slip-sinkage second, the loss's gain must be the larger, each step must remove
+    held-out error, and each parameter must be near the truth.
 
     The steps' own sizes do not say which effect is the stronger: the second step is judged
     against the first cause's model, which bends the soil to make up for the missing
     slip-sinkage (k_h at 0.39-0.87 of the truth on 17 of those draws), so it removes that bend's
-    error too.  In 5 of the 15 corner draws (CI draw 8256 among them) the second step removed
-    more held-out error than the first: the check this test made until session 22, which those
-    5 failed (README).
+    error too.  In 5 of the 15 corner draws the second step removed more held-out error than the
+    first, so comparing the steps' sizes would be the wrong check.
 
-    History of the named order: in 3 of 8 offline draws a grouser (two parameters: its lugs mimic
-    the loss, its thrust gain takes up part of the slip-sinkage) won the head-to-head test against
-    the loss as one-cause models and was named first; both now get a second round and the final
-    models are compared (diagnose.choose_branch).  Seed 3346 named the loss alone, its fit having
-    bent the soil; the pair is now also fitted from the paper's soil.  Seed 3199 and CI draws 177
-    and 8998 named the loss alone: the terrain run is now replayed by spin or by torque,
-    whichever fits its training blocks better (diagnose.choose_terrain_drive).  A runner-up
-    within NEAR_TIE of the leader gets its own second round (diagnose.first_cause_branches)."""
+    What keeps the order right: a grouser (two parameters: its lugs mimic the loss, its thrust
+    gain takes up part of the slip-sinkage) can win the head-to-head test against the loss as
+    one-cause models (3 of 8 offline draws), so both get a second round and the final models are
+    compared (diagnose.choose_branch); a loss fitted alone can bend the soil, so the pair is also
+    fitted from the paper's soil; the terrain run is replayed by spin or by torque, whichever
+    fits its training blocks better (diagnose.choose_terrain_drive), without which some draws
+    named the loss alone; and a runner-up within NEAR_TIE of the leader gets its own second
+    round (diagnose.first_cause_branches)."""
     pairs = [("drivetrain_loss", round(DRAWS.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(DRAWS.uniform(0.7, 1.0), 3))]
     seed = DRAWS.randrange(10_000)
     replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"

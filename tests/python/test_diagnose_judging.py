@@ -53,7 +53,7 @@ def setting():
 
 
 def test_the_gain_that_must_be_clear_is_the_pooled_one_not_the_best_kinds():
-    """As measured on a no-effect campaign (seed 4004): a soil patch (5 parameters, so 15 % of
+    """As measured on a synthetic campaign with nothing hidden: a soil patch (5 parameters, so 15 % of
     held-out mean squared residual needed) that changes nothing on the drawbar runs and gains
     19 % on the terrain replay, significantly by the rank test.  Pooled over all held-out data
     the gain is 12 %: not a cause.  Judged per kind it would have been one, a false cause."""
@@ -133,7 +133,7 @@ def test_a_gain_that_survives_switching_the_extension_off_lives_in_the_soil_and_
 
 
 def _torque_only_effect(rng: np.random.Generator) -> tuple[Problem, np.ndarray, np.ndarray, np.ndarray]:
-    """As measured on a drivetrain loss hidden with slip-sinkage (seed 204): switching the loss
+    """As measured on a synthetic campaign hiding a drivetrain loss with slip-sinkage: switching the loss
     off leaves the wheel spin (which the replay follows) alone, so it changes only the torques,
     which it makes 10 sigma wrong in every held-out block; the other signals move by numerical
     dust, a few 1e-4 of their mean squared residual, mostly for the worse.  Returns (problem,
@@ -163,8 +163,8 @@ def test_an_ablation_that_changes_one_signal_everywhere_and_the_others_not_at_al
 def test_the_dust_counted_as_change_would_outvote_the_torques(monkeypatch):
     """Why NEGLIGIBLE_CHANGE exists: with every nonzero change ranked, the 20 dust units (mostly
     worse) pull the Wilcoxon z of the same ablation under the threshold, and a gain of over
-    90 % would not count.  This is how a drivetrain loss hidden with slip-sinkage was missed in CI (ablation
-    z 2.25 against 2.74)."""
+    90 % would not count: on that campaign the drivetrain loss was missed so (ablation z 2.25
+    against 2.74)."""
     problem, run_kind, fitted, switched_off = _torque_only_effect(np.random.default_rng(204))
     drawbar = run_kind == "drawbar"
     assert paired_z(problem, switched_off, fitted, drawbar) > z_threshold(2)
@@ -293,7 +293,7 @@ def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_h
 
 
 def test_a_runner_up_trailing_by_less_than_one_parameters_charge_gets_its_own_second_round():
-    """As on loss + slip-sinkage seed 3346: a grouser (2 parameters, raw gain 63.7 %) led a
+    """As measured on a loss + slip-sinkage campaign: a grouser (2 parameters, raw gain 63.7 %) led a
     drivetrain loss (1 parameter, 60.7 %) by 0.0005 after the charge.  Both are first causes
     worth a second round; a runner-up further behind is not, and only the closest one joins."""
     grouser = _significant("grouser", 0.6375, 2)         # 0.5775 after the charge
@@ -333,7 +333,7 @@ def _replay_gaining(setting, terrain_factor: float) -> tuple[FitResult, FitResul
 
 
 def test_a_registration_with_clear_pose_evidence_is_a_cause_even_if_its_replay_gains_little(setting):
-    """Measured (terrain_offset seeds 4005, 4014, 4017): a registration within 3 cm of the truth
+    """Measured (three terrain_offset campaigns): a registration within 3 cm of the truth
     explained the held-out pose 8-21 times better, while its replay gained 5-6 %, under the 12 %
     four parameters need: judged on the replay, no cause was named.  It is judged on the pose."""
     problem, run_kind, _reference_r, _rng = setting

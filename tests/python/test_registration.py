@@ -244,7 +244,7 @@ def test_posed_rover_follows_the_fmu_over_the_mound(fmu_path, tmp_path, seed):
     follow the measured ones to within 5 mm and 10 mrad RMS (sensor noise 3 mm and 3 mrad; the
     rest is the sinkage changing with load, and dynamics).  Measured over 40 campaigns: 3.2-4.2
     mm and 3.6-8.6 mrad; with the ground taken directly below nominal wheel points and the
-    slopes between them (the earlier model), 4.3-6.5 mm and 5.5-11.9 mrad."""
+    slopes between them (a simpler model), 4.3-6.5 mm and 5.5-11.9 mrad."""
     from juno.campaign import load_campaign
     from juno.synthesize import synthesize
     from juno.validate import grid_terrain

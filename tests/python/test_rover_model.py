@@ -52,7 +52,7 @@ def test_the_constants_are_the_start_values_of_the_fmus_model_description(fmu_pa
 
 
 def test_the_fmus_rover_is_the_papers_juno(fmu_path):
-    """The values the harness used to type by hand: a 22 in wheel (0.2794 m radius), 317.7 kg,
+    """The paper's Juno rover: a 22 in wheel (0.2794 m radius), 317.7 kg,
     g = 9.81, the dry-sand strength assumed for Eqn 5 (C = 1000 Pa, phi = 0.5236 rad, 30 deg)."""
     r = rover(fmu_path=fmu_path)
     assert r.wheel_radius == 0.2794 == 11 * 0.0254

@@ -3,9 +3,10 @@
 speed, and the SEGMENT_SETTLE seconds after each restart are not compared.
 
 Why it exists: over a mound the spin-following replay drifts in heading, and a few degrees put
-the rover on another part of the mound.  On synthetic campaign terrain_offset seed 4005 the whole
-30 s replay at the true parameters ends far off the measured path, so the true registration
-looks worse than the scan as it is (README, "terrain run replayed in segments").
+the rover on another part of the mound.  On the synthetic campaign this file builds
+(terrain_offset, seed 4005) the whole 30 s replay at the true parameters ends far off the
+measured path, so the true registration looks worse than the scan as it is
+(docs/diagnosis.md, ``--terrain-segments``).
 """
 
 from __future__ import annotations

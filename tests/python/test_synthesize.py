@@ -1,7 +1,7 @@
 """``juno synthesize`` / juno.synthesize.synthesize: a synthetic measured campaign.
 
-Specification (README, interfaces.md sections 2 and 3):
-* the folder layout and manifest of interfaces.md section 3, readable by load_campaign and
+Specification (README):
+* the campaign folder layout and manifest (juno.campaign), readable by load_campaign and
   read_run; runs as long as the paper's; the LIDAR scan as 25000 points over 20.8 m^2;
 * sensors sampled at different rates (empty cells);
 * the truth goes to truth.json only: no file name, column, manifest entry, row time or empty

@@ -14,8 +14,8 @@ from juno.telling_apart import LOADS, heaviest_drawbar_load, telling_apart
 
 pytest_plugins = ["harness_fixtures"]
 
-#: The two fits the diagnosis reported tied on the grouser campaign of seed 4005 (strength 0.736;
-#: truth: thrust gain 0.258, lugs 18.4 mm), rounded.  It named the loss, the grouser equally good.
+#: Two fits the diagnosis reported tied on a grouser campaign (strength 0.736; truth: thrust
+#: gain 0.258, lugs 18.4 mm), rounded.  It named the loss, the grouser equally good.
 LOSS_FIT = {"soil.kh": 123858.0, "soil.eta": 0.48492, "soil.gamma": 0.078452, "soil.Kvx": 0.58638,
             "drive.lossFraction": 0.062149}
 GROUSER_FIT = {"soil.kh": 153607.0, "soil.eta": 0.53942, "soil.gamma": 0.072715, "soil.Kvx": 0.87641,
@@ -65,9 +65,9 @@ def test_the_campaigns_heaviest_load_is_its_heaviest_drawbar_runs_steady_force(c
 
 def test_the_run_that_parts_the_two_fits_shows_which_one_the_truth_is(harness_fmu):
     """Run on the truth, the proposed run settles where the right model (the grouser) predicts,
-    not where the loss the campaign named does.  Measured on seven campaigns (grouser 4001,
-    4003, 4005, 4008, 4012; drivetrain_loss 4000, 4002): the truth within 0.024 of slip of the
-    right model, 0.08-0.29 from the other (README "Session 21")."""
+    not where the loss the campaign named does.  Measured on seven campaigns (five grouser, two
+    drivetrain_loss): the truth within 0.024 of slip of the right model, 0.08-0.29 from the
+    other."""
     from juno.synthesize import steady_slip
     (a,) = telling_apart(harness_fmu, ("drivetrain_loss", LOSS_FIT), {"grouser": GROUSER_FIT}, CAMPAIGN_LOAD)
     truth = steady_slip(harness_fmu, TRUTH, a["load_N"], a["throttle"])

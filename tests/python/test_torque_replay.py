@@ -5,8 +5,9 @@ better than the spin replay (diagnose.choose_terrain_drive).
 
 Why it exists: where the rover climbs a mound at high slip, imposing the measured spins is
 ill-conditioned.  On a noise-free synthetic terrain run with a drivetrain loss and slip-sinkage
-(seed 3199), the spin replay at the truth, even at the truth's own 1 ms step, lifts a front wheel
-off for seconds and misses the torque by about 9 sigma; the torque replay reproduces it.
+(seed 3199, the campaign this file builds), the spin replay at the truth, even at the truth's
+own 1 ms step, lifts a front wheel off for seconds and misses the torque by about 9 sigma; the
+torque replay reproduces it.
 """
 
 from __future__ import annotations
