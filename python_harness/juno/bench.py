@@ -29,7 +29,6 @@ directory (``cmake --build build --target fmu bench_contact bench_fmu``).
 
 from __future__ import annotations
 
-import argparse
 import datetime as _dt
 import json
 import os
@@ -38,11 +37,10 @@ import re
 import resource
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -57,31 +55,6 @@ TARGETS = {
 }
 SECTIONS = ("contact", "fmu-c", "fmpy", "cost", "joint", "registration")
 COMM_STEP = 0.01                   # s, the default experiment's step size (as bench_fmu)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``juno bench`` (cli.py adds --json, --fmu and --quiet)."""
-    parser.description = ("Benchmark the contact laws, the FMU (from C and through fmpy) and the identification "
-                          "workflow. Prints medians of repeated runs next to the performance targets; asserts "
-                          "nothing.")
-    parser.add_argument("--quick", action="store_true",
-                        help="5 repeats of the micro-benchmarks and shorter contact batches, 1 joint fit")
-    from .cli import int_at_least, positive_int
-    parser.add_argument("--repeats", type=int_at_least(5), default=None, metavar="N",
-                        help="repeats of the micro-benchmarks (contact, FMU runs, cost function); >= 5, "
-                             "default 7 (5 with --quick)")
-    parser.add_argument("--long-repeats", type=positive_int, default=None, metavar="N",
-                        help="repeats of the joint identification, default 3 (1 with --quick)")
-    parser.add_argument("--with-diagnose", action="store_true",
-                        help="also time juno diagnose on the synthetic campaign (takes minutes; one run)")
-    parser.add_argument("--only", action="append", choices=SECTIONS, metavar="SECTION",
-                        help="run only these sections (repeatable): " + ", ".join(SECTIONS))
-    parser.add_argument("--build-dir", metavar="DIR",
-                        help="CMake build directory holding the FMU and the bench programs (default: build/ of "
-                             "this checkout)")
-    parser.add_argument("--no-build", action="store_true",
-                        help="do not run cmake --build for the bench programs (use them as they are)")
-    parser.set_defaults(func=cmd_bench)
 
 
 # ------------------------------------------------------------------ helpers
@@ -548,36 +521,40 @@ def bench_diagnose(rep: Report, fmu, campaign, say) -> float | None:
     return peak[0] / 1024.0 if peak[0] > 0 else None
 
 
-# ------------------------------------------------------------------ command
+# ------------------------------------------------------------------ the whole benchmark
 
-def cmd_bench(args) -> int:
-    say_start = time.perf_counter()
+def run_benchmarks(*, quick: bool = False, repeats: int | None = None, long_repeats: int | None = None,
+                   sections: Sequence[str] | None = None, with_diagnose: bool = False,
+                   build_dir: Path | None = None, build: bool = True, fmu_path: Path | None = None,
+                   say: Callable[[str], None] = lambda message: None) -> dict[str, Any]:
+    """Run the benchmark sections (all of :data:`SECTIONS` by default), print every figure next
+    to its target, and return the machine-readable record (time, machine, loads, figures).
 
-    def say(message: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - say_start:7.1f} s] {message}", file=sys.stderr, flush=True)
-
-    repeats = args.repeats if args.repeats is not None else (5 if args.quick else 7)
+    ``repeats`` (>= 5, default 7, 5 when ``quick``) is the number of repeats of the
+    micro-benchmarks, ``long_repeats`` (default 3, 1 when ``quick``) of the joint fit; the C
+    programs are built in ``build_dir`` (default: build/ of this checkout) unless ``build`` is
+    False."""
+    repeats = repeats if repeats is not None else (5 if quick else 7)
     if repeats < 5:
-        raise ValueError("--repeats must be at least 5 (the micro-benchmarks' medians need them)")
-    long_repeats = args.long_repeats if args.long_repeats is not None else (1 if args.quick else 3)
+        raise ValueError("repeats must be at least 5 (the micro-benchmarks' medians need them)")
+    long_repeats = long_repeats if long_repeats is not None else (1 if quick else 3)
     if long_repeats < 1:
-        raise ValueError("--long-repeats must be at least 1")
-    sections = set(args.only or SECTIONS)
-    min_time = 0.02 if args.quick else 0.05
+        raise ValueError("long_repeats must be at least 1")
+    sections = set(sections or SECTIONS)
+    min_time = 0.02 if quick else 0.05
 
     from .simulator import JunoFMU, default_fmu_path
-    build_dir = Path(args.build_dir) if args.build_dir else _checkout() / "build"
-    fmu_path = Path(args.fmu) if args.fmu else default_fmu_path()
+    build_dir = Path(build_dir) if build_dir else _checkout() / "build"
+    fmu_path = Path(fmu_path) if fmu_path else default_fmu_path()
     need_c = bool(sections & {"contact", "fmu-c"})
-    if need_c and not args.no_build:
+    if need_c and build:
         _build(build_dir, say)
 
     info = machine_info()
     info["compiler"] = _compiler(build_dir)
     start_load = loadavg()
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    print(f"juno bench, {stamp}{' (--quick)' if args.quick else ''}")
+    print(f"juno bench, {stamp}{' (--quick)' if quick else ''}")
     cores = f"{info.get('logical_cores')} logical cores"
     if "physical_cores" in info:
         cores += f" ({info['physical_cores']} physical)"
@@ -605,7 +582,7 @@ def cmd_bench(args) -> int:
         with JunoFMU(fmu_path) as fmu:
             if "fmpy" in sections:
                 bench_fmpy(rep, fmu, grid, repeats, say)
-            if sections & {"cost", "joint", "registration"} or args.with_diagnose:
+            if sections & {"cost", "joint", "registration"} or with_diagnose:
                 campaign, campaign_time = _campaign(tmp, fmu, say)
                 if "cost" in sections:
                     bench_cost(rep, fmu, campaign, repeats, say)
@@ -613,7 +590,7 @@ def cmd_bench(args) -> int:
                     bench_joint(rep, fmu, campaign, long_repeats, say)
                 if "registration" in sections:
                     bench_registration(rep, campaign, long_repeats, say)
-                if args.with_diagnose:
+                if with_diagnose:
                     rss["diagnose workers"] = bench_diagnose(rep, fmu, campaign, say)
 
     rep.section("Peak memory (resident set high-water mark)")
@@ -636,11 +613,6 @@ def cmd_bench(args) -> int:
     if missed:
         print("targets missed: " + "; ".join(missed))
 
-    if args.json:
-        from .atomic import atomic_write_text
-        payload = {"time": stamp, "machine": info, "load_start": start_load, "load_end": end_load,
-                   "repeats": repeats, "long_repeats": long_repeats, "quick": bool(args.quick),
-                   "sections": rep.sections, "figures": rep.figures, "targets": TARGETS}
-        from .cli import _to_jsonable
-        atomic_write_text(args.json, json.dumps(_to_jsonable(payload), indent=2) + "\n")
-    return 0
+    return {"time": stamp, "machine": info, "load_start": start_load, "load_end": end_load,
+            "repeats": repeats, "long_repeats": long_repeats, "quick": bool(quick),
+            "sections": rep.sections, "figures": rep.figures, "targets": TARGETS}

@@ -1352,69 +1352,33 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     return out
 
 
-# ---------------------------------------------------------- CLI, report
-
-def add_arguments(p) -> None:
-    p.add_argument("campaign", metavar="CAMPAIGN")
-    from .cli import positive_float, positive_int
-    p.add_argument("--workers", type=positive_int, default=None,
-                   help="processes for the candidate fits (default: cores)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="fit the candidates on the Dask distributed cluster at ADDRESS (tcp://host:port); its "
-                        "workers need the FMU and the campaign folder at the same paths as here")
-    p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
-    p.add_argument("--plots", metavar="DIR",
-                   help="write residual plots to DIR (new, empty, or written by diagnose --plots before)")
-    p.add_argument("--terrain-segments", type=positive_float, metavar="SECONDS",
-                   help="experimental: replay the terrain run in pieces of SECONDS, each restarted at the "
-                        "measured pose and speed (needs a 'yaw' column), so that a heading drift cannot grow")
-    p.set_defaults(func=cmd_diagnose)
-
+# ---------------------------------------------------------- result rendering (text, figures, report)
 
 def public_json(result: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in result.items() if not k.startswith("_")}
 
 
-def cmd_diagnose(args) -> int:
-    import json
-    import sys
-
-    from .atomic import atomic_write_text
-    from .cli import _progress, _to_jsonable
-    from .plausibility import enforce_plausibility
-    say = _progress(args.quiet)
-    campaign = load_campaign(args.campaign)
-    enforce_plausibility(campaign, force=args.force)
-    result = diagnose(campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
-                      candidates=args.candidates, progress=say, scheduler=args.scheduler,
-                      terrain_segment=args.terrain_segments)
-    if args.plots:
-        from .outputs import PLOTS_MARKER, campaign_inputs, marked_directory
-        with marked_directory(args.plots, PLOTS_MARKER, "juno diagnose --plots",
-                              inputs=campaign_inputs(args.campaign), what="--plots") as tmp:
-            residual_figures(result, Path(tmp))
-    payload = _to_jsonable(public_json(result))
-    if args.json:
-        atomic_write_text(args.json, json.dumps(payload, indent=2) + "\n")
-    print(f"cause: {result['cause']} ({result['explanation']})")
+def summary_lines(result: dict[str, Any]) -> list[str]:
+    """The diagnosis in a few lines of text: the cause, every candidate's held-out gain and
+    significance, the head-to-head judgements, ties and the run that would settle them, the
+    second round and the causes named, strongest first."""
+    lines = [f"cause: {result['cause']} ({result['explanation']})"]
     for c in result["candidates"]:
         mark = "*" if c["significant"] else " "
-        print(f" {mark} {c['name']:16s} held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   {_by_kind(c)}")
-    for duel in result.get("head_to_head", []):
-        print(_duel_sentence(duel))
+        lines.append(f" {mark} {c['name']:16s} held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   {_by_kind(c)}")
+    lines += [_duel_sentence(duel) for duel in result.get("head_to_head", [])]
     if result["equally_good"]:
-        print("equally good: " + ", ".join(result["equally_good"]))
-    for a in result.get("telling_apart", []):
-        print(_apart_sentence(a))
+        lines.append("equally good: " + ", ".join(result["equally_good"]))
+    lines += [_apart_sentence(a) for a in result.get("telling_apart", [])]
     if result["second_round"]:
-        print(f"on top of {result['cause']}:")
+        lines.append(f"on top of {result['cause']}:")
         for c in result["second_round"]:
             mark = "*" if c["significant"] else " "
-            print(f" {mark} {c['name']:16s} further held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   {_by_kind(c)}")
+            lines.append(f" {mark} {c['name']:16s} further held-out gain {c['gain']:+7.1%}  z {c['z']:6.1f}   "
+                         f"{_by_kind(c)}")
     if len(result["causes"]) > 1:
-        print("causes, strongest first: " + ", ".join(result["causes"]))
-    print(f"diagnosis took {result['wall_time']:.0f} s", file=sys.stderr)
-    return 0
+        lines.append("causes, strongest first: " + ", ".join(result["causes"]))
+    return lines
 
 
 def residual_figures(result: dict[str, Any], out: Path) -> list[str]:

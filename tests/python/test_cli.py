@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from harness_fixtures import run_juno, say
-from juno.cli import SCENARIOS
+from juno.scenarios import SCENARIOS
 from juno.simulator import SOIL_PARAMETERS
 
 pytest_plugins = ["harness_fixtures"]
@@ -96,7 +96,7 @@ def test_simulate_runs_each_scenario(tmp_path, scenario):
     assert f"scenario {scenario}" in proc.stdout
     result = json.loads(out_json.read_text())
     final = result["final"]
-    duration = SCENARIOS[scenario][1]
+    duration = SCENARIOS[scenario].stop_time
     assert final["time"] == pytest.approx(duration)
     with open(out_csv, newline="") as fh:
         rows = list(csv.reader(fh))

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from juno import cli, diagnose as diagnose_module
+from juno.core import to_jsonable
 from juno.campaign import load_campaign
 from juno.errors import InputError
 from juno.identify import (MAX_FAILED_FRACTION, PAPER_INITIAL, EvaluationLog, FitError, classify, identify_joint,
@@ -186,7 +187,7 @@ def test_a_model_blind_to_the_soil_is_not_identified_with_no_uncertainty(campaig
     assert j.status == "not identified" and j.failed_evaluations == 0
     assert set(j.identifiability.values()) == {"not identified"}
     assert all(not np.isfinite(j.std[k]) for k in SOIL_PARAMETERS)
-    payload = json.loads(json.dumps(cli._to_jsonable(j)))
+    payload = json.loads(json.dumps(to_jsonable(j)))
     assert payload["status"] == "not identified" and payload["failed_evaluations"] == 0
     assert all(v is None for v in payload["std"].values()), "no uncertainty, not a zero one"
 

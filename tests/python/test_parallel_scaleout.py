@@ -186,7 +186,7 @@ def test_the_sweep_command_writes_what_the_api_computes(harness_fmu, fmu_path, t
     rows = [line.split(",") for line in out.read_text().splitlines()]
     assert rows[0] == ["soil.kh", "soil.eta"] + list(SUMMARY_COLUMNS) + ["error"]
     assert len(rows) == 5
-    # The drawbar scenario (cli.SCENARIOS) with the fixed parameter, recomputed serially.
+    # The drawbar scenario (juno.scenarios.SCENARIOS) with the fixed parameter, recomputed serially.
     api = sweep(harness_fmu, grid({"soil.kh": [1.5e5, 3e5], "soil.eta": [0.4, 0.6]}),
                 {"drive.mode": 2, "soil.gamma": 0.2},
                 InputSignals.constant(drawbarForce=400.0, throttleLeft=0.45, throttleRight=0.45), SWEEP_STOP,

@@ -1,0 +1,75 @@
+"""``juno identify``: the soil parameters from a campaign's drawbar runs, per run as the paper
+does and jointly over every run's whole time series."""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from typing import Any
+
+from ..core import progress_printer, write_json
+from .options import add_batch_options, nonnegative_int, positive_int
+
+HELP = "Nelder-Mead identification of the soil parameters"
+OUTPUTS: dict[str, str] = {}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--method", choices=("paper", "joint", "both"), default="both",
+                   help="paper: per drawbar run from steady-window averages; joint: all runs, whole time series")
+    p.add_argument("--with-terrain", action="store_true", help="include the terrain runs in the joint fit")
+    p.add_argument("--optimizer", choices=("least-squares", "nelder-mead"), default="least-squares",
+                   help="joint fit: trust-region Gauss-Newton (default) or Nelder-Mead then a polish")
+    p.add_argument("--max-evaluations", type=positive_int, default=400, help="Nelder-Mead budget of the joint fit")
+    p.add_argument("--starts", type=positive_int, default=1,
+                   help="joint fit from N starting points (the paper's guess and N-1 scattered around it), "
+                        "one parallel task each; reports the best and how far the others ended (default 1)")
+    p.add_argument("--seed", type=nonnegative_int, default=0,
+                   help="seed of the scattered starting points (default 0)")
+    add_batch_options(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..campaign import load_campaign
+    from ..identify import identify_joint, identify_multistart, identify_paper_runs, terrain_grids
+    from ..plausibility import enforce_plausibility
+    from ..simulator import JunoFMU
+    say = progress_printer(args.quiet)
+    campaign = load_campaign(args.campaign)
+    enforce_plausibility(campaign, force=args.force)
+    batch = {"workers": args.workers, "scheduler": args.scheduler}
+    out: dict[str, Any] = {"campaign": campaign.name}
+    with JunoFMU(args.fmu) as fmu:
+        if args.method in ("paper", "both"):
+            runs = campaign.runs_of_kind("drawbar")
+            say("paper-style Nelder-Mead on " + ", ".join(r.id for r in runs))
+            out["paper"] = identify_paper_runs(fmu, campaign, runs, progress=say, **batch)
+            for p in out["paper"]:
+                print(f"{p.run_id}: " + ", ".join(f"{k} = {v:.4g}" for k, v in p.final.items()) +
+                      f" (cost {p.cost:.3g}, {p.evaluations} evaluations, rank {p.jacobian_rank}/4)")
+        if args.method in ("joint", "both"):
+            with tempfile.TemporaryDirectory() as tmp:
+                grid = terrain_grids(campaign, tmp, "identify --with-terrain") if args.with_terrain else None
+                joint_args = dict(include_terrain=args.with_terrain, terrain_file=grid,
+                                  max_evaluations=args.max_evaluations, optimizer=args.optimizer)
+                if args.starts > 1:
+                    say(f"joint identification from {args.starts} starting points (seed {args.seed})")
+                    multi = identify_multistart(fmu, campaign, args.starts, seed=args.seed, progress=say,
+                                                **batch, **joint_args)
+                    joint = multi.best
+                    out["multistart"] = {"starts": multi.starts, "costs": [f.cost for f in multi.fits],
+                                         "params": [f.params for f in multi.fits], "spread": multi.spread,
+                                         "wall_time": multi.wall_time}
+                    print(f"multi-start: {args.starts} fits in {multi.wall_time:.1f} s; costs "
+                          + ", ".join(f"{f.cost:.4g}" for f in multi.fits) + "; largest relative distance from "
+                          "the best: " + ", ".join(f"{k} {v:.2%}" for k, v in multi.spread.items()))
+                else:
+                    say("joint identification over the whole time series")
+                    joint = identify_joint(fmu, campaign, progress=say, **batch, **joint_args)
+            out["joint"] = joint
+            for k, v in joint.params.items():
+                print(f"joint: {k} = {v:.5g} +- {joint.std[k]:.2g} ({joint.identifiability[k]})")
+            print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
+    write_json(args.json, out)
+    return 0

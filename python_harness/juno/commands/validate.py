@@ -1,0 +1,83 @@
+"""``juno validate``: the terrain runs simulated with identified soil parameters, compared with
+the measurements."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import tempfile
+from pathlib import Path
+
+from ..core import progress_printer, write_json
+from ..errors import InputError, decode_input_text, read_input_bytes
+from .options import positive_float
+
+HELP = "simulate the terrain runs with identified parameters and compare"
+OUTPUTS: dict[str, str] = {}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("campaign", metavar="CAMPAIGN")
+    p.add_argument("--params", metavar="JSON", help="identified parameters (the --json of identify)")
+    p.add_argument("--cell", type=positive_float, default=0.05, help="terrain grid resolution in m (default 0.05)")
+
+
+def load_identified_soil(path: str | Path) -> dict[str, float]:
+    """The soil parameters of an identify result (``juno identify --json``): its joint fit's
+    ``params``, or a ``params`` object, or the four parameters at the top level.  Raises
+    InputError naming the file and what is missing or wrong."""
+    from ..rover_model import SOIL_PARAMETERS
+    p = Path(path)
+    text = decode_input_text(p, read_input_bytes(p))
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc.msg} (column {exc.colno})", p, exc.lineno) from None
+    if not isinstance(data, dict):
+        raise InputError("not an identify result (juno identify --json): a JSON object is needed", p)
+    if isinstance(data.get("joint"), dict) and "params" in data["joint"]:
+        data, where = data["joint"]["params"], "joint.params"
+    elif "params" in data:
+        data, where = data["params"], "params"
+    else:
+        where = "the top level"
+    if not isinstance(data, dict):
+        raise InputError(f"not an identify result (juno identify --json): {where} is not an object", p)
+    missing = [k for k in SOIL_PARAMETERS if k not in data]
+    if missing:
+        raise InputError(f"not an identify result (juno identify --json): {where} lacks "
+                         + ", ".join(missing), p)
+    soil = {}
+    for k in SOIL_PARAMETERS:
+        v = data[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InputError(f"{where}: '{k}' must be a finite number, got {json.dumps(v)}", p)
+        soil[k] = float(v)
+    return soil
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..campaign import load_campaign
+    from ..identify import identify_joint, require_runs
+    from ..plausibility import enforce_plausibility
+    from ..simulator import JunoFMU
+    from ..validate import validate_run
+    say = progress_printer(args.quiet)
+    soil = load_identified_soil(args.params) if args.params else None
+    campaign = load_campaign(args.campaign)
+    enforce_plausibility(campaign, force=args.force)
+    require_runs(campaign, "validate")
+    with JunoFMU(args.fmu) as fmu:
+        if soil is None:
+            say("no --params given: identifying first (joint fit)")
+            soil = identify_joint(fmu, campaign, progress=say).params
+        results = {}
+        with tempfile.TemporaryDirectory() as tmp:
+            for run_spec in campaign.runs_of_kind("terrain"):
+                say(f"validating on terrain run {run_spec.id}")
+                v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=args.cell)
+                results[run_spec.id] = v.rms
+                print(f"{run_spec.id}: RMS " + ", ".join(f"{k} {x:.4g}" for k, x in v.rms.items()))
+    write_json(args.json, {"soil": soil, "rms": results})
+    return 0

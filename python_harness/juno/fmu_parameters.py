@@ -1,0 +1,104 @@
+"""FMU parameters given as text (``--param NAME=VALUE``), typed and range-checked against the
+FMU's own variable table before any simulation.
+
+The FMU's modelDescription.xml is the one source of each parameter's type and [min, max], so a
+value the FMU would refuse at initialisation is refused here first, with a message that names
+the option, the parameter and the rule.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from .errors import InputError, parse_finite
+
+__all__ = ["fmu_variables", "parse_assignments", "parameter_value", "check_parameters"]
+
+
+def fmu_variables(fmu_path: str | Path | None) -> dict[str, Any]:
+    """The FMU's variables by name, read from its modelDescription.xml (no instance is made).
+    ``None`` means the default FMU (:func:`juno.simulator.default_fmu_path`)."""
+    from fmpy import read_model_description
+
+    from .simulator import default_fmu_path
+    path = Path(fmu_path) if fmu_path else default_fmu_path()
+    if not path.is_file():
+        raise InputError("FMU not found (build it with cmake first, or give --fmu)", path)
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:  # a zip or XML error of a broken FMU
+        raise InputError(f"not a readable FMU: {type(exc).__name__}: {exc}", path) from None
+    return {v.name: v for v in md.modelVariables}
+
+
+def parse_assignments(items: Iterable[str] | None, option: str = "--param") -> dict[str, str]:
+    """``NAME=VALUE`` pairs as text by name; :func:`check_parameters` types and range-checks them."""
+    params: dict[str, str] = {}
+    for item in items or ():
+        if "=" not in item:
+            raise InputError(f"{option} expects NAME=VALUE, got '{item}'")
+        name, value = item.split("=", 1)
+        if not name.strip():
+            raise InputError(f"{option} expects NAME=VALUE, got '{item}' (no name)")
+        params[name.strip()] = value.strip()
+    return params
+
+
+def _as_text(value: object) -> str:
+    if isinstance(value, str):
+        return value
+    return f"{value:.17g}" if isinstance(value, float) else f"{value!r}"
+
+
+def parameter_value(variables: Mapping[str, Any], name: str, value: object, option: str = "--param") -> object:
+    """``value`` (text or number) as the FMU parameter ``name`` needs it: a finite float within
+    [min, max] for Real, a whole number within [min, max] for Integer/Enumeration, a bool for
+    Boolean, text for String.  Raises InputError naming the option, the parameter and the rule."""
+    var = variables.get(name)
+    if var is None:
+        close = difflib.get_close_matches(name, [n for n, v in variables.items() if v.causality == "parameter"],
+                                          n=3, cutoff=0.6)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise InputError(f"{option} {name}: the FMU has no parameter '{name}'{hint}")
+    if var.causality != "parameter":
+        raise InputError(f"{option} {name}: '{name}' is an FMU {var.causality}, not a parameter that can be set")
+    text = _as_text(value)
+    if var.type == "String":
+        return str(value)
+    if var.type == "Boolean":
+        low = text.strip().lower()
+        if low not in ("0", "1", "true", "false"):
+            raise InputError(f"{option} {name}={text}: '{name}' is a Boolean: give true or false")
+        return low in ("1", "true")
+    if var.type in ("Integer", "Enumeration"):
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and float(value).is_integer():
+            number: float = int(value)
+        elif isinstance(value, str) and re.fullmatch(r"[+-]?[0-9]+", text.strip()):
+            number = int(text)
+        else:
+            raise InputError(f"{option} {name}={text}: '{name}' is an {var.type}: give a whole number")
+    else:
+        try:
+            number = parse_finite(text) if isinstance(value, str) else float(value)
+        except InputError:
+            raise InputError(f"{option} {name}={text}: '{name}' needs a finite number") from None
+        if not math.isfinite(number):
+            raise InputError(f"{option} {name}={text}: '{name}' needs a finite number")
+    low = float(var.min) if var.min not in (None, "") else -math.inf
+    high = float(var.max) if var.max not in (None, "") else math.inf
+    if not low <= number <= high:
+        raise InputError(f"{option} {name}={text}: out of the FMU's range [{low:g}, {high:g}] of '{name}'")
+    return number
+
+
+def check_parameters(params: Mapping[str, object], fmu_path: str | Path | None,
+                     option: str = "--param") -> dict[str, object]:
+    """Every value of ``params`` typed and range-checked against the FMU (:func:`parameter_value`)."""
+    if not params:
+        return {}
+    variables = fmu_variables(fmu_path)
+    return {name: parameter_value(variables, name, value, option) for name, value in params.items()}
