@@ -96,46 +96,35 @@ RESIDUAL_CAP = 10.0  # scaled residuals beyond this count as this when candidate
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the data about as well
 #: A runner-up whose penalised gain (penalised_gain) is within this of the leader's also gets its
-#: own second round, and the final models decide (choose_branch): the one-cause ranking was then
-#: settled by less than one parameter's charge.  Measured (loss + slip-sinkage, seed 3346, terrain
-#: run replayed by torque): a grouser with 88 mm lugs (h / (R + h) = 0.24, the loss was 0.22) led
-#: the loss by 0.0005 after the charge (raw gains 63.7 % and 60.7 %), and grouser + slip-sinkage was named.
+#: own second round, and the final models decide (choose_branch): a one-cause ranking settled by
+#: less than one parameter's charge is not evidence for either cause (a grouser with long lugs and
+#: a drivetrain loss of the same traction ratio h / (R + h) explain drawbar data almost equally).
 NEAR_TIE = GAIN_MIN
 #: A held-out unit (run, block, signal) whose mean squared scaled residual moved by less than this
 #: is unchanged for the rank test: 1 % of the sensor noise's variance, a 16th of the scatter of a
-#: 4 s block's mean square (80 samples: sqrt(2/80) = 0.16).  Counted, such numerical dust outvoted
-#: real evidence: switching a drivetrain loss off made both torques 10 sigma wrong in every
-#: held-out block and moved the four kinematic signals (which the spin-following replay does not
-#: take from the torque) by 1e-4, mostly for the worse; the ablation's z fell to 2.25 and a 92 %
-#: gain did not count (CI, seed 204).  Dropping units symmetrically about zero keeps the test's
-#: null distribution.
+#: 4 s block's mean square (80 samples: sqrt(2/80) = 0.16).  Counted, such numerical dust (signals
+#: a candidate does not touch, moved by 1e-4 by the solver) can outvote the units that carry real
+#: evidence.  Dropping units symmetrically about zero keeps the test's null distribution.
 NEGLIGIBLE_CHANGE = 0.01
 OUTPUT_INTERVAL = 0.05
 #: A fit whose terrain replay has more than this times another fit's training loss has lost the
-#: rover there (better_of_two_fits).  Measured: 3.8 between a multi-pass fit that lost the rover
-#: and one near the truth (seed 4008); mean squares 1.1 apart between two equally good fits of
-#: a campaign with nothing hidden (seed 4015).
+#: rover there (better_of_two_fits): two equally good fits of the same campaign differ by about 1.1
+#: in mean square, a fit that lost the rover on the terrain by several times.
 LOST_RATIO = 2.0
 #: Integration step of the diagnosis (s).  The base model and every candidate share it; its error
-#: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run (README,
-#: "Solver step against accuracy").  The terrain replay uses it too: at 2 ms it replays
-#: terrain_offset seed 4005 at the true parameters to the noise (1.01 against 14.1), but
-#: loss + slip-sinkage campaigns 3-10 times worse (seed 3199: 24.4 against 8.6), and with it
-#: the diagnosis named both causes in 13 of the 16 two-effect draws (README).
+#: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run
+#: (docs/benchmarks.md).  The terrain replay uses it too: a coarser step makes the replay of the
+#: mound's transients worse than the sensor noise.
 DIAGNOSE_STEP = 5e-3
 #: How the terrain run is replayed: one of identify.REPLAY_DRIVES; drawbar runs always follow the
 #: measured spins.  choose_terrain_drive picks one per campaign, blind, for the candidates' fits:
 #: the one whose replay at the base model fits the terrain run's training blocks better; once
 #: they are fitted, settle_terrain_drive chooses again over every model, and that replay is the
 #: one every model is judged on.  Neither is right everywhere.
-#: Measured at the true parameters (held-out mean squared scaled residual of the terrain run at
-#: 5 ms, the noise is 1; spin -> torque): drivetrain loss + slip-sinkage seed 3199 8.6 -> 2.1,
-#: CI draw 177 30.4 -> 7.7 (its truth chatters on the mound: 1 ms and 0.25 ms truths part there
-#: too), terrain_offset 4005 14.1 -> 1.03, multipass 4008 10.9 -> 1.46, none 4000 2.19 -> 2.07;
-#: but none 4004 1.71 -> 4.62 (driven by torque, the rover drifts along its path: height 7 sigma^2),
-#: where a soil patch beyond the drawbar runs' track then gained 41 % on the terrain run and was
-#: named.  At the base model the training-block choice picks the better of the two at the truth
-#: on all four of none 4004, 3199, 177 and terrain_offset 4005.
+#: Why both: replayed by torque, the rover's pace follows the model's traction, which is what the
+#: candidates explain, but it drifts along its path when the model is wrong; replayed by the
+#: measured spins it stays on its path but its torques carry the model's error.  Which replay fits
+#: the training blocks better at the base model is the blind, per-campaign choice.
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
 BASE_ITERATIONS = 15
 CANDIDATE_ITERATIONS = 15
@@ -234,8 +223,7 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # held-out blocks the same way (registration_evidence, _judge).  Refined by simulation, it
     # would also fit what the soil model gets wrong on the terrain run (a 4 deg turn of the
     # scan mimicked a grouser's extra climbing thrust), so it is not refined; nor is it
-    # rejected by the replay's training error (that rejected a registration within 6 cm of the
-    # truth on terrain_offset seed 4008).
+    # rejected by the replay's training error, which also carries the soil model's error.
     Candidate("terrain_offset", "the scanned terrain is misregistered against the real one",
               (ExtParam("terrain.offsetX", 0.0), ExtParam("terrain.offsetY", 0.0),
                ExtParam("terrain.offsetZ", 0.0), ExtParam("terrain.offsetYaw", 0.0)),
@@ -685,16 +673,12 @@ def better_of_two_fits(problem: Problem, run_kind: np.ndarray, first: FitResult,
 
     Why the drawbar runs decide: the terrain run is replayed open loop, so its training and
     held-out blocks are one replay, and a choice by its training blocks carries into its
-    held-out blocks.  Chosen by the training loss over every run (training_objective), a
-    multi-pass of rut fraction 0.035 was named on a campaign with nothing hidden (seed 4015,
-    torque replay): its two fits had the same drawbar loss to 3e-6 and terrain training mean
-    squares of 3.9 and 3.5, and the second, kept, gained 7 % on the held-out blocks.
+    held-out blocks: chosen by the training loss over every run, a fit can be preferred for
+    how its replay happens to track the terrain run, and that preference then shows as a
+    held-out gain on a campaign with nothing hidden.
     Why the exception: a fit from the base optimum can stay in the basin where the base soil
     absorbed the effect, fit the drawbar runs a little better and lose the rover on the
-    terrain.  Measured (multi-pass seed 4008, torque replay): from the base optimum, drawbar
-    training loss 2.03, terrain training loss 8.6 (mean square 17.2; held-out gain 22 %, not
-    significant on any kind of run); from the paper's soil, 2.08 and 2.2, near the truth's soil
-    and compaction (gain 22 %, z 3.2 on the drawbar runs)."""
+    terrain (its terrain training loss several times the other fit's)."""
     terrain = problem.train & (run_kind == "terrain")
     preferred, other = (second, first) if fit_objective(problem, run_kind, second) < \
         fit_objective(problem, run_kind, first) else (first, second)
@@ -765,12 +749,8 @@ def settle_terrain_drive(problems: dict[str, Problem], current: str, fits: Seque
     Why not choose_terrain_drive's choice at the base model alone: with an effect hidden, the
     base model is wrong, and a wrong model replayed open loop by the measured torque drifts off
     the measured path, so the spin replay, which imposes the kinematics, looks better at the
-    base model even where the right model is replayed far better by the torque.  Measured
-    (multi-pass seed 4005, terrain run, mean squared scaled residual on the training blocks,
-    spin -> torque): the base model 8.5 -> 17.4, the multi-pass fit 7.5 -> 1.9, the truth
-    6.6 -> 1.3.  Judged on the spin replay, the multi-pass fit lost 9 % of held-out accuracy
-    against the base model (the truth itself was 58 % worse there on the terrain run), and no
-    cause was named."""
+    base model even where the right model is replayed far better by the torque; judged on the
+    spin replay, the right model can then look no better than the base model."""
     any_problem = problems[current]
     kinds = {p.run_id: p.kind for p in any_problem.prepared}
     terrain = np.array([kinds[r] == "terrain" for r in any_problem.meta["run"]])
@@ -843,9 +823,8 @@ def on_reference_soil(problem: Problem, run_kind: np.ndarray, reference: FitResu
 
     Why: the other candidates refit the soil, and when one of their fits with its extension
     switched off becomes the reference, a registration judged on the base soil is charged for
-    the soil it was not allowed to change.  Measured (terrain_offset seed 4015): the registration
-    gained 93 % on the terrain run's held-out blocks (z 3.9), but the drawbar runs, which it
-    cannot change, came out 1.5 % worse than the reference's soil at z -3.6, and no cause was named."""
+    the soil it was not allowed to change: the drawbar runs, which a registration cannot
+    change, then count against it."""
     candidate = CANDIDATES.get(res.name)
     if (res.error or candidate is None or any(not e.name.startswith("terrain.") for e in candidate.params)
             or all(res.params[k] == reference.params[k] for k in SOIL_PARAMETERS)):
@@ -864,11 +843,9 @@ def on_reference_soil(problem: Problem, run_kind: np.ndarray, reference: FitResu
 def penalised_gain(judged: dict[str, Any]) -> float:
     """A candidate's held-out relative gain less GAIN_MIN per parameter it adds: the ranking of
     candidates, so that of two that explain the data about as well the one with fewer parameters
-    is named.  Measured: a soil patch (5 parameters) grown to 3.6 m radius, strength x 1.29 all
-    over the test area, is a uniform F_taumax scale, which is what a grouser's thrust gain (then its
-    only parameter) is; it took 77.0 % against the grouser's 76.7 % on a grouser campaign, and was
-    named.  On the 140 cases of the 20-seed study (README) the penalised ranking names the same
-    causes as the plain one."""
+    is named.  Why: a soil patch (5 parameters) grown over the whole test area is a uniform
+    F_taumax scale, which is what a grouser's thrust gain (one parameter) is; unpenalised, the
+    larger model wins such a tie by a fraction of a point."""
     return float(judged["gain"]) - GAIN_MIN * int(judged.get("n_params", 0))
 
 
@@ -897,9 +874,9 @@ def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, chal
 
     The fixed charge of GAIN_MIN per parameter keeps a model with more parameters out when the
     two explain the data alike; it should not keep it out when the held-out data prefer it
-    unit by unit.  Measured (README): on grouser campaigns (thrust gain and lugs, 2 parameters) a
-    drivetrain loss of h / (R + h) mimics the lugs with one, and in 4 of 13 the grouser's raw
-    held-out gain beat the loss's by 0.9-2.2 points and lost the penalised ranking."""
+    unit by unit: on grouser campaigns (thrust gain and lugs, 2 parameters) a drivetrain loss of
+    h / (R + h) mimics the lugs with one, and the grouser's raw held-out gain can beat the loss's
+    by a point or two and still lose the penalised ranking."""
     z_by_kind = {k: paired_z(problem, leader.residuals, challenger.residuals, run_kind == k)
                  for k in sorted(set(run_kind.tolist()))}
     gain = relative_gain(problem, leader.residuals, challenger.residuals, np.ones(len(run_kind), bool))
@@ -935,8 +912,8 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     With ``switched_off`` (the candidate's own fit with its extension at neutral), the gain must
     also survive that ablation: switching the extension off must lose it, by the same criteria
     (a gain that lives in the refitted soil, not in the extension, does not count).  It does not
-    catch everything: a multi-pass of rut fraction 0.10 and stiffening 1.07 on top of a right
-    slip-sinkage fit kept its 8 % gain against its own switched-off fit, and was named (README).
+    catch everything: a weak multi-pass on top of a right slip-sinkage fit can keep a gain of a
+    few per cent against its own switched-off fit (docs/diagnosis.md, known limits).
 
     With ``registration`` (its kinematic held-out evidence, registration_evidence; given in the
     first round only), the registration candidate (terrain_offset) is judged on it: significant
@@ -984,10 +961,9 @@ def _judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fi
     # (Bonferroni over the kinds: drawbar and terrain runs differ too much for one pooled rank
     # test, where hundreds of unchanged drawbar units would drown a validation run's gain), and
     # not significantly worse on any.  The gain that must be clear is the pooled one, not the
-    # best kind's: judged per kind, the open-loop terrain replay alone named false
-    # causes in 2 of 20 no-effect campaigns (a 5-parameter soil patch 4 % stiffer than the rest,
-    # on a 19 % terrain gain at z 2.9), and it found none of the 70 hidden effects that the
-    # pooled gain missed (README).  gain_by_kind is reported, not judged.
+    # best kind's: judged per kind, the open-loop terrain replay alone is noisy enough to name
+    # false causes (a many-parameter soil patch fitting the replay's drift), and it adds no
+    # hidden effect that the pooled gain misses.  gain_by_kind is reported, not judged.
     # The penalty for extra parameters: each must buy GAIN_MIN of held-out mean squared residual
     # (measured: a soil patch, 5 parameters, took 4-10 % on top of a right first cause by fitting
     # local residual features, a false second cause in 2 of 24 cases).
@@ -1026,11 +1002,8 @@ def _refit_from_paper_soil(problem: Problem, run_kind: np.ndarray, first: Candid
 
     Why: the second round starts from the first cause's optimum, where the soil has been bent to
     absorb the second cause too, and the joint fit can stay in that basin, as a single
-    candidate's can (Candidate.soil_restart).  Measured (a drivetrain loss of 0.18 and
-    slip-sinkage of 1.40 hidden together, CI seed 597): the second round reported a loss of
-    0.252 and slip-sinkage 1.26 at a training objective of 1.392; refitted from the paper's
-    soil, 0.180 and 1.13 at 1.230.  Only for two causes that both restart from the paper's soil
-    (a soil patch needs its own search to be found at all)."""
+    candidate's can (Candidate.soil_restart).  Only for two causes that both restart from the
+    paper's soil (a soil patch needs its own search to be found at all)."""
     second = CANDIDATES[both_fit.name]
     if not (first.soil_restart and second.soil_restart):
         return both_fit
@@ -1045,11 +1018,9 @@ def _refit_from_paper_soil(problem: Problem, run_kind: np.ndarray, first: Candid
 def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, tied: list[FitResult]
                       ) -> list[dict[str, Any]]:
     """The steady drawbar run that would tell the cause's fit from each fit reported equally
-    good (juno.telling_apart), with the campaign's rover; [] when nothing is tied.  Measured
-    (grouser seeds 4005, 4008, 4012, each naming the drivetrain loss with the grouser tied): up
-    to the campaigns' heaviest load the two fits' steady slips differ by at most 0.010-0.011;
-    at 1000-1500 N they part by 0.08-0.11, and there the grouser's fit is within 0.025 of the
-    truth's."""
+    good (juno.telling_apart), with the campaign's rover; [] when nothing is tied.  Two models
+    that fit the campaign equally well usually part at loads beyond the campaign's heaviest
+    run, where their predicted steady slips differ by far more than the sensor noise."""
     if not tied:
         return []
     fixed = dict(campaign.rover)
@@ -1109,13 +1080,8 @@ def _second_round(problem: Problem, run_kind: np.ndarray, campaign: Campaign, fi
     # A second cause must survive its own removal with the first cause refitted: the winner's
     # fit with its extension switched off is the start of one more fit of the first cause
     # alone, and that fit becomes the reference if it fits the training data better.  Why: the
-    # extra parameter can merely carry the fit out of a local optimum of the first cause.
-    # Measured (slip-sinkage 1.15 hidden, seed 4011, with an earlier FMU build):
-    # slip-sinkage alone, from the base optimum and from the paper's soil, stopped at 1.03 with
-    # a drawbar training loss of 1.48; with a drivetrain loss beside it the fit reached 1.13 at
-    # 1.17, and the loss, 0.006, was named a second cause (at the true soil such a loss makes
-    # the held-out error 4 % worse).  Refitted from there, slip-sinkage alone reached 1.12 at
-    # 1.23, and the loss's gain on top was no longer significant.
+    # extra parameter can merely carry the fit out of a local optimum of the first cause, and
+    # its gain is then the first cause's own, not a second cause's.
     refitted: set[str] = set()
     adopted: FitResult | None = None
     own = {e.name for e in first.params}
@@ -1167,8 +1133,8 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
 
     Why: the first round compares one-cause models.  With two effects hidden, a two-parameter
     grouser (lugs that mimic a drivetrain loss, a thrust gain that takes up part of a
-    slip-sinkage) beat a one-parameter loss head to head, and grouser (+ slip-sinkage) was named
-    where the truth was loss + slip-sinkage (3 of 8 draws, README "Two effects at once")."""
+    slip-sinkage) can beat a one-parameter loss head to head, and grouser (+ slip-sinkage) be
+    named where the truth is loss + slip-sinkage."""
     summaries, fits = [], []
     for chosen in branches:
         label = "+".join(r.name for r in chosen)
