@@ -141,7 +141,10 @@ class JunoFMU:
         self.__init__(state["fmu_path"], state["solver_step"])
 
     def _log(self, component, instance_name, status, category, message):
+        """The FMU's logger: keeps the messages of status error or worse.  The FMU passes each
+        message whole, as a printf format without arguments, so only its '%%' need reading."""
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        text = text.replace("%%", "%")
         if status >= 2:  # discard, error, fatal
             self._messages.append(text)
 
@@ -154,11 +157,8 @@ class JunoFMU:
             callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
             callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(_calloc)
             callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(_free)
-            try:
-                from fmpy.logging import addLoggerProxy
-                addLoggerProxy(ctypes.byref(callbacks))
-            except Exception:  # the proxy only formats printf arguments; ours has none
-                pass
+            # No fmpy logger proxy: it keeps one logger per process, so a second instance would
+            # receive this one's messages.  The FMU formats its messages itself (_log).
             self._callbacks = callbacks
             slave.instantiate(callbacks=callbacks)
             self._raw = _RawFMI(slave.dll)

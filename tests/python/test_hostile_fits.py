@@ -235,3 +235,17 @@ def test_every_terrain_run_is_gridded_from_its_own_scan_and_replayed_on_it(campa
     problem = diagnose_module.build_problem(c, "unused.fmu", grids)
     replayed_on = {p.run_id: p.params.get("terrain.file") for p in problem.prepared if p.kind == "terrain"}
     assert replayed_on == grids
+
+
+def test_each_fmu_instance_keeps_its_own_messages(fmu_path):
+    """Two harness FMUs in one process: the FMU's reason for a refusal reaches the instance that
+    was refused, whichever was made last."""
+    from juno.simulator import InputSignals
+    with JunoFMU(fmu_path) as first, JunoFMU(fmu_path) as second:
+        inputs = InputSignals.constant(drawbarForce=0.0)
+        first.simulate({}, inputs, 0.1, 0.05)
+        second.simulate({}, inputs, 0.1, 0.05)
+        with pytest.raises(SimulationError, match=r"soil\.kh' = -5 is outside its range"):
+            first.simulate({"soil.kh": -5.0}, inputs, 1.0, 0.05)
+        with pytest.raises(SimulationError, match=r"soil\.eta' = 9 is outside its range"):
+            second.simulate({"soil.eta": 9.0}, inputs, 1.0, 0.05)
