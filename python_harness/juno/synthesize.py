@@ -15,7 +15,7 @@ motor current      50 Hz   1.5 N m + 1 % (torque per side)
 motor encoders     50 Hz   0.005 rad/s
 total station      5 Hz    2 mm horizontal, 3 mm vertical
 IMU attitude       100 Hz  0.003 rad roll/pitch, 0.005 rad yaw
-LIDAR scan         25000   5 mm vertical, random scattered points
+LIDAR scan         1202/m2 5 mm vertical, random scattered points
 =================  ======  ==========================================
 
 The total station's prism sits at the chassis reference point (the FMU's
@@ -44,9 +44,16 @@ TABLE2 = {"soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx"
 #: Drawbar runs: (id, duration s, steady window s), as in the paper.
 DRAWBAR_RUNS = (("dbp1", 22.0, (8.0, 18.0)), ("dbp2", 35.0, (15.0, 25.0)), ("dbp3", 32.0, (15.0, 25.0)))
 
-#: Terrain area (m): x from 0 to 8, y from -1.3 to 1.3 (20.8 m^2).
+#: Terrain area (m): x from 0 to 8, y from -1.3 to 1.3 (20.8 m^2), scanned at SCAN_DENSITY.  The
+#: scan reaches farther in x where the terrain run's rover went farther (scan_extent): a survey
+#: covers the ground the rover drove on.
 TERRAIN_X = (0.0, 8.0)
 TERRAIN_Y = (-1.3, 1.3)
+#: LIDAR points per square metre (25000 over the 20.8 m^2 test area).
+SCAN_DENSITY = 25000 / 20.8
+#: How far the true terrain (truth_grid) reaches in x (m): beyond any terrain run's reach, the
+#: rover started at 0.8 m driving at the motors' no-load speed at THROTTLE (0.50 m/s) for 30 s.
+TRUTH_X_END = 17.0
 TERRAIN_DURATION = 30.0
 THROTTLE = 0.45
 
@@ -143,21 +150,38 @@ def mound_surface(x: np.ndarray, y: np.ndarray, rng_seed: int) -> np.ndarray:
 
 
 def truth_grid(seed: int, cell: float = 0.02) -> Grid:
-    """The true terrain as a fine grid covering the test area with a 1 m margin."""
-    xs = np.arange(TERRAIN_X[0] - 1.0, TERRAIN_X[1] + 1.0 + cell / 2, cell)
+    """The true terrain as a fine grid: the test area with a 1 m margin, to TRUTH_X_END in x."""
+    xs = np.arange(TERRAIN_X[0] - 1.0, TRUTH_X_END + cell / 2, cell)
     ys = np.arange(TERRAIN_Y[0] - 1.0, TERRAIN_Y[1] + 1.0 + cell / 2, cell)
     X, Y = np.meshgrid(xs, ys)
     return Grid(x0=float(xs[0]), y0=float(ys[0]), cell=cell, z=mound_surface(X, Y, seed))
 
 
-def lidar_scan(rng: np.random.Generator, seed: int, n_points: int = 25000, noise: float = 1.0,
-               transform: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
-    """Scattered LIDAR points (N, 3) over the test area, 5 mm vertical noise at ``noise = 1``.
+def scan_extent(path_x: np.ndarray, path_y: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The scanned rectangle (x range, y range), m: the test area, grown where needed to hold
+    the rover's whole footprint (wheel centres plus a wheel radius ahead and behind, half a wheel
+    width aside) along the path of chassis positions ``path_x``, ``path_y``."""
+    from .rover_model import rover
+    geometry = rover()
+    ahead = geometry.wheelbase / 2 + geometry.wheel_radius
+    aside = geometry.track / 2 + geometry.wheel_width / 2
+    x_range = (min(TERRAIN_X[0], float(np.min(path_x)) - ahead), max(TERRAIN_X[1], float(np.max(path_x)) + ahead))
+    y_range = (min(TERRAIN_Y[0], float(np.min(path_y)) - aside), max(TERRAIN_Y[1], float(np.max(path_y)) + aside))
+    return x_range, y_range
+
+
+def lidar_scan(rng: np.random.Generator, seed: int, noise: float = 1.0,
+               transform: Callable[[np.ndarray], np.ndarray] | None = None,
+               extent: tuple[tuple[float, float], tuple[float, float]] = (TERRAIN_X, TERRAIN_Y)) -> np.ndarray:
+    """Scattered LIDAR points (N, 3) over ``extent`` (x range, y range; default the test area) at
+    SCAN_DENSITY, 5 mm vertical noise at ``noise = 1``.
 
     ``transform`` maps true points to where the scan reports them (registration errors).
     """
-    x = rng.uniform(*TERRAIN_X, n_points)
-    y = rng.uniform(*TERRAIN_Y, n_points)
+    (x0, x1), (y0, y1) = extent
+    n_points = int(round(SCAN_DENSITY * (x1 - x0) * (y1 - y0)))
+    x = rng.uniform(x0, x1, n_points)
+    y = rng.uniform(y0, y1, n_points)
     z = mound_surface(x, y, seed) + noise * 0.005 * rng.standard_normal(n_points)
     pts = np.column_stack([x, y, z])
     return transform(pts) if transform is not None else pts
@@ -289,7 +313,8 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
         runs["t3d"] = measure(rng, sim, "terrain", noise)
         manifest_runs.append({"id": "t3d", "kind": "terrain", "file": "runs/t3d.csv",
                               "terrain": "terrain/scan.xyz"})
-        scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth))
+        scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth),
+                          extent=scan_extent(sim["x"], sim["y"]))
 
         # The name must not reveal the seed (the seed regenerates the truth).
         manifest = {"name": "juno-synthetic-campaign", "runs": manifest_runs, "rover": {}}
