@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# FMI compliance and robustness checks beyond ctest/pytest (README "Checks"),
+# FMI compliance and robustness checks beyond ctest/pytest (docs/checks.md),
 # run by scripts/test.sh after scripts/setup.sh:
 #   1. an AddressSanitizer + UndefinedBehaviorSanitizer build (clang) in
 #      build-asan/, running every ctest there (C unit tests, the conformance

@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-bash scripts/checks.sh   # sanitizers, valgrind, fuzzing, win64 (README "Checks")
+bash scripts/checks.sh   # sanitizers, valgrind, fuzzing, win64 (docs/checks.md)
 echo "== C unit tests (ctest)"
 (cd build && ctest --output-on-failure)
 echo "== Python tests (pytest)"

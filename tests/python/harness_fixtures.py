@@ -62,7 +62,7 @@ TERRAIN_TIME_SCALE = 1.0
 
 #: The paper's steady windows (s) at time_scale 1 (Petersen & McPhee 2013, Tables 1-3).
 PAPER_WINDOWS = {"dbp1": (8.0, 18.0), "dbp2": (15.0, 25.0), "dbp3": (15.0, 25.0)}
-#: Run lengths (s) at time_scale 1 (README: about 22, 35 and 32 s; terrain run 30 s).
+#: Run lengths (s) at time_scale 1 (juno.synthesize: about 22, 35 and 32 s; terrain run 30 s).
 RUN_LENGTHS = {"dbp1": 22.0, "dbp2": 35.0, "dbp3": 32.0, "t3d": 30.0}
 
 #: The main job: shortened campaign, generous time limit.
