@@ -115,18 +115,27 @@ def check_output_file(out: Optional[PathLike], inputs: Iterable[Optional[PathLik
     _check_parent_writable(p, what)
 
 
-def check_output_dir(out: Optional[PathLike], inputs: Iterable[Optional[PathLike]], what: str,
-                     marker: str, writer: str) -> None:
-    """Check a folder output that is replaced whole: not an input (nor inside or around one); new,
-    empty, or holding ``marker`` (written by ``writer`` before), in a writable directory."""
+def _folder_output(out: Optional[PathLike], inputs: Iterable[Optional[PathLike]], what: str) -> Optional[Path]:
+    """The checks every folder output shares: a path (None: no output), not an input (nor inside
+    or around one), and not an existing file or link."""
     if out is None:
-        return
+        return None
     if os.fspath(out) == "":
         raise OutputError(f"{what}: an empty path")
     check_not_an_input(out, inputs, what)
     p = Path(out)
     if p.is_symlink() or (p.exists() and not p.is_dir()):
         raise OutputError(f"{what} {os.fspath(out)} exists and is not a directory; refusing to replace it")
+    return p
+
+
+def check_output_dir(out: Optional[PathLike], inputs: Iterable[Optional[PathLike]], what: str,
+                     marker: str, writer: str) -> None:
+    """Check a folder output that is replaced whole: not an input (nor inside or around one); new,
+    empty, or holding ``marker`` (written by ``writer`` before), in a writable directory."""
+    p = _folder_output(out, inputs, what)
+    if p is None:
+        return
     if p.is_dir() and any(p.iterdir()) and not (p / marker).is_file():
         raise OutputError(f"{what} {os.fspath(out)} holds files not written by {writer}; it would be replaced "
                           "whole, so give a new or empty folder")
@@ -162,14 +171,9 @@ def check_campaign_dir(out: Optional[PathLike], inputs: Iterable[Optional[PathLi
                        overwrite: bool) -> None:
     """Check synthesize's ``OUT``: not an input; new or empty, or (with ``overwrite``) a campaign
     that ``juno synthesize`` wrote (:func:`is_synthesized_campaign`), never another folder."""
-    if out is None:
+    p = _folder_output(out, inputs, what)
+    if p is None:
         return
-    if os.fspath(out) == "":
-        raise OutputError(f"{what}: an empty path")
-    check_not_an_input(out, inputs, what)
-    p = Path(out)
-    if p.is_symlink() or (p.exists() and not p.is_dir()):
-        raise OutputError(f"{what} {os.fspath(out)} exists and is not a directory; refusing to replace it")
     if p.is_dir() and any(p.iterdir()):
         if not overwrite:
             raise OutputError(f"{what} {os.fspath(out)} exists and is not empty (use --overwrite to replace a "
