@@ -18,6 +18,12 @@ if [ ${#need_apt[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}"
 fi
 
+# The pinned packages (python_harness/requirements.txt) are built for Python 3.11 and newer.
+if ! python3 -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
+  echo "setup: Python 3.11 or newer is needed (python3 is $(python3 -V 2>&1)); install it and run again" >&2
+  exit 1
+fi
+
 stamp=.venv/.juno-requirements
 if [ ! -x .venv/bin/python ] || ! cmp -s python_harness/requirements.txt "$stamp" 2>/dev/null; then
   echo "setup: creating .venv with the pinned Python packages"
