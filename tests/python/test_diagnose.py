@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import pytest
 
-from blind_draws import DRAWS, candidates_summary, draw_and_diagnose, extension_close, hide_and_diagnose
+from blind_draws import candidates_summary, draws_for, draw_and_diagnose, extension_close, hide_and_diagnose
 
 EFFECT_IDS = ("soil_patch", "slip_sinkage", "drivetrain_loss", "terrain_offset", "multipass")
 #: Effects that another candidate can mimic so closely that the data cannot tell them apart:
@@ -38,7 +38,7 @@ MIMICKED = {"grouser": "drivetrain_loss"}
 
 @pytest.fixture(scope="module")
 def none_case(tmp_path_factory):
-    seed = DRAWS.randrange(10_000)
+    seed = draws_for("none").randrange(10_000)
     print(f"\n[diagnose] effect none, seed {seed}")
     diagnosis, _ = hide_and_diagnose(tmp_path_factory.mktemp("none"), "none", 1.0, seed)
     return diagnosis, seed

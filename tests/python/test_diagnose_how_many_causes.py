@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import pytest
 
-from blind_draws import DRAWS, candidates_summary, extension_close, hide_and_diagnose
+from blind_draws import candidates_summary, draws_for, extension_close, hide_and_diagnose
 
 
 @pytest.mark.parametrize("draw", [1])
 def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
-    """With nothing hidden, no cause is named, on further random seeds (the false-cause rate
-    over many seeds is measured by scripts/detection_rates.py; docs/diagnosis.md)."""
-    seed = DRAWS.randrange(10_000, 20_000)
+    """With nothing hidden, no cause is named, on a further seed (the false-cause rate over many
+    seeds is measured by scripts/detection_rates.py; docs/diagnosis.md)."""
+    seed = draws_for(f"none, draw {draw}").randrange(10_000, 20_000)
     print(f"\n[diagnose] effect none, seed {seed}")
     diagnosis, _ = hide_and_diagnose(tmp_path, "none", 1.0, seed)
     assert diagnosis["cause"] == "none" and diagnosis["causes"] == [], \
@@ -52,8 +52,9 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
     fits its training blocks better (diagnose.choose_terrain_drive), without which some draws
     named the loss alone; and a runner-up within NEAR_TIE of the leader gets its own second
     round (diagnose.first_cause_branches)."""
-    pairs = [("drivetrain_loss", round(DRAWS.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(DRAWS.uniform(0.7, 1.0), 3))]
-    seed = DRAWS.randrange(10_000)
+    draws = draws_for("drivetrain_loss + slip_sinkage")
+    pairs = [("drivetrain_loss", round(draws.uniform(0.7, 1.0), 3)), ("slip_sinkage", round(draws.uniform(0.7, 1.0), 3))]
+    seed = draws.randrange(10_000)
     replay = "juno synthesize OUT " + " ".join(f"--effect {e} --strength {st}" for e, st in pairs) + f" --seed {seed}"
     print(f"\n[diagnose] {replay}")
     diagnosis, truth = hide_and_diagnose(tmp_path, pairs, 0.0, seed)
