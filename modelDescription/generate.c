@@ -153,7 +153,12 @@ int main(int argc, char **argv)
 #undef STR
     fputs("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n", f);
     int index = 0;
-#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) ++index; if (kind == OUTPUT) fprintf(f, "      <Unknown index=\"%d\"/>\n", index);
+    /* dependencies="": no output depends directly on an input.  Outputs are the values the
+     * model stored at the end of the last step (model_get_real reads a field, computes
+     * nothing), so setting an input changes no output until the next fmi2DoStep.  Without the
+     * attribute an importer must assume every output depends on every input and sees
+     * algebraic loops that do not exist. */
+#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) ++index; if (kind == OUTPUT) fprintf(f, "      <Unknown index=\"%d\" dependencies=\"\"/>\n", index);
 #define INT(vr, name, kind, start, lo, hi, field, desc) ++index;
 #define STR(vr, name, kind, start, field, desc) ++index;
     JUNO_VARIABLES
