@@ -101,6 +101,10 @@ static const struct { const char *name, *base; } units[] = {
     {"N/m^(n+1)", NULL}, {"N/m^(n+2)", NULL},
 };
 
+#ifndef JUNO_VERSION
+#error "JUNO_VERSION (the project's version) must be defined by the build"
+#endif
+
 int main(int argc, char **argv)
 {
     if (argc < 3) {
@@ -116,6 +120,8 @@ int main(int argc, char **argv)
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
         "<fmiModelDescription fmiVersion=\"2.0\" modelName=\"JunoRover\" guid=\"%s\"\n"
         "  description=\"CSA Juno rover with the volumetric wheel/soil contact model of Petersen and McPhee (2013)\"\n"
+        "  author=\"the JunoRover authors\" version=\"" JUNO_VERSION "\" copyright=\"Copyright 2026, the JunoRover authors\"\n"
+        "  license=\"BSD-2-Clause (documentation/licenses/LICENSE.txt)\"\n"
         "  generationTool=\"juno modelDescription/generate.c\" variableNamingConvention=\"structured\"\n"
         "  numberOfEventIndicators=\"0\">\n"
         "  <CoSimulation modelIdentifier=\"JunoRover\" canHandleVariableCommunicationStepSize=\"true\"\n"

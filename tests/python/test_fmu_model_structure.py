@@ -44,3 +44,16 @@ def test_changing_inputs_changes_no_output_before_the_next_step(fmu_unzipped):
         after = np.array(rover.get(names))
         changed = [n for n, a, b in zip(names, after, probed) if a != b]
         assert "torqueLeftApplied" in changed and "vx" in changed
+
+
+def test_the_fmu_says_its_licence_version_and_authors(fmu_path, fmu_unzipped):
+    """modelDescription.xml names the licence, copyright, authors and version (the harness's
+    version: one release), and the FMU carries the licence text."""
+    from pathlib import Path
+
+    import juno
+    md = read_model_description(fmu_path)
+    assert md.version == juno.__version__
+    assert md.license.startswith("BSD-2-Clause") and md.copyright and md.author
+    text = (Path(fmu_unzipped) / "documentation" / "licenses" / "LICENSE.txt").read_text()
+    assert text == (Path(__file__).resolve().parents[2] / "LICENSE").read_text()
