@@ -57,7 +57,7 @@ fi
 # ------------------------------------------- 1. sanitizers (ASan + UBSan)
 t0=$SECONDS
 echo "== checks: AddressSanitizer + UndefinedBehaviorSanitizer build (build-asan)"
-CC=clang cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DJUNO_SANITIZE=ON -DJUNO_FUZZ=ON >/dev/null
+CC=clang cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DJUNO_SANITIZE=ON -DJUNO_FUZZ=ON -DJUNO_WERROR=ON >/dev/null
 cmake --build build-asan
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
@@ -108,7 +108,7 @@ note "fuzzing: no crash, leak or timeout ($((SECONDS - t0)) s)"
 t0=$SECONDS
 echo "== checks: win64 cross build with mingw-w64 (build-win64)"
 cmake -S . -B build-win64 -G Ninja -DCMAKE_TOOLCHAIN_FILE=cmake/mingw-w64-x86_64.cmake \
-  -DCMAKE_BUILD_TYPE=Release -DJUNO_HOST_FMU_DIR="$PWD/build/fmu" >/dev/null
+  -DCMAKE_BUILD_TYPE=Release -DJUNO_WERROR=ON -DJUNO_HOST_FMU_DIR="$PWD/build/fmu" >/dev/null
 cmake --build build-win64 --target JunoRover conformance parallel fmu_win64
 expected=$(sed -n 's/^FMI2_EXPORT [^(]*[ *]\(fmi2[A-Za-z]*\)(.*/\1/p' fmu_src/fmi2.h | sort)
 exported=$(x86_64-w64-mingw32-objdump -p build-win64/JunoRover.dll |

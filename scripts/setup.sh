@@ -35,7 +35,7 @@ fi
 .venv/bin/python -m pip install -q --no-deps -e python_harness
 
 echo "setup: building the FMU"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DJUNO_WERROR="${JUNO_WERROR:-OFF}" >/dev/null
 cmake --build build
 test -f build/JunoRover.fmu
 echo "setup: done (build/JunoRover.fmu, .venv/bin/juno)"

@@ -2,6 +2,7 @@
 # Every test: set-up, then the C unit tests (ctest) and the Python suite (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export JUNO_WERROR=ON   # the tests build with warnings as errors
 bash scripts/setup.sh
 bash scripts/checks.sh   # sanitizers, valgrind, fuzzing, win64 (docs/checks.md)
 echo "== C unit tests (ctest)"
