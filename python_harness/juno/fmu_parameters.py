@@ -24,10 +24,10 @@ def fmu_variables(fmu_path: str | Path | None) -> dict[str, Any]:
     ``None`` means the default FMU (:func:`juno.simulator.default_fmu_path`)."""
     from fmpy import read_model_description
 
-    from .simulator import default_fmu_path
+    from .simulator import FMU_HINT, default_fmu_path
     path = Path(fmu_path) if fmu_path else default_fmu_path()
     if not path.is_file():
-        raise InputError("FMU not found (build it with cmake first, or give --fmu)", path)
+        raise InputError(f"FMU not found: {FMU_HINT}", path)
     try:
         md = read_model_description(str(path))
     except Exception as exc:  # a zip or XML error of a broken FMU

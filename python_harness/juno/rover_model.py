@@ -31,9 +31,11 @@ SOIL_PARAMETERS = ("soil.kh", "soil.eta", "soil.gamma", "soil.Kvx")
 def _start_values(fmu_path: str) -> dict[str, float]:
     """The numeric start values of the FMU at ``fmu_path``, by variable name (read once per path)."""
     from fmpy import read_model_description
+
+    from .simulator import FMU_HINT
     if not Path(fmu_path).is_file():
-        raise FileNotFoundError(f"{fmu_path}: FMU not found (build it with cmake first); the rover's "
-                                "constants are read from its modelDescription.xml")
+        raise FileNotFoundError(f"{fmu_path}: FMU not found (the rover's constants are read from its "
+                                f"modelDescription.xml): {FMU_HINT}")
     values = {}
     for v in read_model_description(fmu_path).modelVariables:
         if v.start is not None and v.type in ("Real", "Integer"):

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
+import fmpy
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
@@ -36,8 +37,13 @@ DEFAULT_OUTPUTS = (
 ) + tuple(f"wheel{w}.{s}" for w in WHEELS for s in WHEEL_SIGNALS)
 
 
+#: What to do when the FMU is not where it was looked for (every "FMU not found" says it).
+FMU_HINT = ("build it in the source checkout (cmake -S . -B build && cmake --build build), then give "
+            "its path with --fmu or the environment variable JUNO_FMU")
+
+
 def default_fmu_path() -> Path:
-    """Path of the FMU: $JUNO_FMU, else build/JunoRover.fmu of this checkout."""
+    """Path of the FMU: $JUNO_FMU, else build/JunoRover.fmu of the checkout this package is in."""
     env = os.environ.get("JUNO_FMU")
     if env:
         return Path(env)
@@ -105,7 +111,7 @@ class JunoFMU:
     def __init__(self, fmu_path: str | os.PathLike | None = None, solver_step: float | None = None):
         self.fmu_path = Path(fmu_path) if fmu_path else default_fmu_path()
         if not self.fmu_path.is_file():
-            raise FileNotFoundError(f"{self.fmu_path}: FMU not found (build it with cmake first)")
+            raise FileNotFoundError(f"{self.fmu_path}: FMU not found: {FMU_HINT}")
         self.model_description = read_model_description(str(self.fmu_path))
         self._tmp = tempfile.mkdtemp(prefix="juno-fmu-")
         self.unzip_dir = extract(str(self.fmu_path), unzipdir=self._tmp)
@@ -297,15 +303,12 @@ class _RawFMI:
         self.do_step = self._DO_STEP(("fmi2DoStep", dll))
 
 
-_libc = ctypes.CDLL(None)
-_libc.calloc.restype = ctypes.c_void_p
-_libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
-_libc.free.argtypes = [ctypes.c_void_p]
-
-
 def _calloc(nobj, size):
-    return _libc.calloc(nobj, size)
+    """The FMU's allocateMemory: the C library's calloc, as fmpy finds it on this platform
+    (the C runtime on Windows, libc elsewhere)."""
+    return fmpy.calloc(nobj, size)
 
 
 def _free(ptr):
-    _libc.free(ptr)
+    """The FMU's freeMemory: the C library's free (see _calloc)."""
+    fmpy.free(ptr)

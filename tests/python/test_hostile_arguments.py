@@ -143,3 +143,13 @@ def test_a_failed_task_is_named_without_an_object_repr():
     text = str(info.value)
     assert "task 0" in text and "cannot handle Opaque" in text
     assert "object at 0x" not in text and "Opaque object" not in text
+
+
+def test_a_missing_fmu_says_how_to_build_it_and_how_to_point_at_it(tmp_path, capsys):
+    """Outside the checkout (or before the build) the FMU is not found: the message says how to
+    build it and the two ways to give its path."""
+    missing = tmp_path / "JunoRover.fmu"
+    assert main(["simulate", "--fmu", str(missing), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert str(missing) in err and "cmake --build" in err and "--fmu" in err and "JUNO_FMU" in err
+    assert len(err.strip().splitlines()) == 1
