@@ -12,8 +12,20 @@ command -v cc >/dev/null || need_apt+=(gcc)
 command -v ninja >/dev/null || need_apt+=(ninja-build)
 python3 -c 'import venv, ensurepip' 2>/dev/null || need_apt+=(python3-venv)
 if [ ${#need_apt[@]} -gt 0 ]; then
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then
+    # Without root, install only through a sudo that needs no password; otherwise say exactly
+    # what is missing and stop before anything else is done.
+    if command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+      SUDO="sudo"
+    else
+      echo "setup: these Debian packages are missing: ${need_apt[*]}" >&2
+      echo "setup: install them as root, then run this again:" >&2
+      echo "  sudo apt-get update && sudo apt-get install -y ${need_apt[*]}" >&2
+      exit 1
+    fi
+  fi
   echo "setup: installing Debian packages: ${need_apt[*]}"
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}"
 fi
