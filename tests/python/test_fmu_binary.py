@@ -1,0 +1,36 @@
+"""The FMU's shared library exports every FMI 2.0 Co-Simulation function and nothing else, so
+it links beside other FMUs and importers without a clash of model symbols."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import zipfile
+
+import pytest
+
+FMI2_CS_FUNCTIONS = {
+    "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate", "fmi2FreeInstance",
+    "fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
+    "fmi2Reset", "fmi2GetReal", "fmi2GetInteger", "fmi2GetBoolean", "fmi2GetString", "fmi2SetReal",
+    "fmi2SetInteger", "fmi2SetBoolean", "fmi2SetString", "fmi2GetFMUstate", "fmi2SetFMUstate",
+    "fmi2FreeFMUstate", "fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate",
+    "fmi2GetDirectionalDerivative", "fmi2SetRealInputDerivatives", "fmi2GetRealOutputDerivatives",
+    "fmi2DoStep", "fmi2CancelStep", "fmi2GetStatus", "fmi2GetRealStatus", "fmi2GetIntegerStatus",
+    "fmi2GetBooleanStatus", "fmi2GetStringStatus",
+}
+
+
+def test_the_linux_binary_exports_exactly_the_fmi2_functions(fmu_path, tmp_path):
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm (binutils) is not installed")
+    with zipfile.ZipFile(fmu_path) as z:
+        names = [n for n in z.namelist() if n.startswith("binaries/") and n.endswith(".so")]
+        assert names == ["binaries/linux64/JunoRover.so"], names
+        z.extract(names[0], tmp_path)
+    out = subprocess.run([nm, "-D", "--defined-only", str(tmp_path / names[0])], capture_output=True, text=True,
+                         check=True).stdout
+    exported = {line.split()[-1] for line in out.splitlines() if line.split()[1:2] and line.split()[1] in "TDBR"}
+    assert exported == FMI2_CS_FUNCTIONS, (f"missing: {sorted(FMI2_CS_FUNCTIONS - exported)}; "
+                                           f"leaked: {sorted(exported - FMI2_CS_FUNCTIONS)}")
