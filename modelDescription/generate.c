@@ -1,7 +1,9 @@
 /*
- * Writes modelDescription.xml from the variable table (variables.h).
+ * Writes modelDescription.xml, or the FMU's documentation/index.html, from the
+ * variable table (variables.h), so the FMU's documentation cannot disagree with it.
  * usage: generate OUT.xml GUID SOURCE.c...   (sources listed for the
- * source-code FMU's <SourceFiles>).
+ *        source-code FMU's <SourceFiles>)
+ *        generate --html OUT.html
  */
 #include <math.h>
 #include <stdio.h>
@@ -12,6 +14,10 @@
 #define INPUT  'I'
 #define OUTPUT 'O'
 #include "variables.h"
+
+#ifndef JUNO_VERSION
+#error "JUNO_VERSION (the project's version) must be defined by the build"
+#endif
 
 static void put_escaped(FILE *f, const char *s)
 {
@@ -101,14 +107,97 @@ static const struct { const char *name, *base; } units[] = {
     {"N/m^(n+1)", NULL}, {"N/m^(n+2)", NULL},
 };
 
-#ifndef JUNO_VERSION
-#error "JUNO_VERSION (the project's version) must be defined by the build"
-#endif
+static void html_cell_number(FILE *f, double v)
+{
+    if (isfinite(v)) fprintf(f, "<td>%.6g</td>", v);
+    else fputs("<td></td>", f);
+}
+
+static void html_row(FILE *f, const char *name, int kind, const char *type, const char *unit,
+                     const char *start, double lo, double hi, const char *desc)
+{
+    fputs("<tr><td><code>", f);
+    put_escaped(f, name);
+    fprintf(f, "</code></td><td>%s</td><td>%s</td><td>", causality(kind), type);
+    put_escaped(f, unit);
+    fputs("</td><td>", f);
+    put_escaped(f, start);
+    fputs("</td>", f);
+    html_cell_number(f, lo);
+    html_cell_number(f, hi);
+    fputs("<td>", f);
+    put_escaped(f, desc);
+    fputs("</td></tr>\n", f);
+}
+
+static void html_real(FILE *f, const char *name, int kind, const char *unit, double start, double lo,
+                      double hi, const char *desc)
+{
+    char text[32] = "";
+    if (kind == PARAM || kind == INPUT) snprintf(text, sizeof text, "%.6g", start);
+    html_row(f, name, kind, "Real", unit, text, (kind == PARAM || kind == INPUT) ? lo : NAN,
+             (kind == PARAM || kind == INPUT) ? hi : NAN, desc);
+}
+
+static void html_int(FILE *f, const char *name, int kind, int start, int lo, int hi, const char *desc)
+{
+    char text[32];
+    snprintf(text, sizeof text, "%d", start);
+    html_row(f, name, kind, "Integer", "", text, lo, hi, desc);
+}
+
+/* documentation/index.html: what the model is, how to run it, and every variable. */
+static int write_html(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        perror(path);
+        return 1;
+    }
+    fputs("<!DOCTYPE html>\n<html lang=\"en\">\n<head><meta charset=\"utf-8\"><title>JunoRover</title>\n"
+          "<style>body{font-family:sans-serif;max-width:70em;margin:2em auto}table{border-collapse:collapse}"
+          "td,th{border:1px solid #ccc;padding:2px 6px;font-size:90%;vertical-align:top}</style></head>\n<body>\n"
+          "<h1>JunoRover " JUNO_VERSION "</h1>\n"
+          "<p>The CSA Juno rover (four wheels, skid steered, a rocker suspension with a transverse "
+          "differential, a drawbar hitch) on soft soil, with the volumetric wheel/soil contact model of "
+          "Petersen and McPhee, &ldquo;Experimental validation of a volumetric planetary rover wheel/soil "
+          "interaction model&rdquo;, ASME IDETC/CIE 2013, DETC2013-13486. The normal force of each wheel is "
+          "the soil's foundation stiffness times the hypervolume the rim cuts into the soil; traction follows "
+          "the slip. The rover starts in static equilibrium on flat ground, or on a 3-D terrain grid "
+          "(<code>terrain.file</code>, ESRI ASCII).</p>\n"
+          "<p><img src=\"wheel-and-drawbar.png\" alt=\"A wheel in soil under the volumetric law, and the "
+          "drawbar pull against slip\" style=\"max-width:100%\"></p>\n"
+          "<h2>Default experiment</h2>\n"
+          "<p>A 30 s drawbar pull test on flat ground at the start values: 0 to 30 s, communication step "
+          "0.01 s. <code>extra/JunoRover_ref.csv</code> holds its reference result.</p>\n"
+          "<h2>Use</h2>\n<p>FMI 2.0 Co-Simulation: variable communication step size, get, set and "
+          "serialize the FMU state, many instances per process. Inputs act from the next "
+          "<code>fmi2DoStep</code>: no output depends directly on an input. Choose the drive with "
+          "<code>drive.mode</code>: 0 torque inputs, 1 wheel-spin references (PID), 2 DC motor throttles. "
+          "Parameters outside their range are refused with a message naming them.</p>\n"
+          "<h2>Variables</h2>\n<table>\n<tr><th>name</th><th>causality</th><th>type</th><th>unit</th>"
+          "<th>start</th><th>min</th><th>max</th><th>description</th></tr>\n", f);
+#define REAL(vr, name, kind, unit, start, lo, hi, field, desc) html_real(f, name, kind, unit, start, lo, hi, desc);
+#define INT(vr, name, kind, start, lo, hi, field, desc) html_int(f, name, kind, start, lo, hi, desc);
+#define STR(vr, name, kind, start, field, desc) html_row(f, name, kind, "String", "", start, NAN, NAN, desc);
+    JUNO_VARIABLES
+#undef REAL
+#undef INT
+#undef STR
+    fputs("</table>\n<h2>Licence</h2>\n<p>BSD-2-Clause, copyright 2026, the JunoRover authors: "
+          "<a href=\"licenses/LICENSE.txt\">licenses/LICENSE.txt</a>.</p>\n</body>\n</html>\n", f);
+    if (fclose(f) != 0) {
+        perror(path);
+        return 1;
+    }
+    return 0;
+}
 
 int main(int argc, char **argv)
 {
+    if (argc == 3 && strcmp(argv[1], "--html") == 0) return write_html(argv[2]);
     if (argc < 3) {
-        fprintf(stderr, "usage: %s OUT.xml GUID [SOURCE.c...]\n", argv[0]);
+        fprintf(stderr, "usage: %s OUT.xml GUID [SOURCE.c...] | --html OUT.html\n", argv[0]);
         return 2;
     }
     FILE *f = fopen(argv[1], "w");
