@@ -42,12 +42,21 @@ FMU_HINT = ("build it in the source checkout (cmake -S . -B build && cmake --bui
             "its path with --fmu or the environment variable JUNO_FMU")
 
 
+#: Where an installed package carries its FMU (scripts/setup.sh copies the built FMU there, and
+#: pyproject.toml ships it as package data), so that ``juno`` runs outside the checkout.
+PACKAGED_FMU = Path(__file__).resolve().parent / "data" / "JunoRover.fmu"
+
+
 def default_fmu_path() -> Path:
-    """Path of the FMU: $JUNO_FMU, else build/JunoRover.fmu of the checkout this package is in."""
+    """Path of the FMU: $JUNO_FMU; else build/JunoRover.fmu of the checkout this package is in,
+    if built; else the FMU the installed package carries (PACKAGED_FMU)."""
     env = os.environ.get("JUNO_FMU")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[2] / "build" / "JunoRover.fmu"
+    checkout = Path(__file__).resolve().parents[2] / "build" / "JunoRover.fmu"
+    if checkout.is_file() or not PACKAGED_FMU.is_file():
+        return checkout
+    return PACKAGED_FMU
 
 
 class SimulationError(RuntimeError):
