@@ -34,3 +34,23 @@ def test_the_linux_binary_exports_exactly_the_fmi2_functions(fmu_path, tmp_path)
     exported = {line.split()[-1] for line in out.splitlines() if line.split()[1:2] and line.split()[1] in "TDBR"}
     assert exported == FMI2_CS_FUNCTIONS, (f"missing: {sorted(FMI2_CS_FUNCTIONS - exported)}; "
                                            f"leaked: {sorted(exported - FMI2_CS_FUNCTIONS)}")
+
+
+def test_the_linux_binary_loads_on_glibc_2_17(fmu_path, tmp_path):
+    """No symbol of the FMU needs a glibc newer than 2.17 (fmu_src/glibc_compat.h), so it loads on
+    Debian 8, Ubuntu 14.04, RHEL 7 and later, not only where it was built."""
+    objdump = shutil.which("objdump")
+    if objdump is None:
+        pytest.skip("objdump (binutils) is not installed")
+    with zipfile.ZipFile(fmu_path) as z:
+        z.extract("binaries/linux64/JunoRover.so", tmp_path)
+    out = subprocess.run([objdump, "-T", str(tmp_path / "binaries/linux64/JunoRover.so")], capture_output=True,
+                         text=True, check=True).stdout
+    needed = {}
+    for line in out.splitlines():
+        if "GLIBC_" in line:
+            version = line.split("GLIBC_")[1].split()[0].rstrip(")")
+            needed[line.split()[-1]] = tuple(int(x) for x in version.split("."))
+    assert needed, "no glibc symbols found: the check reads nothing"
+    too_new = {name: ".".join(map(str, v)) for name, v in needed.items() if v > (2, 17)}
+    assert not too_new, f"symbols needing a glibc newer than 2.17: {too_new}"
