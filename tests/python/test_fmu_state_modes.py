@@ -29,3 +29,48 @@ def test_restore_instantiated_then_stepping_state(fmu_path, fmu_unzipped):
         slave.freeFMUstate(stepping)
     finally:
         slave.freeInstance()
+
+
+def test_a_stepping_state_needs_an_initialised_instance_and_then_continues_exactly(fmu_path, fmu_unzipped):
+    """A state serialised after initialisation: a fresh instance refuses it (the terrain and what
+    initialisation loads are not in the state), the same instance once initialised takes it and
+    steps on exactly as the original did."""
+    import pytest
+    md = read_model_description(str(fmu_path))
+    x_vr = [v.valueReference for v in md.modelVariables if v.name in ("x", "vx", "z")]
+
+    def instance(name):
+        s = FMU2Slave(guid=md.guid, unzipDirectory=fmu_unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        s.instantiate()
+        return s
+
+    def initialise(s):
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+
+    original, fresh = instance("original"), instance("fresh")
+    try:
+        initialise(original)
+        for k in range(20):
+            original.doStep(k * 0.01, 0.01)
+        state = original.getFMUstate()
+        blob = original.serializeFMUstate(state)
+        original.doStep(0.2, 0.01)
+        expected = original.getReal(x_vr)
+
+        early = fresh.deSerializeFMUstate(blob)
+        with pytest.raises(Exception, match=r"fmi2SetFMUstate.*status 3"):
+            fresh.setFMUstate(early)                               # fresh: refused (fmi2Error)
+        fresh.freeFMUstate(early)
+        initialise(fresh)
+        restored = fresh.deSerializeFMUstate(blob)
+        fresh.setFMUstate(restored)                                # initialised: accepted
+        fresh.doStep(0.2, 0.01)
+        assert fresh.getReal(x_vr) == expected
+        fresh.freeFMUstate(restored)
+        original.freeFMUstate(state)
+    finally:
+        original.freeInstance()
+        fresh.freeInstance()
