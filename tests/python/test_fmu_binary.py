@@ -54,3 +54,23 @@ def test_the_linux_binary_loads_on_glibc_2_17(fmu_path, tmp_path):
     assert needed, "no glibc symbols found: the check reads nothing"
     too_new = {name: ".".join(map(str, v)) for name, v in needed.items() if v > (2, 17)}
     assert not too_new, f"symbols needing a glibc newer than 2.17: {too_new}"
+
+
+@pytest.mark.parametrize("processor, folder", [("aarch64", "aarch64-linux"), ("x86_64", "linux64"),
+                                               ("riscv64", None)])
+def test_the_binaries_folder_names_the_processor(processor, folder, tmp_path):
+    """Configured for another processor, the FMU's binaries go to that processor's folder (FMI
+    2.0.4 names for ARM), and a processor without one is refused at configure time."""
+    from pathlib import Path
+    cmake = shutil.which("cmake")
+    if cmake is None:
+        pytest.skip("cmake is not installed")
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.run([cmake, "-S", str(root), "-B", str(tmp_path / "b"), "-G", "Ninja",
+                           "-DCMAKE_SYSTEM_NAME=Linux", f"-DCMAKE_SYSTEM_PROCESSOR={processor}"],
+                          capture_output=True, text=True, timeout=300)
+    if folder is None:
+        assert proc.returncode != 0 and f"processor '{processor}'" in proc.stderr
+    else:
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert f"binaries/{folder}" in (tmp_path / "b" / "build.ninja").read_text()
