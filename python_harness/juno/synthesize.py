@@ -109,14 +109,18 @@ def hand_drawbar_force(rng: np.random.Generator, duration: float, level: float) 
 def steady_slip(fmu: JunoFMU, params: dict[str, object], load: float, throttle: float) -> float:
     """Mean slip of the four wheels over the last 6 s of a 16 s run on flat ground at a constant
     ``throttle`` (0-1), with a drawbar ``load`` (N) ramped in over the first 4 s; 1 if the load
-    stops the rover or drags it backwards (or the wheels dig in until the run fails)."""
+    stops the rover or drags it backwards, or the wheels dig in until the run fails while
+    stepping.  A run that fails before its first step (parameters refused, no initial
+    equilibrium) is not a stall: its SimulationError is raised."""
     t = np.arange(0.0, 16.0 + 1e-9, 0.05)     # inputs are held between samples: a fine staircase
     inputs = InputSignals(t, {"drawbarForce": load * np.clip(t / 4.0, 0.0, 1.0),
                               "throttleLeft": np.full(len(t), throttle), "throttleRight": np.full(len(t), throttle)})
     wheels = tuple(f"wheel{w}.slip" for w in WHEELS)
     try:
         sim = fmu.simulate(params, inputs, 16.0, 0.05, outputs=wheels + ("vx",))
-    except SimulationError:
+    except SimulationError as exc:
+        if not exc.what.startswith("simulation stopped"):   # refused or not initialised: no stall
+            raise
         return 1.0
     last = sim["time"] > 10.0
     if np.min(sim["vx"][last]) <= 0.0:

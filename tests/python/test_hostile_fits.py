@@ -249,3 +249,14 @@ def test_each_fmu_instance_keeps_its_own_messages(fmu_path):
             first.simulate({"soil.kh": -5.0}, inputs, 1.0, 0.05)
         with pytest.raises(SimulationError, match=r"soil\.eta' = 9 is outside its range"):
             second.simulate({"soil.eta": 9.0}, inputs, 1.0, 0.05)
+
+
+def test_a_drawbar_run_refused_by_the_fmu_is_an_error_not_a_stall(fmu_path):
+    """steady_slip (the telling-apart run, the heavy run's load) reads a run that fails while
+    stepping as the wheels digging in (slip 1), but a run the FMU refuses before its first step
+    is an error, never a measured stall."""
+    from juno.synthesize import steady_slip
+    with JunoFMU(fmu_path) as fmu:
+        with pytest.raises(SimulationError, match=r"soil\.kh' = -5"):
+            steady_slip(fmu, {"drive.mode": 2, "soil.kh": -5.0}, 300.0, 0.45)
+        assert 0.0 < steady_slip(fmu, {"drive.mode": 2}, 300.0, 0.45) < 1.0
