@@ -240,6 +240,14 @@ def _own(run: RunData, name: str) -> tuple[FloatArray, FloatArray, NDArray[np.in
     return run.time[ok], v[ok], np.asarray(lines)[ok]
 
 
+def _largest(run: RunData, name: str) -> tuple[float, str, FloatArray, NDArray[np.int64], int]:
+    """The largest |value| of a column's own samples, where it is ("line L (t = T s)"), the
+    values, their file lines and its index."""
+    ts, vs, lines = _own(run, name)
+    i = int(np.argmax(np.abs(vs)))
+    return abs(float(vs[i])), f"line {int(lines[i])} (t = {_g(ts[i])} s)", vs, lines, i
+
+
 def _at(ts: FloatArray, vs: FloatArray, lines: NDArray[np.int64], i: int) -> str:
     return f"{_g(vs[i])} at line {int(lines[i])} (t = {_g(ts[i])} s)"
 
@@ -307,9 +315,7 @@ def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     for name, tip in (("roll", limits.roll_tip), ("pitch", limits.pitch_tip)):
         if not run.has(name):
             continue
-        ts, vs, lines = _own(run, name)
-        i = int(np.argmax(np.abs(vs)))
-        peak = abs(float(vs[i]))
+        peak, _, vs, lines, i = _largest(run, name)
         if peak > ANGLE_ERROR:
             beyond = int(np.sum(np.abs(vs) > ANGLE_ERROR))
             hint = ": looks like degrees" if math.radians(peak) <= tip else ""
@@ -329,10 +335,7 @@ def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     for name in ("omega_left", "omega_right"):
         if not run.has(name):
             continue
-        ts, vs, lines = _own(run, name)
-        i = int(np.argmax(np.abs(vs)))
-        peak = abs(float(vs[i]))
-        where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+        peak, where, _, _, _ = _largest(run, name)
         hint = ""
         if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
             hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
@@ -359,10 +362,7 @@ def check_torques(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     for name in ("torque_left", "torque_right"):
         if not run.has(name):
             continue
-        ts, vs, lines = _own(run, name)
-        i = int(np.argmax(np.abs(vs)))
-        peak = abs(float(vs[i]))
-        where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
+        peak, where, vs, _, _ = _largest(run, name)
         if peak > error:
             out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} N m at {where}, beyond the motors' "
                                f"electrical maximum of {_g(error)} N m (twice the stall torque "
@@ -387,12 +387,9 @@ def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     name = "drawbar_force"
     if not run.has(name):
         return []
-    ts, vs, lines = _own(run, name)
-    i = int(np.argmax(np.abs(vs)))
-    peak = abs(float(vs[i]))
+    peak, where, _, _, _ = _largest(run, name)
     warn = 2.0 * TORQUE_MARGIN * limits.drive_torque / limits.wheel_radius
     error = 2.0 * limits.plugging_torque / limits.wheel_radius
-    where = f"line {int(lines[i])} (t = {_g(ts[i])} s)"
     if peak > error:
         return [Finding("error", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond the {_g(error)} N "
                         "the wheels could push at the motors' electrical maximum")]
