@@ -15,24 +15,19 @@ Specification:
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
-from pathlib import Path
 
 import pytest
 
 from harness_fixtures import run_juno
+from hostile_cases import refused
 from juno.cli import main
 from juno.parallel import TaskError, map_tasks
 
 pytest_plugins = ["harness_fixtures"]
 
 CAMPAIGN_SEED = 301
-
-
-def checksums(root: Path) -> dict[str, str]:
-    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
 @pytest.fixture
@@ -50,27 +45,6 @@ def work(tmp_path, small_campaign):
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     return tmp_path
-
-
-def refused(capsys, work: Path, args: list[str], needles: list[str]) -> str:
-    """``juno ARGS`` in this process: exit 2, one clean line naming ``needles``, inputs unchanged."""
-    before = checksums(work)
-    args = [a.format(w=work) for a in args]
-    try:
-        code = main(args)
-    except SystemExit as exc:        # argparse's refusals exit
-        code = exc.code
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, f"exit code {code}, stderr:\n{err}"
-    assert len(lines) == 1, f"expected one line (refused before any work), got:\n{err}"
-    assert lines[0].startswith(f"juno {args[0]}: error: "), lines[0]
-    for needle in needles:
-        assert needle.format(w=work) in lines[0], f"the message does not name {needle!r}: {lines[0]}"
-    for bad in ("Traceback", "object at 0x", "np.float64(", "np.int64(", "array("):
-        assert bad not in err, f"{bad} in the message: {err}"
-    assert checksums(work) == before, "an input file changed"
-    return lines[0]
 
 
 # Each case: the arguments ({w}: the work folder) and what the message must name.

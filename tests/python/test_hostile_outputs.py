@@ -19,14 +19,12 @@ The commands run in this process (``juno.cli.main``) for speed; one case runs th
 
 from __future__ import annotations
 
-import hashlib
 import shutil
-from pathlib import Path
 
 import pytest
 
 from harness_fixtures import run_juno
-from juno.cli import main
+from hostile_cases import checksums, refused
 from juno.outputs import (PLOTS_MARKER, REPORT_MARKER, OutputError, check_output_dir, check_output_file,
                           is_synthesized_campaign, marked_directory)
 
@@ -34,16 +32,6 @@ pytest_plugins = ["harness_fixtures"]
 
 #: Seed of the short synthetic campaign every case starts from (a copy per test).
 CAMPAIGN_SEED = 301
-
-
-def checksums(*roots: Path) -> dict[str, str]:
-    """SHA-256 of every file below (or at) each root, keyed by its path."""
-    out = {}
-    for root in roots:
-        files = [root] if root.is_file() else sorted(p for p in root.rglob("*") if p.is_file())
-        for f in files:
-            out[str(f)] = hashlib.sha256(f.read_bytes()).hexdigest()
-    return out
 
 
 @pytest.fixture
@@ -62,24 +50,6 @@ def work(tmp_path, small_campaign, fmu_path):
     (tmp_path / "file.txt").write_text("a file, not a folder\n")
     (tmp_path / "L").symlink_to(tmp_path / "C")
     return tmp_path
-
-
-def refused_in_process(capsys, work: Path, args: list[str], needles: list[str]) -> str:
-    """Run ``juno ARGS`` (progress on) in ``work``; exit 2, one stderr line naming ``needles``,
-    every file below ``work`` unchanged."""
-    before = checksums(work)
-    args = [a.format(w=work) for a in args]
-    code = main(args)
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, f"exit code {code}, stderr:\n{err}"
-    assert len(lines) == 1, f"refused after work had started (progress printed):\n{err}"
-    assert lines[0].startswith(f"juno {args[0]}: error: "), lines[0]
-    for needle in needles:
-        assert needle.format(w=work) in lines[0], f"the message does not name {needle}: {lines[0]}"
-    assert "Traceback" not in err and "object at 0x" not in err and "np.float64(" not in err
-    assert checksums(work) == before, "an input or a user's file changed"
-    return lines[0]
 
 
 # Each case: the command and the paths its message must name ({w} is the work folder).
@@ -125,7 +95,7 @@ CASES = {
 @pytest.mark.parametrize("case", list(CASES))
 def test_an_output_that_would_destroy_a_file_is_refused_before_any_work(case, work, capsys):
     args, needles = CASES[case]
-    refused_in_process(capsys, work, args, needles)
+    refused(capsys, work, args, needles)
 
 
 def test_the_juno_command_refuses_report_over_its_campaign(work):
