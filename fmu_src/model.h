@@ -47,6 +47,7 @@ typedef struct {
     double multipass_rutFraction, multipass_khFactor;
     double slipSinkage_coefficient, grouser_thrustGain, grouser_lugHeight, drive_lossFraction;
     double terrain_offsetX, terrain_offsetY, terrain_offsetZ, terrain_offsetYaw;
+    double drive_frictionLeft, drive_frictionRight, drive_viscousFriction;   /* drivetrain friction, off at 0 */
 } Params;
 
 /* Multi-pass: each side remembers the residual rut its front wheel leaves,

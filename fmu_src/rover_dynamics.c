@@ -333,6 +333,16 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
          * torque is saturated (slope 0), where the anti-windup holds the integral. */
         if (p->drive_mode == DRIVE_PID && slope[k] != 0)
             K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
+        /* Drivetrain friction on the wheel side (drive.frictionLeft/Right: Coulomb,
+         * drive.viscousFriction: viscous), opposing the spin relative to the rocker; the
+         * measured (motor) torque does not include it.  The Coulomb part is smoothed over
+         * 0.05 rad/s (tanh) so that the implicit step sees a finite slope at rest. */
+        const double coulomb = k == SIDE_LEFT ? p->drive_frictionLeft : p->drive_frictionRight;
+        if (coulomb > 0 || p->drive_viscousFriction > 0) {
+            const double w = u[U_SPIN_L + k], th = tanh(w / 0.05);
+            ev->Q[U_SPIN_L + k] -= coulomb * th + p->drive_viscousFriction * w;
+            ev->D[U_SPIN_L + k][U_SPIN_L + k] += coulomb * (1.0 - th * th) / 0.05 + p->drive_viscousFriction;
+        }
     }
     /* Rocker differential friction. */
     ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];

@@ -113,6 +113,9 @@
     REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
     REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this") \
     REAL(188, "terrain.offsetYaw", PARAM, "rad", 0.0, -3.15, 3.15,   p.terrain_offsetYaw, "Registration: the terrain grid is rotated by this about z (about the world origin)") \
+    REAL(500, "drive.frictionLeft",  PARAM, "N.m", 0.0, 0, 400, p.drive_frictionLeft,  "Coulomb friction torque of the left drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
+    REAL(501, "drive.frictionRight", PARAM, "N.m", 0.0, 0, 400, p.drive_frictionRight, "Coulomb friction torque of the right drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
+    REAL(502, "drive.viscousFriction", PARAM, "N.m.s/rad", 0.0, 0, 1000, p.drive_viscousFriction, "Viscous friction of each side's drivetrain on the wheel side, per rad/s of wheel spin; not in the measured (motor) torque (0 = off)") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
     REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \
