@@ -14,12 +14,12 @@
 #include <stddef.h>
 #include "contact.h"
 #include "terrain.h"
+#include "wheel_soil.h"
 #include "wong_reece.h"
 
 enum { WHEEL_FL = 0, WHEEL_RL = 1, WHEEL_FR = 2, WHEEL_RR = 3, NUM_WHEELS = 4 };
 enum { SIDE_LEFT = 0, SIDE_RIGHT = 1 };
 enum { DRIVE_TORQUE = 0, DRIVE_PID = 1, DRIVE_MOTOR = 2 };
-enum { CONTACT_LAW_VOLUMETRIC = 0, CONTACT_LAW_WONG_REECE = 1 };
 
 /* Generalised velocities u (9): chassis linear velocity (world, 3),
  * chassis angular velocity (world, 3), rocker rate, left and right wheel

@@ -1,11 +1,12 @@
 /*
  * One wheel's contact with the soil (rover_internal.h): the contact frame
- * on the terrain, the slip, the normal force and its tilt from the contact
- * law (volumetric, Petersen & McPhee 2013, or Wong-Reece/Ishigami), the
- * shear, and their generalised force, damping and stiffness for the
- * linearly implicit integrator.  The model extensions that act at the
- * contact live here too: the soil patch, the multi-pass rut, slip-sinkage,
- * grousers and the terrain registration offsets.
+ * on the terrain, the rover's kinematics at the contact, and the
+ * generalised force, damping and stiffness for the linearly implicit
+ * integrator.  The force law itself (slip, normal force and tilt from
+ * the volumetric or Wong-Reece law, shear, slip-sinkage, grousers) is
+ * wheel_soil.c's, shared with the single-wheel rig.  The model extensions
+ * that depend on where the wheel is live here: the soil patch, the
+ * multi-pass rut and the terrain registration offsets.
  */
 #include <math.h>
 #include <string.h>
@@ -164,118 +165,6 @@ static double rut_depth_at(const State *s, int side, double pos)
     return sum / (2 * RUT_WINDOW_HALF + 1);
 }
 
-/* ------------------------------------------------- Wong-Reece contact */
-
-/* The Wong-Reece/Ishigami law (contact.model = 1) at one wheel, mapped onto
- * the representation the volumetric law uses (Eqns 8-9): a force Fn
- * through the hub tilted by alpha, and a traction F_long along the tilted
- * tangent at the rim point on the tilted ray, whose moment about the axle
- * is -R F_long.  With F_long = T / R (T the resisting torque) and (Fn,
- * alpha) solved from (Fx, Fz) = Rot(alpha) (F_long, Fn), the wheel gets
- * exactly WR's drawbar pull Fx along the heading, vertical load Fz along
- * the soil normal and torque -T about its axle.
- *
- * Assumptions, named (README "Contact laws"):
- *  - Direction: wong_reece_forces describes a wheel moving forwards; a
- *    wheel is described in the frame of the faster of its rim speed omega R
- *    and hub speed v (dir = the sign of that one), mirrored when dir < 0:
- *    WR slip = dir * slip, Fx and T flip sign, Fz not.
- *  - Standstill: WR is a steady rolling solution (the shear displacement j
- *    and the front-heavy stress profile both come from rolling), and at
- *    slip 0 it has T > 0 and a rolling resistance, which would make a
- *    parked rover creep.  As for the volumetric tilt (contact.h,
- *    contact_rolling_factor), below slipVelocityEps they fade: the rolling
- *    resistance Fx - T/R is scaled by clamp(v / eps, -1, 1) (it always
- *    opposes the motion) and the traction loses (1 - b) of its zero-slip
- *    part, F_long = (T(s) - (1 - b) T(0)) / R with b = min(1, max(|omega R|,
- *    |v|) / eps); at rest only the slip-proportional (viscous) shear is
- *    left.  At speed >= eps, WR exactly.
- *  - soilPatch.strengthFactor and grouser.thrustGain scale the traction
- *    T / R (WR's shear stress scales with c and tan phi); their smaller
- *    share in Fz and in the rolling resistance is not scaled.  The k_h
- *    factors (soilPatch.khFactor, multipass.khFactor, slipSinkage) are
- *    volumetric-only; the multi-pass rut depth (geometry) applies.
- *  - When T / R exceeds the in-plane resultant (only at sub-millimetre
- *    sinkage, where WR's cohesion can pull the wheel down), the moment is
- *    limited to R times the resultant (Fn = 0).
- * For the linearly implicit integrator it also returns slip derivatives of
- * the applied forces (a one-sided difference of 1e-3 in slip, 0 where the
- * WR slip is clamped at +-1) and dFz/d(sinkage) (a difference of 1e-3 of
- * the sinkage, 1 um at least), checked against a 20000-point reference in
- * tests/c/test_wong_reece.c.  The speed dependence of the fading factors
- * b and c is left out of the damping, as that of the volumetric rolling
- * factor is. */
-typedef struct {
-    double Fn, sin_alpha, cos_alpha, F_long;   /* the Eqn 8-9 representation */
-    double Fx, Fz;                             /* applied along the heading and the soil normal, N */
-    double area;                               /* b r (sin theta_f - sin theta_r), m^2 */
-    double dFx_ds, dFz_ds, dFt_ds;             /* derivatives in the rover's slip, N */
-    double kz;                                 /* dFz / d(sinkage), N/m */
-} WongReeceContact;
-
-static void wong_reece_contact(const Model *m, double sinkage, double slip, double v_long, double omega_r,
-                               double shear_factor, int derivatives, WongReeceContact *out)
-{
-    const WongReeceModel *wm = &m->d.wong_reece;
-    const double R = wm->radius, eps = m->p.contact_slipVelocityEps;
-    const double dir = (fabs(omega_r) >= fabs(v_long) ? omega_r : v_long) < 0 ? -1.0 : 1.0;
-    const double speed = fmax(fabs(omega_r), fabs(v_long));
-    const double b = speed < eps ? speed / eps : 1.0;
-    const double c = v_long >= eps ? 1.0 : v_long <= -eps ? -1.0 : v_long / eps;
-    const double s = dir * slip;
-
-    WRForces f;
-    wong_reece_forces(wm, sinkage, s, &f);
-    double T0 = 0.0;
-    if (b < 1.0) {
-        WRForces f0;
-        wong_reece_forces(wm, sinkage, 0.0, &f0);
-        T0 = f0.T;
-    }
-    /* applied forces along the heading and the soil normal, and the traction */
-    const double Ft = shear_factor * dir * (f.T - (1.0 - b) * T0) / R;
-    const double Hx = c * (f.Fx - f.T / R);            /* rolling resistance, regularised */
-    out->Fx = Ft + Hx;
-    out->Fz = f.Fz;
-    out->area = wm->width * R * (sin(f.theta_f) - sin(f.theta_r));
-
-    /* (Fx + i Fz) = e^{i alpha} (F_long + i Fn) */
-    const double F2 = out->Fx * out->Fx + out->Fz * out->Fz;
-    double Fl = Ft, Fn2 = F2 - Ft * Ft;
-    if (!(Fn2 > 0.0)) {
-        Fn2 = 0.0;
-        Fl = copysign(sqrt(F2), Ft);
-    }
-    out->F_long = Fl;
-    out->Fn = sqrt(Fn2);
-    if (F2 > 0.0) {
-        out->cos_alpha = (out->Fx * Fl + out->Fz * out->Fn) / F2;
-        out->sin_alpha = (out->Fz * Fl - out->Fx * out->Fn) / F2;
-    } else {
-        out->cos_alpha = 1.0;
-        out->sin_alpha = 0.0;
-    }
-
-    out->dFx_ds = out->dFz_ds = out->dFt_ds = out->kz = 0.0;
-    if (!derivatives) return;
-    if (f.slip > -1.0 && f.slip < 1.0) {
-        const double ds = f.slip + 1e-3 <= 1.0 ? 1e-3 : -1e-3;
-        WRForces g;
-        wong_reece_forces(wm, sinkage, f.slip + ds, &g);
-        const double dT = (g.T - f.T) / ds, dFx = (g.Fx - f.Fx) / ds, dFz = (g.Fz - f.Fz) / ds;
-        /* d/d(slip) = dir d/ds (s = dir slip), and dir^2 = 1 */
-        out->dFt_ds = shear_factor * dT / R;
-        out->dFx_ds = out->dFt_ds + c * dir * (dFx - dT / R);
-        out->dFz_ds = dir * dFz;
-    }
-    if (f.sinkage > 0.0 && f.sinkage < R) {
-        const double dh = fmax(1e-3 * f.sinkage, 1e-6);
-        WRForces g;
-        wong_reece_forces(wm, f.sinkage + dh, f.slip, &g);
-        out->kz = (g.Fz - f.Fz) / dh;
-    }
-}
-
 /* ---------------------------------------------------- one wheel's contact */
 
 /* Where wheel w meets the soil.  Assumption: the soil is locally a plane
@@ -287,16 +176,14 @@ typedef struct {
     double in_plane;               /* length of n within the mid-plane before normalising */
     double f[3];                   /* heading in the contact plane */
     double l[3];                   /* lateral direction, n x f */
-    double kh_factor, strength_factor;   /* soil patch, multi-pass, slip-sinkage */
-    double spin, omega_r, den;     /* wheel spin about its axle (rad/s), omega R, slip denominator (m/s) */
-    double shear_factor;           /* F_taumax scaling: patch strength and grouser thrust */
 } ContactFrame;
 
-/* The contact frame, the sinkage (with a rear wheel's rut) and the forward
- * speed into wc.  Returns 1 if the wheel is in the soil, 0 if not (then
- * the slip, forces and the rest of wc stay 0). */
+/* The contact frame, the sinkage (with a rear wheel's rut), the local soil
+ * factors and the forward speed into cf and in (v_long also into wc).
+ * Returns 1 if the wheel is in the soil, 0 if not (then the slip, forces
+ * and the rest of wc stay 0). */
 static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], int sp, WheelContact *wc,
-                         ContactFrame *cf)
+                         ContactFrame *cf, WheelSoilInput *in)
 {
     const Params *p = &m->p;
     const double R = m->d.contact.radius;
@@ -309,125 +196,54 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
     if (cf->in_plane < 1e-6) return 0;                 /* wheel lying on its side */
     v3_scale(cf->np, cf->np, 1.0 / cf->in_plane);
     double sinkage = R - hub_height / cf->in_plane;
-    soil_factors(p, H[0], H[1], &cf->kh_factor, &cf->strength_factor);
+    soil_factors(p, H[0], H[1], &in->kh_factor, &in->strength_factor);
     if (w % 2 == 1 && p->multipass_rutFraction > 0) {
         /* A rear wheel rolls in its front wheel's rut, on compacted soil. */
         const double rut = p->multipass_rutFraction *
                            rut_depth_at(&m->s, side_of(w), m->s.path[side_of(w)] - p->rover_wheelbase);
         sinkage -= rut;
-        cf->kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + 0.002);
+        in->kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + 0.002);
     }
     wc->sinkage = sinkage;
+    in->sinkage = sinkage;
     v3_cross(cf->f, ev->e, cf->np);
     v3_cross(cf->l, cf->n, cf->f);
     v3_normalize(cf->l);
     double vh[3] = {0, 0, 0};
     for (int i = 0; i < 3; ++i) vh[i] = point_row_dot(Jh, i, m->s.u, sp);
     wc->v_long = v3_dot(cf->f, vh);
+    in->v_long = wc->v_long;
     return !(sinkage <= 0);               /* a NaN sinkage goes on, to be caught as a diverged state */
 }
 
-/* The slip of a wheel in the soil, and the soil factors that depend on it. */
-static void contact_slip(const Model *m, const Eval *ev, double Jw[3][NU], int sp, WheelContact *wc,
-                         ContactFrame *cf)
+/* The wheel's spin about its axle (rad/s), from the rover's velocities. */
+static double wheel_spin(const Model *m, const Eval *ev, double Jw[3][NU], int sp)
 {
-    const Params *p = &m->p;
-    const ContactModel *cm = &m->d.contact;
     double wheel_omega[3];
     for (int i = 0; i < 3; ++i) wheel_omega[i] = angular_row_dot(Jw, i, m->s.u, sp);
-    cf->spin = v3_dot(wheel_omega, ev->e);
-    cf->omega_r = cm->radius * cf->spin;
-    cf->den = fmax(fmax(fabs(cf->omega_r), fabs(wc->v_long)), cm->slip_v_eps);
-    wc->slip = (cf->omega_r - wc->v_long) / cf->den;
-    if (p->slipSinkage_coefficient > 0)       /* the soil under a slipping wheel yields: it digs in */
-        cf->kh_factor /= 1.0 + p->slipSinkage_coefficient * fmin(fabs(wc->slip), 1.0);
-    cf->shear_factor = cf->strength_factor * (1.0 + p->grouser_thrustGain);
+    return v3_dot(wheel_omega, ev->e);
 }
 
-/* The normal force Fn, its tilt alpha (Eqns 6-9), the contact area and
- * the normal stiffness, from the contact law. */
+/* The rim (or lug tip) point the shear acts on and the directions of the
+ * contact force (wheel_soil.h), in world coordinates. */
 typedef struct {
-    int wong_reece;                /* contact.model = 1 */
-    WongReeceContact wr;           /* that law's result (wong_reece only) */
-    double Fn, sa, ca;             /* N; sin and cos of the tilt as applied */
-    double area;                   /* m^2 */
-    double support;                /* normal load of the shear law, N */
-    double kn;                     /* normal stiffness, N/m */
-} NormalForce;
-
-static void normal_force(const Model *m, int w, const WheelContact *wc, const ContactFrame *cf, int matrices,
-                         NormalForce *nf)
-{
-    const ContactModel *cm = &m->d.contact;
-    memset(nf, 0, sizeof *nf);
-    nf->wong_reece = m->p.contact_model == CONTACT_LAW_WONG_REECE;
-    if (nf->wong_reece) {
-        wong_reece_contact(m, wc->sinkage, wc->slip, wc->v_long, cf->omega_r, cf->shear_factor, matrices, &nf->wr);
-        nf->Fn = nf->wr.Fn;
-        nf->sa = nf->wr.sin_alpha;
-        nf->ca = nf->wr.cos_alpha;
-        nf->area = nf->wr.area;
-        nf->support = nf->wr.Fz;        /* the lateral law's normal load */
-        nf->kn = nf->wr.kz;
-        return;
-    }
-    double cut_front, cut_rear;
-    contact_cuts(cm, &m->s.memory[w], wc->sinkage, &cut_front, &cut_rear);
-    ContactPatch patch;
-    contact_patch(cm, wc->sinkage, cut_front, cut_rear, &patch);
-    nf->Fn = cf->kh_factor * patch.Fn;
-    nf->area = patch.area;
-    nf->support = nf->Fn;
-    /* Normal stiffness dFn/dz at fixed cuts, from contact_patch. */
-    nf->kn = cf->kh_factor * patch.dFn_dz;
-    /* The tilt alpha times the rolling factor; the usual factors +-1 and 0
-     * need no trigonometry. */
-    const double roll = contact_rolling_factor(cm, &m->s.memory[w], wc->v_long);
-    double sa = patch.sin_alpha, ca = patch.cos_alpha;
-    if (roll == 0.0) {
-        sa = 0.0;
-        ca = 1.0;
-    } else if (roll == -1.0) {
-        sa = -sa;
-    } else if (roll != 1.0) {
-        const double alpha = roll * atan2(sa, ca);
-        sa = sin(alpha);
-        ca = cos(alpha);
-    }
-    nf->sa = sa;
-    nf->ca = ca;
-}
-
-/* The directions of the contact force and the rim point the shear acts
- * on.  Grouser lugs (grouser.lugHeight h, volumetric law only): the soil
- * between the lugs turns with the wheel, so the shear surface is the lug
- * tips' circle, h beyond the rim the normal law presses on.  The shear's
- * slip velocity is omega (R + h) - v and its moment about the axle (R + h)
- * F_t: more torque per unit of thrust, and thrust already at omega R = v.
- * Assumption: the pressure (Fn, its tilt, the contact area) stays that of
- * the rim of radius R.  With h = 0, shear_radius is R exactly. */
-typedef struct {
-    double shear_radius;           /* m */
     double nvec[3];                /* Eqn 6: from the centroid towards the hub */
     double t[3];                   /* tangential direction of Eqns 8-9 */
     double Jp[3][NU];              /* velocity Jacobian of the rim (or lug tip) point on the centroid ray */
-    double jac[6];                 /* d(F_long, F_lat) / d(v_long, v_lat, omega R) */
+    double jac[6];                 /* d(F_long, F_lat) / d(v_long, v_lat, omega (R + h)) */
 } ShearGeometry;
 
 /* The shear forces and the wheel's total force into wc. */
-static void contact_forces(const Model *m, double Jh[3][NU], double Jw[3][NU], int sp,
-                           const ContactFrame *cf, const NormalForce *nf, int matrices, WheelContact *wc,
-                           ShearGeometry *sg)
+static void contact_forces(const Model *m, const WheelSoil *ws, double Jh[3][NU], double Jw[3][NU], int sp,
+                           const ContactFrame *cf, const WheelSoilInput *in, const WheelSoilContact *sc,
+                           int matrices, WheelContact *wc, ShearGeometry *sg)
 {
-    const ContactModel *cm = &m->d.contact;
-    const double R = cm->radius, sa = nf->sa, ca = nf->ca;
-    sg->shear_radius = nf->wong_reece ? R : R + m->p.grouser_lugHeight;
-    const double omega_shear = sg->shear_radius * cf->spin;
+    const double sa = sc->sin_alpha, ca = sc->cos_alpha;
     double r_rim[3];
     for (int i = 0; i < 3; ++i) {
         sg->nvec[i] = -sa * cf->f[i] + ca * cf->np[i];
         sg->t[i] = ca * cf->f[i] + sa * cf->np[i];
-        r_rim[i] = -sg->shear_radius * sg->nvec[i];
+        r_rim[i] = -sc->shear_radius * sg->nvec[i];
     }
     /* The shear acts on the rim where the centroid ray meets it, so its
      * moment about the axle is exactly -R F_t (-(R + h) F_t with lugs) and
@@ -438,37 +254,19 @@ static void contact_forces(const Model *m, double Jh[3][NU], double Jw[3][NU], i
     for (int i = 0; i < 3; ++i) v_rim[i] = point_row_dot(sg->Jp, i, m->s.u, sp);
     const double v_lat = v3_dot(cf->l, v_rim);
     double F_long, F_lat;
-    double *jac = sg->jac;
-    contact_shear(cm, nf->support, nf->area, wc->v_long, v_lat, omega_shear, &F_long, &F_lat,
-                  matrices ? jac : NULL);
-    if (cf->shear_factor != 1.0) {       /* soil patch strength, grouser thrust: F_taumax scales */
-        F_long *= cf->shear_factor;
-        F_lat *= cf->shear_factor;
-        if (matrices)
-            for (int i = 0; i < 6; ++i) jac[i] *= cf->shear_factor;
-    }
-    if (nf->wong_reece) {
-        /* Assumption: Wong-Reece has no lateral force; the lateral one is
-         * the volumetric slip-vector law's (combined slip, soil.Kvx,
-         * soil.KvyRatio) with F_taumax from WR's normal load and contact
-         * area.  The traction along the heading is WR's (its damping is
-         * added in contact_matrices, so the law's own longitudinal
-         * Jacobian row goes). */
-        F_long = nf->wr.F_long;
-        if (matrices) jac[0] = jac[1] = jac[2] = 0.0;
-    }
-    wc->Fn = nf->Fn;
+    wheel_soil_shear(ws, sc, in, v_lat, &F_long, &F_lat, matrices ? sg->jac : NULL);
+    wc->Fn = sc->Fn;
     wc->F_long = F_long;
     wc->F_lat = F_lat;
     wc->sin_alpha = sa;
     wc->cos_alpha = ca;
-    for (int i = 0; i < 3; ++i) wc->force[i] = nf->Fn * sg->nvec[i] + F_long * sg->t[i] + F_lat * cf->l[i];
+    for (int i = 0; i < 3; ++i) wc->force[i] = sc->Fn * sg->nvec[i] + F_long * sg->t[i] + F_lat * cf->l[i];
 }
 
 /* The contact's generalised force (Q), damping (D = -dQ/du of the shear)
  * and stiffness (K = -dQ/dq of the normal force). */
 static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double Jw[3][NU], int sp,
-                             const ContactFrame *cf, const NormalForce *nf, ShearGeometry *sg,
+                             const ContactFrame *cf, const WheelSoilContact *sc, ShearGeometry *sg,
                              const WheelContact *wc)
 {
     const ContactModel *cm = &m->d.contact;
@@ -479,7 +277,7 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
     point_vec_times_jac(g_long, cf->f, Jh, sp);
     point_vec_times_jac(g_lat, cf->l, sg->Jp, sp);
     angular_vec_times_jac(e_row, ev->e, Jw, sp);
-    for (int k = 0; k < NU; ++k) g_spin[k] = sg->shear_radius * e_row[k];
+    for (int k = 0; k < NU; ++k) g_spin[k] = sc->shear_radius * e_row[k];
     point_vec_times_jac(a_t, sg->t, sg->Jp, sp);
     double dFl[NU], dFy[NU];
     for (int k = 0; k < NU; ++k) {
@@ -503,27 +301,27 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
     point_vec_times_jac(a_s, cf->n, Jh, sp);
     for (int k = 0; k < NU; ++k) a_s[k] /= cf->in_plane;
     double a_n[NU];
-    if (nf->wong_reece) {
+    if (sc->wong_reece) {
         /* Slip damping of WR's in-plane forces: Q = Jh^T (Fx f + Fz np) -
          * T e^T Jw depends on u through the slip s = (omega R - v) / den. */
         double a_z[NU], dQ_ds[NU], ds_du[NU];
         point_vec_times_jac(a_z, cf->np, Jh, sp);
-        const double aw = fabs(cf->omega_r), av = fabs(wc->v_long);
+        const double aw = fabs(sc->omega_r), av = fabs(wc->v_long);
         double dden_dv = 0.0, dden_dw = 0.0;
-        if (aw >= av && aw >= cm->slip_v_eps) dden_dw = cf->omega_r > 0.0 ? 1.0 : -1.0;
+        if (aw >= av && aw >= cm->slip_v_eps) dden_dw = sc->omega_r > 0.0 ? 1.0 : -1.0;
         else if (av >= cm->slip_v_eps) dden_dv = wc->v_long > 0.0 ? 1.0 : -1.0;
-        const double ds_dv = (-1.0 - wc->slip * dden_dv) / cf->den, ds_dw = (1.0 - wc->slip * dden_dw) / cf->den;
+        const double ds_dv = (-1.0 - sc->slip * dden_dv) / sc->den, ds_dw = (1.0 - sc->slip * dden_dw) / sc->den;
         for (int k = 0; k < NU; ++k) {
-            dQ_ds[k] = g_long[k] * nf->wr.dFx_ds + a_z[k] * nf->wr.dFz_ds - g_spin[k] * nf->wr.dFt_ds;
+            dQ_ds[k] = g_long[k] * sc->wr.dFx_ds + a_z[k] * sc->wr.dFz_ds - g_spin[k] * sc->wr.dFt_ds;
             ds_du[k] = ds_dv * g_long[k] + ds_dw * g_spin[k];
         }
         add_outer(ev->D, dQ_ds, -1.0, ds_du);
         /* Normal stiffness: dFz along the soil normal per unit of sinkage. */
-        add_outer(ev->K, a_z, nf->kn, a_s);
+        add_outer(ev->K, a_z, sc->kn, a_s);
         return;
     }
     point_vec_times_jac(a_n, sg->nvec, Jh, sp);
-    add_outer(ev->K, a_n, nf->kn, a_s);
+    add_outer(ev->K, a_n, sc->kn, a_s);
 }
 
 void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
@@ -536,12 +334,17 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     wc->cos_alpha = 1.0;
 
     ContactFrame cf;
-    if (!contact_frame(m, ev, w, Jh, sp, wc, &cf)) return;
+    WheelSoilInput in;
+    if (!contact_frame(m, ev, w, Jh, sp, wc, &cf, &in)) return;
     wc->in_contact = 1;
-    contact_slip(m, ev, Jw, sp, wc, &cf);
-    NormalForce nf;
-    normal_force(m, w, wc, &cf, matrices, &nf);
+    const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
+                          m->p.grouser_thrustGain, m->p.grouser_lugHeight};
+    in.spin = wheel_spin(m, ev, Jw, sp);
+    WheelSoilContact sc;
+    wheel_soil_slip(&ws, &in, &sc);
+    wc->slip = sc.slip;
+    wheel_soil_normal(&ws, &m->s.memory[w], &in, matrices, &sc);
     ShearGeometry sg;
-    contact_forces(m, Jh, Jw, sp, &cf, &nf, matrices, wc, &sg);
-    if (matrices) contact_matrices(m, ev, Jh, Jw, sp, &cf, &nf, &sg, wc);
+    contact_forces(m, &ws, Jh, Jw, sp, &cf, &in, &sc, matrices, wc, &sg);
+    if (matrices) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
 }

@@ -1,0 +1,200 @@
+/*
+ * The soil's force on one rigid wheel (wheel_soil.h): the slip, the
+ * normal force and its tilt from the contact law (volumetric, Petersen &
+ * McPhee 2013, or Wong-Reece/Ishigami), the slip-vector shear, and the
+ * extensions that act at the contact (slip-sinkage, grousers).
+ */
+#include <math.h>
+
+#include "wheel_soil.h"
+
+/* ------------------------------------------------- Wong-Reece contact */
+
+/* The Wong-Reece/Ishigami law (contact.model = 1) at one wheel, mapped onto
+ * the representation the volumetric law uses (Eqns 8-9): a force Fn
+ * through the hub tilted by alpha, and a traction F_long along the tilted
+ * tangent at the rim point on the tilted ray, whose moment about the axle
+ * is -R F_long.  With F_long = T / R (T the resisting torque) and (Fn,
+ * alpha) solved from (Fx, Fz) = Rot(alpha) (F_long, Fn), the wheel gets
+ * exactly WR's drawbar pull Fx along the heading, vertical load Fz along
+ * the soil normal and torque -T about its axle.
+ *
+ * Assumptions, named (README "Contact laws"):
+ *  - Direction: wong_reece_forces describes a wheel moving forwards; a
+ *    wheel is described in the frame of the faster of its rim speed omega R
+ *    and hub speed v (dir = the sign of that one), mirrored when dir < 0:
+ *    WR slip = dir * slip, Fx and T flip sign, Fz not.
+ *  - Standstill: WR is a steady rolling solution (the shear displacement j
+ *    and the front-heavy stress profile both come from rolling), and at
+ *    slip 0 it has T > 0 and a rolling resistance, which would make a
+ *    parked rover creep.  As for the volumetric tilt (contact.h,
+ *    contact_rolling_factor), below slipVelocityEps they fade: the rolling
+ *    resistance Fx - T/R is scaled by clamp(v / eps, -1, 1) (it always
+ *    opposes the motion) and the traction loses (1 - b) of its zero-slip
+ *    part, F_long = (T(s) - (1 - b) T(0)) / R with b = min(1, max(|omega R|,
+ *    |v|) / eps); at rest only the slip-proportional (viscous) shear is
+ *    left.  At speed >= eps, WR exactly.
+ *  - soilPatch.strengthFactor and grouser.thrustGain scale the traction
+ *    T / R (WR's shear stress scales with c and tan phi); their smaller
+ *    share in Fz and in the rolling resistance is not scaled.  The k_h
+ *    factors (soilPatch.khFactor, multipass.khFactor, slipSinkage) are
+ *    volumetric-only; the multi-pass rut depth (geometry) applies.
+ *  - When T / R exceeds the in-plane resultant (only at sub-millimetre
+ *    sinkage, where WR's cohesion can pull the wheel down), the moment is
+ *    limited to R times the resultant (Fn = 0).
+ * For a linearly implicit integrator it also returns slip derivatives of
+ * the applied forces (a one-sided difference of 1e-3 in slip, 0 where the
+ * WR slip is clamped at +-1) and dFz/d(sinkage) (a difference of 1e-3 of
+ * the sinkage, 1 um at least), checked against a 20000-point reference in
+ * tests/c/test_wong_reece.c.  The speed dependence of the fading factors
+ * b and c is left out of the damping, as that of the volumetric rolling
+ * factor is. */
+static void wong_reece_contact(const WheelSoil *ws, double sinkage, double slip, double v_long, double omega_r,
+                               double shear_factor, int derivatives, WongReeceContact *out)
+{
+    const WongReeceModel *wm = ws->wong_reece;
+    const double R = wm->radius, eps = ws->contact->slip_v_eps;
+    const double dir = (fabs(omega_r) >= fabs(v_long) ? omega_r : v_long) < 0 ? -1.0 : 1.0;
+    const double speed = fmax(fabs(omega_r), fabs(v_long));
+    const double b = speed < eps ? speed / eps : 1.0;
+    const double c = v_long >= eps ? 1.0 : v_long <= -eps ? -1.0 : v_long / eps;
+    const double s = dir * slip;
+
+    WRForces f;
+    wong_reece_forces(wm, sinkage, s, &f);
+    double T0 = 0.0;
+    if (b < 1.0) {
+        WRForces f0;
+        wong_reece_forces(wm, sinkage, 0.0, &f0);
+        T0 = f0.T;
+    }
+    /* applied forces along the heading and the soil normal, and the traction */
+    const double Ft = shear_factor * dir * (f.T - (1.0 - b) * T0) / R;
+    const double Hx = c * (f.Fx - f.T / R);            /* rolling resistance, regularised */
+    out->Fx = Ft + Hx;
+    out->Fz = f.Fz;
+    out->area = wm->width * R * (sin(f.theta_f) - sin(f.theta_r));
+
+    /* (Fx + i Fz) = e^{i alpha} (F_long + i Fn) */
+    const double F2 = out->Fx * out->Fx + out->Fz * out->Fz;
+    double Fl = Ft, Fn2 = F2 - Ft * Ft;
+    if (!(Fn2 > 0.0)) {
+        Fn2 = 0.0;
+        Fl = copysign(sqrt(F2), Ft);
+    }
+    out->F_long = Fl;
+    out->Fn = sqrt(Fn2);
+    if (F2 > 0.0) {
+        out->cos_alpha = (out->Fx * Fl + out->Fz * out->Fn) / F2;
+        out->sin_alpha = (out->Fz * Fl - out->Fx * out->Fn) / F2;
+    } else {
+        out->cos_alpha = 1.0;
+        out->sin_alpha = 0.0;
+    }
+
+    out->dFx_ds = out->dFz_ds = out->dFt_ds = out->kz = 0.0;
+    if (!derivatives) return;
+    if (f.slip > -1.0 && f.slip < 1.0) {
+        const double ds = f.slip + 1e-3 <= 1.0 ? 1e-3 : -1e-3;
+        WRForces g;
+        wong_reece_forces(wm, sinkage, f.slip + ds, &g);
+        const double dT = (g.T - f.T) / ds, dFx = (g.Fx - f.Fx) / ds, dFz = (g.Fz - f.Fz) / ds;
+        /* d/d(slip) = dir d/ds (s = dir slip), and dir^2 = 1 */
+        out->dFt_ds = shear_factor * dT / R;
+        out->dFx_ds = out->dFt_ds + c * dir * (dFx - dT / R);
+        out->dFz_ds = dir * dFz;
+    }
+    if (f.sinkage > 0.0 && f.sinkage < R) {
+        const double dh = fmax(1e-3 * f.sinkage, 1e-6);
+        WRForces g;
+        wong_reece_forces(wm, f.sinkage + dh, f.slip, &g);
+        out->kz = (g.Fz - f.Fz) / dh;
+    }
+}
+
+/* ------------------------------------------------------------ the stages */
+
+void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilContact *c)
+{
+    const ContactModel *cm = ws->contact;
+    c->omega_r = cm->radius * in->spin;
+    c->den = fmax(fmax(fabs(c->omega_r), fabs(in->v_long)), cm->slip_v_eps);
+    c->slip = (c->omega_r - in->v_long) / c->den;
+    c->kh_factor = in->kh_factor;
+    if (ws->slip_sinkage > 0)       /* the soil under a slipping wheel yields: it digs in */
+        c->kh_factor /= 1.0 + ws->slip_sinkage * fmin(fabs(c->slip), 1.0);
+    c->shear_factor = in->strength_factor * (1.0 + ws->thrust_gain);
+    /* Grouser lugs (grouser.lugHeight h, volumetric law only): the soil
+     * between the lugs turns with the wheel, so the shear surface is the lug
+     * tips' circle, h beyond the rim the normal law presses on.  The shear's
+     * slip velocity is omega (R + h) - v and its moment about the axle (R + h)
+     * F_t: more torque per unit of thrust, and thrust already at omega R = v.
+     * Assumption: the pressure (Fn, its tilt, the contact area) stays that of
+     * the rim of radius R.  With h = 0, shear_radius is R exactly. */
+    c->shear_radius = ws->law == CONTACT_LAW_WONG_REECE ? cm->radius : cm->radius + ws->lug_height;
+}
+
+void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const WheelSoilInput *in,
+                       int derivatives, WheelSoilContact *c)
+{
+    const ContactModel *cm = ws->contact;
+    c->wong_reece = ws->law == CONTACT_LAW_WONG_REECE;
+    if (c->wong_reece) {
+        wong_reece_contact(ws, in->sinkage, c->slip, in->v_long, c->omega_r, c->shear_factor, derivatives, &c->wr);
+        c->Fn = c->wr.Fn;
+        c->sin_alpha = c->wr.sin_alpha;
+        c->cos_alpha = c->wr.cos_alpha;
+        c->area = c->wr.area;
+        c->support = c->wr.Fz;        /* the lateral law's normal load */
+        c->kn = c->wr.kz;
+        return;
+    }
+    double cut_front, cut_rear;
+    contact_cuts(cm, mem, in->sinkage, &cut_front, &cut_rear);
+    ContactPatch patch;
+    contact_patch(cm, in->sinkage, cut_front, cut_rear, &patch);
+    c->Fn = c->kh_factor * patch.Fn;
+    c->area = patch.area;
+    c->support = c->Fn;
+    /* Normal stiffness dFn/dz at fixed cuts, from contact_patch. */
+    c->kn = c->kh_factor * patch.dFn_dz;
+    /* The tilt alpha times the rolling factor; the usual factors +-1 and 0
+     * need no trigonometry. */
+    const double roll = contact_rolling_factor(cm, mem, in->v_long);
+    double sa = patch.sin_alpha, ca = patch.cos_alpha;
+    if (roll == 0.0) {
+        sa = 0.0;
+        ca = 1.0;
+    } else if (roll == -1.0) {
+        sa = -sa;
+    } else if (roll != 1.0) {
+        const double alpha = roll * atan2(sa, ca);
+        sa = sin(alpha);
+        ca = cos(alpha);
+    }
+    c->sin_alpha = sa;
+    c->cos_alpha = ca;
+}
+
+void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const WheelSoilInput *in, double v_lat,
+                      double *F_long, double *F_lat, double *jac)
+{
+    const double omega_shear = c->shear_radius * in->spin;
+    contact_shear(ws->contact, c->support, c->area, in->v_long, v_lat, omega_shear, F_long, F_lat, jac);
+    if (c->shear_factor != 1.0) {       /* soil patch strength, grouser thrust: F_taumax scales */
+        *F_long *= c->shear_factor;
+        *F_lat *= c->shear_factor;
+        if (jac)
+            for (int i = 0; i < 6; ++i) jac[i] *= c->shear_factor;
+    }
+    if (c->wong_reece) {
+        /* Assumption: Wong-Reece has no lateral force; the lateral one is
+         * the volumetric slip-vector law's (combined slip, soil.Kvx,
+         * soil.KvyRatio) with F_taumax from WR's normal load and contact
+         * area.  The traction along the heading is WR's (its slip
+         * derivatives are c->wr.dF*_ds, so the law's own longitudinal
+         * Jacobian row goes). */
+        *F_long = c->wr.F_long;
+        if (jac) jac[0] = jac[1] = jac[2] = 0.0;
+    }
+}

@@ -1,0 +1,107 @@
+/*
+ * The soil's force on one rigid wheel, independent of the vehicle and of
+ * any frame: what the rover (rover_wheel_contact.c, four wheels on a
+ * terrain) and the single-wheel test rig (wheel_rig.c) share, so both run
+ * the same contact law.
+ *
+ * The caller describes the wheel in its own contact frame: the heading f
+ * (in the contact plane, within the wheel's mid-plane), the soil normal
+ * np (within the mid-plane) and the lateral direction l = n x f.  What
+ * comes back is the force in that frame's terms (Eqns 6-9):
+ *   force = Fn nvec + F_long t + F_lat l,
+ *   nvec  = -sin(alpha) f + cos(alpha) np   (from the centroid to the hub),
+ *   t     =  cos(alpha) f + sin(alpha) np,
+ * with the shear acting on the rim point -shear_radius nvec from the hub,
+ * so its moment about the axle is -shear_radius F_long and the normal
+ * force passes through the hub.
+ *
+ * Three stages, because the lateral slip velocity the shear needs is that
+ * of the rim point on the tilted ray, which only the caller's kinematics
+ * know:
+ *   1. wheel_soil_slip    the longitudinal slip and the soil factors that
+ *                         depend on it (slip-sinkage, grouser thrust);
+ *   2. wheel_soil_normal  the normal force, its tilt alpha, the contact
+ *                         area and the normal stiffness, from the law
+ *                         chosen (volumetric or Wong-Reece/Ishigami);
+ *   3. wheel_soil_shear   the traction and lateral force (the slip-vector
+ *                         shear law, contact_shear) and their Jacobian.
+ * Plain structs in, plain structs out; no allocation, no global state.
+ */
+#ifndef JUNO_WHEEL_SOIL_H
+#define JUNO_WHEEL_SOIL_H
+
+#include "contact.h"
+#include "wong_reece.h"
+
+enum { CONTACT_LAW_VOLUMETRIC = 0, CONTACT_LAW_WONG_REECE = 1 };
+
+/* The law's constants for one wheel: both contact laws prepared
+ * (contact_model_prepare, wong_reece_prepare) and the extensions beyond
+ * the paper's model that act at the contact, off at 0. */
+typedef struct {
+    const ContactModel *contact;        /* volumetric law; its shear law serves both */
+    const WongReeceModel *wong_reece;   /* used when law = CONTACT_LAW_WONG_REECE */
+    int law;                            /* CONTACT_LAW_VOLUMETRIC or CONTACT_LAW_WONG_REECE */
+    double slip_sinkage;                /* slipSinkage.coefficient: k_h / (1 + c |slip|), volumetric */
+    double thrust_gain;                 /* grouser.thrustGain: F_taumax (1 + g) */
+    double lug_height;                  /* grouser.lugHeight, m: shear radius R + h (volumetric) */
+} WheelSoil;
+
+/* The wheel's state relative to the soil, in its contact frame. */
+typedef struct {
+    double sinkage;                     /* of the lowest rim point below the soil surface, m (> 0: in the soil) */
+    double v_long;                      /* hub speed along the heading f, m/s */
+    double spin;                        /* wheel spin about its axle, rad/s (positive rolls forward) */
+    double kh_factor;                   /* local k_h relative to soil.kh (soil patch, rut), 1: none */
+    double strength_factor;             /* local shear strength relative to the soil's, 1: none */
+} WheelSoilInput;
+
+/* The Wong-Reece/Ishigami law at one wheel mapped onto the volumetric
+ * law's representation (wheel_soil.c says how). */
+typedef struct {
+    double Fn, sin_alpha, cos_alpha, F_long;   /* the Eqn 8-9 representation */
+    double Fx, Fz;                             /* applied along the heading and the soil normal, N */
+    double area;                               /* b r (sin theta_f - sin theta_r), m^2 */
+    double dFx_ds, dFz_ds, dFt_ds;             /* derivatives in the slip, N */
+    double kz;                                 /* dFz / d(sinkage), N/m */
+} WongReeceContact;
+
+/* What stages 1 and 2 find; stage 3 reads it. */
+typedef struct {
+    /* wheel_soil_slip */
+    double omega_r;                     /* spin times the rim radius R, m/s */
+    double den;                         /* slip denominator max(|omega R|, |v_long|, eps), m/s */
+    double slip;                        /* (omega R - v_long) / den */
+    double kh_factor;                   /* the input's, with slip-sinkage */
+    double shear_factor;                /* F_taumax scaling: strength and grouser thrust */
+    double shear_radius;                /* where the shear acts: R + lug height (volumetric), R (WR), m */
+    /* wheel_soil_normal */
+    int wong_reece;                     /* the law is Wong-Reece */
+    WongReeceContact wr;                /* that law's result (set with Wong-Reece only) */
+    double Fn;                          /* normal force, N */
+    double sin_alpha, cos_alpha;        /* its tilt as applied (Eqn 7 times the rolling factor) */
+    double area;                        /* contact area, m^2 */
+    double support;                     /* normal load of the shear law, N */
+    double kn;                          /* normal stiffness, N/m: dFn/d(sinkage) at fixed cuts
+                                         * (volumetric), dFz/d(sinkage) (Wong-Reece) */
+} WheelSoilContact;
+
+/* Stage 1: the slip of a wheel in the soil and the factors that depend on
+ * it (fills omega_r, den, slip, kh_factor, shear_factor, shear_radius). */
+void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilContact *c);
+
+/* Stage 2: the normal force, its tilt, the area and the stiffness at the
+ * sinkage, with the soil memory mem (volumetric).  derivatives: also the
+ * Wong-Reece slip and sinkage derivatives (for an implicit integrator). */
+void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const WheelSoilInput *in,
+                       int derivatives, WheelSoilContact *c);
+
+/* Stage 3: the traction F_long along t and the lateral force F_lat along
+ * l (N) for a lateral slip velocity v_lat (m/s, of the rim point on the
+ * tilted ray, along l).  If jac != NULL, also d(F_long, F_lat) / d(v_long,
+ * v_lat, shear_radius spin), row-major 2 x 3; with the Wong-Reece law its
+ * first row is 0 (that law's traction derivatives are c->wr.dF*_ds). */
+void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const WheelSoilInput *in, double v_lat,
+                      double *F_long, double *F_lat, double *jac);
+
+#endif
