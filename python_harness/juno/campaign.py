@@ -5,6 +5,7 @@ A campaign is a folder::
     campaign.json          manifest
     runs/NAME.csv          one file per experiment run
     terrain/NAME.xyz       LIDAR points, "x y z" per line (m)
+    runs/RIG.csv           a single-wheel testbed table (kind ``wheel_rig``)
 
 Reading is strict: anything that breaks the format is refused with an
 :class:`~juno.errors.InputError` naming the file, the line (1-based, the CSV header is line 1)
@@ -17,6 +18,12 @@ Run CSV columns (SI units): ``time`` (s, strictly increasing, never empty), ``to
 (sensors run at different rates) and becomes NaN. Every cell of a known column is empty or a
 finite decimal number. Unknown columns are kept in :attr:`RunData.extra` and otherwise ignored:
 as float arrays when every cell is empty or a finite number, else as the raw text.
+
+A ``wheel_rig`` run is a single-wheel testbed's table, one row per steady point, not a time
+series (:func:`read_rig_csv`): ``vertical_load`` (N), ``slip`` (-), ``drawbar_pull`` (N), optional
+``torque`` (N m), ``sinkage`` (m), ``slip_angle`` (rad), ``lateral_force`` (N) and a standard
+deviation ``<column>_std`` of each measured column; the wheel is described in the manifest
+(:class:`RigSetup`).
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any, Mapping, Optional, Sequence, Union
+from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,6 +63,14 @@ __all__ = [
     "read_run",
     "read_run_csv",
     "read_terrain_points",
+    "RigSetup",
+    "RigTable",
+    "RIG_INPUTS",
+    "RIG_MEASURED",
+    "read_rig_csv",
+    "read_rig",
+    "read_any",
+    "format_rig_csv",
     "aligned",
     "steady_average",
     "forward_speed",
@@ -64,7 +79,9 @@ __all__ = [
 ]
 
 MANIFEST_NAME = "campaign.json"
-KINDS = ("drawbar", "terrain")
+KINDS = ("drawbar", "terrain", "wheel_rig")
+#: The kinds whose CSV is a time series (read_run_csv); a wheel_rig run is a table (read_rig_csv).
+TIME_SERIES_KINDS = ("drawbar", "terrain")
 BASE_REQUIRED = ("time", "torque_left", "torque_right", "omega_left", "omega_right", "pos_x", "pos_y", "pos_z")
 REQUIRED_COLUMNS: dict[str, tuple[str, ...]] = {
     "drawbar": BASE_REQUIRED + ("drawbar_force",),
@@ -78,6 +95,17 @@ KNOWN_COLUMNS = BASE_REQUIRED + ("drawbar_force",) + OPTIONAL_COLUMNS
 ANGLE_COLUMNS = ("roll", "pitch", "yaw")
 """Columns unwrapped (made continuous) before interpolation by :func:`aligned`."""
 
+#: A wheel_rig table: the testbed's set point of each row (inputs of the simulation, a value in
+#: every row) and the measured columns (an empty cell: not measured at that point), each of which
+#: may carry a per-point standard deviation ``<column>_std`` in the same unit.
+RIG_INPUTS = ("vertical_load", "slip", "slip_angle")
+RIG_REQUIRED = ("vertical_load", "slip", "drawbar_pull")
+RIG_MEASURED = ("drawbar_pull", "torque", "sinkage", "lateral_force")
+RIG_STD_SUFFIX = "_std"
+RIG_COLUMNS = RIG_INPUTS + RIG_MEASURED + tuple(c + RIG_STD_SUFFIX for c in RIG_MEASURED)
+#: Keys of a wheel_rig run's "wheel" object (m, m, m, count); the first two are required.
+RIG_WHEEL_KEYS = ("radius", "width", "lug_height", "lug_count")
+
 _ID_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
 
@@ -86,16 +114,41 @@ _ID_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 # --------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
+class RigSetup:
+    """The single-wheel testbed of a ``wheel_rig`` run (manifest keys ``wheel`` and
+    ``carriage_speed``).
+
+    Attributes:
+        radius: wheel radius (m), to the rim (lugs not included).
+        width: wheel width (m).
+        lug_height: height of the lugs (grousers) beyond the rim (m); 0 for a smooth wheel.
+        lug_count: number of lugs around the rim; 0 for a smooth wheel.
+        carriage_speed: the carriage's forward speed (m/s), or None when not given.
+    """
+
+    radius: float
+    width: float
+    lug_height: float = 0.0
+    lug_count: int = 0
+    carriage_speed: Optional[float] = None
+
+    @property
+    def lugged(self) -> bool:
+        return self.lug_height > 0.0
+
+
+@dataclass(frozen=True)
 class RunSpec:
     """One run of the manifest.
 
     Attributes:
         id: run id (letters, digits, ``_ . -``; unique in the campaign).
-        kind: "drawbar" or "terrain".
+        kind: "drawbar", "terrain" or "wheel_rig".
         file: CSV path relative to the campaign folder, as written in the manifest.
         steady_window: (start, end) in s where the averaged identification looks, or None.
         terrain: LIDAR file relative to the campaign folder (terrain runs), else None.
         extra: any other keys of the run's manifest entry, kept as read.
+        rig: the testbed's wheel and carriage (wheel_rig runs), else None.
     """
 
     id: str
@@ -104,6 +157,7 @@ class RunSpec:
     steady_window: Optional[tuple[float, float]] = None
     terrain: Optional[str] = None
     extra: dict[str, Any] = field(default_factory=dict)
+    rig: Optional[RigSetup] = None
 
 
 @dataclass(frozen=True)
@@ -137,7 +191,7 @@ class Campaign:
         raise KeyError(f"{self.manifest_path}: no run with id {run_id!r} (runs: {[r.id for r in self.runs]})")
 
     def runs_of_kind(self, kind: str) -> list[RunSpec]:
-        """Runs of kind "drawbar" or "terrain", in manifest order."""
+        """Runs of kind "drawbar", "terrain" or "wheel_rig", in manifest order."""
         return [r for r in self.runs if r.kind == kind]
 
     def run_path(self, run: Union[RunSpec, str]) -> Path:
@@ -203,6 +257,50 @@ class RunData:
         if not ok.any():
             raise InputError(f"column {name!r} has no samples", self.path, None, name)
         return self.time[ok], v[ok]
+
+
+@dataclass
+class RigTable:
+    """The points of one wheel_rig table (:func:`read_rig_csv`).
+
+    Attributes:
+        path: the CSV file.
+        columns: known column name -> float array (one entry per row; NaN = not measured at
+            that point). The inputs ``vertical_load`` and ``slip`` are always present and have
+            a value in every row; ``slip_angle`` too when the file has it.
+        extra: unknown columns, kept as read (float arrays, or str arrays if not all numeric).
+        lines: 1-based line number of each row in the file (for messages).
+        run_id: the manifest id, when read through :func:`read_run`.
+    """
+
+    path: Path
+    columns: dict[str, FloatArray]
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    lines: Optional[NDArray[np.int64]] = None
+    run_id: Optional[str] = None
+    kind: str = "wheel_rig"
+
+    def __len__(self) -> int:
+        return int(self.columns["slip"].shape[0])
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.columns
+
+    def __getitem__(self, name: str) -> FloatArray:
+        return self.columns[name]
+
+    def has(self, name: str) -> bool:
+        """True when the column exists and has at least one value."""
+        return name in self.columns and bool(np.any(~np.isnan(self.columns[name])))
+
+    @property
+    def slip_angle(self) -> FloatArray:
+        """Slip angle of each point (rad); zeros when the file has no such column."""
+        return self.columns.get("slip_angle", np.zeros(len(self)))
+
+    def std(self, name: str) -> Optional[FloatArray]:
+        """The per-point standard deviations of a measured column, or None when not given."""
+        return self.columns.get(name + RIG_STD_SUFFIX)
 
 
 class AlignedColumns(dict):
@@ -327,10 +425,13 @@ def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: 
     seen[run_id] = i
     kind = entry["kind"]
     if kind not in KINDS:
-        raise InputError(f"{label}: 'kind' must be 'drawbar' or 'terrain', got {kind!r}", manifest, line)
+        raise InputError(f"{label}: 'kind' must be 'drawbar', 'terrain' or 'wheel_rig', got {kind!r}", manifest, line)
     file = _check_relative_file(root, manifest, entry["file"], f"{label}: 'file'", line)
 
     window = None
+    if kind == "wheel_rig" and "steady_window" in entry:
+        raise InputError(f"{label}: a wheel_rig run is a table of steady points and takes no 'steady_window'",
+                         manifest, line)
     if "steady_window" in entry:
         w = entry["steady_window"]
         vals = [_finite_number(v) for v in w] if isinstance(w, list) else []
@@ -347,10 +448,59 @@ def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: 
             raise InputError(f"{label}: terrain runs need a 'terrain' key naming the LIDAR file", manifest, line)
         terrain = _check_relative_file(root, manifest, entry["terrain"], f"{label}: 'terrain'", line)
     elif "terrain" in entry:
-        raise InputError(f"{label}: drawbar runs are on flat ground and take no 'terrain' key", manifest, line)
+        raise InputError(f"{label}: {kind} runs are on flat ground and take no 'terrain' key", manifest, line)
 
-    extra = {k: v for k, v in entry.items() if k not in ("id", "kind", "file", "steady_window", "terrain")}
-    return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra)
+    rig = None
+    if kind == "wheel_rig":
+        rig = _parse_rig(manifest, entry, label, line)
+    else:
+        for key in ("wheel", "carriage_speed"):
+            if key in entry:
+                raise InputError(f"{label}: {key!r} describes a wheel_rig run's testbed; a {kind} run uses the "
+                                 "campaign's 'rover'", manifest, line)
+    known = ("id", "kind", "file", "steady_window", "terrain", "wheel", "carriage_speed")
+    extra = {k: v for k, v in entry.items() if k not in known}
+    return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra, rig=rig)
+
+
+def _parse_rig(manifest: Path, entry: dict[str, Any], label: str, line: Optional[int]) -> RigSetup:
+    """The ``wheel`` object and the optional ``carriage_speed`` of a wheel_rig run entry."""
+    wheel = entry.get("wheel")
+    if not isinstance(wheel, dict):
+        raise InputError(f"{label}: a wheel_rig run needs a 'wheel' object {{\"radius\": m, \"width\": m, "
+                         f"\"lug_height\": m, \"lug_count\": n}}, got {wheel!r}", manifest, line)
+    unknown = [k for k in wheel if k not in RIG_WHEEL_KEYS]
+    if unknown:
+        raise InputError(f"{label}: 'wheel' has no key {unknown[0]!r} (its keys: {', '.join(RIG_WHEEL_KEYS)}; "
+                         "lengths in m)", manifest, line)
+    values: dict[str, float] = {}
+    for key in ("radius", "width", "lug_height"):
+        if key not in wheel:
+            if key == "lug_height":
+                values[key] = 0.0
+                continue
+            raise InputError(f"{label}: 'wheel' needs {key!r} (m)", manifest, line)
+        v = _finite_number(wheel[key])
+        if v is None or v < 0 or (v == 0 and key != "lug_height"):
+            need = "a finite number >= 0" if key == "lug_height" else "a finite number > 0"
+            raise InputError(f"{label}: 'wheel.{key}' must be {need} (m), got {wheel[key]!r}", manifest, line)
+        values[key] = v
+    count = wheel.get("lug_count", 0)
+    if isinstance(count, float) and count.is_integer():
+        count = int(count)
+    if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+        raise InputError(f"{label}: 'wheel.lug_count' must be a whole number >= 0, got {count!r}", manifest, line)
+    if (values["lug_height"] > 0) != (count > 0):
+        raise InputError(f"{label}: 'wheel' has lug_height {values['lug_height']!r} m and lug_count {count!r}: a "
+                         "lugged wheel has both > 0, a smooth one both 0", manifest, line)
+    speed = None
+    if "carriage_speed" in entry:
+        speed = _finite_number(entry["carriage_speed"])
+        if speed is None or speed <= 0:
+            raise InputError(f"{label}: 'carriage_speed' must be a finite number > 0 (m/s), got "
+                             f"{entry['carriage_speed']!r}", manifest, line)
+    return RigSetup(radius=values["radius"], width=values["width"], lug_height=values["lug_height"],
+                    lug_count=count, carriage_speed=speed)
 
 
 def _parse_rover(manifest: Path, rover: Any) -> dict[str, Union[float, int, str]]:
@@ -376,9 +526,11 @@ def load_campaign(path: PathLike) -> Campaign:
         path: the campaign folder, or its ``campaign.json``.
 
     Checks: valid UTF-8 JSON (syntax errors give line and column), no duplicate keys, a
-    non-empty ``runs`` list; each run has ``id`` (unique), ``kind`` in {drawbar, terrain},
-    ``file`` naming an existing file inside the folder; terrain runs name an existing
-    ``terrain`` file (drawbar runs none); ``steady_window`` is two increasing finite numbers;
+    non-empty ``runs`` list; each run has ``id`` (unique), ``kind`` in {drawbar, terrain,
+    wheel_rig}, ``file`` naming an existing file inside the folder; terrain runs name an existing
+    ``terrain`` file (the others none); ``steady_window`` is two increasing finite numbers (not
+    for wheel_rig runs); a wheel_rig run has a ``wheel`` object (radius, width > 0 m; lug_height
+    >= 0 m and lug_count >= 0, both 0 or both > 0) and optionally ``carriage_speed`` > 0 m/s;
     ``rover`` maps names to finite numbers or strings; ``name`` is a string.
     Run CSV contents are checked by :func:`read_run`.
 
@@ -427,17 +579,38 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
         of cells, a known-column cell that is not a finite number, an empty time cell, time
         not strictly increasing ("time goes backwards"), a required column without samples.
     """
-    if kind not in KINDS:
-        raise ValueError(f"kind must be 'drawbar' or 'terrain', got {kind!r}")
+    if kind not in TIME_SERIES_KINDS:
+        raise ValueError(f"kind must be 'drawbar' or 'terrain' (a wheel_rig table: read_rig_csv), got {kind!r}")
     p = Path(path)
     text = decode_input_text(p, read_input_bytes(p))
+    names, rows, lines = _read_table(p, text, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind))
+    columns: dict[str, FloatArray] = {}
+    extra: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        cells = [row[j] for row in rows]
+        if name in KNOWN_COLUMNS:
+            columns[name] = _parse_column(p, name, cells, lines)
+        else:
+            extra[name] = _parse_extra(cells)
+    line_arr = np.asarray(lines, dtype=np.int64)
+    _check_time(p, columns["time"], line_arr)
+    for name in REQUIRED_COLUMNS[kind]:
+        if np.all(np.isnan(columns[name])):
+            raise InputError(f"required column {name!r} has no samples (every cell is empty)", p, 1, name)
+    return RunData(path=p, kind=kind, columns=columns, extra=extra, lines=line_arr, run_id=run_id)
+
+
+def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
+                ) -> tuple[list[str], list[list[str]], list[int]]:
+    """(header names, data rows, their 1-based lines) of a CSV text; the header is checked by
+    ``check_header`` before any row is read."""
     if not text.strip():
         raise InputError("empty file: a header line and data rows are required", p, 1)
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     try:
         header = next(reader)
         names = [h.strip() for h in header]
-        _check_header(p, names, kind)
+        check_header(names)
         ncols = len(names)
         rows: list[list[str]] = []
         lines: list[int] = []
@@ -457,24 +630,10 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
         raise InputError(f"malformed CSV: {e}", p, reader.line_num) from None
     if not rows:
         raise InputError("no data rows: the file holds only a header", p, 1)
-
-    columns: dict[str, FloatArray] = {}
-    extra: dict[str, np.ndarray] = {}
-    for j, name in enumerate(names):
-        cells = [row[j] for row in rows]
-        if name in KNOWN_COLUMNS:
-            columns[name] = _parse_column(p, name, cells, lines)
-        else:
-            extra[name] = _parse_extra(cells)
-    line_arr = np.asarray(lines, dtype=np.int64)
-    _check_time(p, columns["time"], line_arr)
-    for name in REQUIRED_COLUMNS[kind]:
-        if np.all(np.isnan(columns[name])):
-            raise InputError(f"required column {name!r} has no samples (every cell is empty)", p, 1, name)
-    return RunData(path=p, kind=kind, columns=columns, extra=extra, lines=line_arr, run_id=run_id)
+    return names, rows, lines
 
 
-def _check_header(path: Path, names: list[str], kind: str) -> None:
+def _check_header(path: Path, names: list[str], required: Sequence[str], kind: str) -> None:
     if all(NUMBER_RE.fullmatch(n) for n in names if n) and any(names):
         raise InputError("the first line must be a header of column names; it holds numbers", path, 1)
     seen: set[str] = set()
@@ -484,11 +643,73 @@ def _check_header(path: Path, names: list[str], kind: str) -> None:
         if name in seen:
             raise InputError("duplicate column name in the header", path, 1, name)
         seen.add(name)
-    for name in REQUIRED_COLUMNS[kind]:
+    for name in required:
         if name not in seen:
             raise InputError(
-                f"missing required column (a {kind} run needs {', '.join(REQUIRED_COLUMNS[kind])})", path, 1, name
+                f"missing required column (a {kind} run needs {', '.join(required)})", path, 1, name
             )
+
+
+def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
+    """Read and check a wheel_rig table: one row per steady point of a single-wheel testbed.
+
+    Columns (SI units, any order): ``vertical_load`` (N), ``slip`` (-), ``drawbar_pull`` (N),
+    optional ``torque`` (N m), ``sinkage`` (m), ``slip_angle`` (rad), ``lateral_force`` (N), and
+    ``<measured column>_std`` (same unit) for any measured column present. Unknown columns are
+    kept in :attr:`RigTable.extra`.
+
+    Raises:
+        InputError naming file, line (header = line 1) and column: the format errors of
+        :func:`read_run_csv`; an empty cell of a set-point column (``vertical_load``, ``slip``,
+        ``slip_angle``); a ``_std`` column without its measured column; a measured value without
+        its standard deviation when the file has that ``_std`` column, or a standard deviation
+        that is not > 0; a measured column without any value. Physical ranges (a load > 0, a
+        slip < 1) are checked with the units by :mod:`juno.plausibility`.
+    """
+    p = Path(path)
+    text = decode_input_text(p, read_input_bytes(p))
+    names, rows, lines = _read_table(p, text, lambda names: _check_rig_header(p, names))
+    columns: dict[str, FloatArray] = {}
+    extra: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        cells = [row[j] for row in rows]
+        if name in RIG_COLUMNS:
+            columns[name] = _parse_column(p, name, cells, lines)
+        else:
+            extra[name] = _parse_extra(cells)
+    for name in RIG_INPUTS:
+        if name in columns:
+            empty = np.flatnonzero(np.isnan(columns[name]))
+            if empty.size:
+                raise InputError(f"{name} is empty: it is the testbed's set point, every row needs one", p,
+                                 lines[int(empty[0])], name)
+    for name in RIG_MEASURED:
+        if name not in columns:
+            continue
+        if np.all(np.isnan(columns[name])):
+            raise InputError(f"column {name!r} has no values (every cell is empty)", p, 1, name)
+        std = columns.get(name + RIG_STD_SUFFIX)
+        if std is None:
+            continue
+        missing = np.flatnonzero(~np.isnan(columns[name]) & np.isnan(std))
+        if missing.size:
+            raise InputError(f"{name} is measured here but its standard deviation is empty (a file with a "
+                             f"{name}{RIG_STD_SUFFIX} column gives one for every {name} value)", p,
+                             lines[int(missing[0])], name + RIG_STD_SUFFIX)
+        bad = np.flatnonzero(std <= 0)
+        if bad.size:
+            raise InputError(f"a standard deviation must be > 0, got {std[bad[0]]!r}", p, lines[int(bad[0])],
+                             name + RIG_STD_SUFFIX)
+    return RigTable(path=p, columns=columns, extra=extra, lines=np.asarray(lines, dtype=np.int64), run_id=run_id)
+
+
+def _check_rig_header(path: Path, names: list[str]) -> None:
+    _check_header(path, names, RIG_REQUIRED, "wheel_rig")
+    present = set(names)
+    for name in names:
+        if name.endswith(RIG_STD_SUFFIX) and name in RIG_COLUMNS and name[: -len(RIG_STD_SUFFIX)] not in present:
+            raise InputError(f"a standard deviation column without its measured column "
+                             f"{name[: -len(RIG_STD_SUFFIX)]!r}", path, 1, name)
 
 
 def _parse_column(path: Path, name: str, cells: list[str], lines: list[int]) -> FloatArray:
@@ -524,8 +745,14 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
     """Read a run of a loaded campaign (by :class:`RunSpec` or id) and check it.
 
     Besides :func:`read_run_csv`'s checks, a ``steady_window`` must overlap the run's time.
+    A wheel_rig run is a table, not a time series: an InputError says so (:func:`read_rig`).
     """
     spec = campaign.run(run) if isinstance(run, str) else run
+    if spec.kind not in TIME_SERIES_KINDS:
+        raise InputError(f"run {spec.id!r} is a {spec.kind} table of steady points, not a time series: "
+                         "'juno identify' fits it", campaign.manifest_path,
+                         _line_of_run(decode_input_text(campaign.manifest_path,
+                                                        read_input_bytes(campaign.manifest_path)), spec.id))
     data = read_run_csv(campaign.run_path(spec), spec.kind, run_id=spec.id)
     if spec.steady_window is not None:
         a, b = spec.steady_window
@@ -538,6 +765,20 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                 _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
             )
     return data
+
+
+def read_rig(campaign: Campaign, run: Union[RunSpec, str]) -> RigTable:
+    """Read and check the table of a wheel_rig run of a loaded campaign (:func:`read_rig_csv`)."""
+    spec = campaign.run(run) if isinstance(run, str) else run
+    if spec.kind != "wheel_rig":
+        raise ValueError(f"run {spec.id!r} is a {spec.kind} run, not a wheel_rig table")
+    return read_rig_csv(campaign.run_path(spec), run_id=spec.id)
+
+
+def read_any(campaign: Campaign, run: Union[RunSpec, str]) -> Union[RunData, RigTable]:
+    """:func:`read_run` for a time series, :func:`read_rig` for a wheel_rig table."""
+    spec = campaign.run(run) if isinstance(run, str) else run
+    return read_rig(campaign, spec) if spec.kind == "wheel_rig" else read_run(campaign, spec)
 
 
 def read_terrain_points(campaign: Campaign, run: Union[RunSpec, str]) -> FloatArray:
@@ -765,6 +1006,29 @@ def format_run_csv(columns: Mapping[str, ArrayLike]) -> str:
     return ",".join(names) + "\n" + body
 
 
+def format_rig_csv(columns: Mapping[str, ArrayLike]) -> str:
+    """CSV text of a wheel_rig table, columns in the given order (shortest round-trip decimals;
+    NaN becomes an empty cell).
+
+    Raises:
+        ValueError: unequal lengths, infinite values, bad column names.
+    """
+    names = list(columns)
+    arrays = []
+    for name in names:
+        if not isinstance(name, str) or not name or name != name.strip() or _BAD_NAME_CHARS.search(name):
+            raise ValueError(f"bad column name {name!r}")
+        a = np.asarray(columns[name], dtype=float).reshape(-1)
+        if np.any(np.isinf(a)):
+            raise ValueError(f"column {name!r} holds infinite values")
+        arrays.append(a)
+    if not arrays or any(len(a) != len(arrays[0]) for a in arrays):
+        raise ValueError("a wheel_rig table needs columns of equal length")
+    r = float.__repr__
+    cols = [["" if v != v else r(v) for v in a.tolist()] for a in arrays]
+    return ",".join(names) + "\n" + "".join(",".join(cells) + "\n" for cells in zip(*cols))
+
+
 def _safe_relpath(value: str, what: str) -> str:
     rel = PurePosixPath(value)
     if not value or rel.is_absolute() or ".." in rel.parts or "\\" in value:
@@ -798,7 +1062,8 @@ def write_campaign(
         campaign: the manifest as a dict (``name``, ``runs`` [{id, kind, ...}], ``rover``...).
             A run without ``file`` gets ``runs/<id>.csv``. A terrain run's ``terrain`` may
             name a key of ``terrains``. The dict is not modified.
-        runs: run id -> {column name -> 1-D array}; NaN = empty cell; ``time`` required.
+        runs: run id -> {column name -> 1-D array}; NaN = empty cell; ``time`` required
+            (a wheel_rig run: its table's columns, :func:`format_rig_csv`).
         terrains: terrain name -> (N, 3) points (m). A name with a '/' is used as the path
             inside the folder; otherwise the file is ``terrain/<name>`` (``.xyz`` added if the
             name has no suffix).
@@ -833,7 +1098,8 @@ def write_campaign(
             e["terrain"] = terrain_files[e["terrain"]]
         if "steady_window" in e:
             e["steady_window"] = [float(v) for v in e["steady_window"]]
-        written[e["file"]] = format_run_csv(runs[e["id"]])
+        fmt = format_rig_csv if e.get("kind") == "wheel_rig" else format_run_csv
+        written[e["file"]] = fmt(runs[e["id"]])
     for name, rel in terrain_files.items():
         written[rel] = "# x y z (m)\n" + format_xyz(terrains[name])
     extras: dict[str, bytes] = {}
@@ -855,7 +1121,7 @@ def write_campaign(
         try:
             check = load_campaign(tmp)
             for spec in check.runs:
-                read_run(check, spec)
+                read_any(check, spec)
                 if spec.terrain is not None:
                     read_xyz(tmp / spec.terrain)
         except InputError as e:

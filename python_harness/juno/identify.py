@@ -143,7 +143,7 @@ def require_runs(campaign: Campaign, step: str) -> list[RunSpec]:
     kind, why = STEP_NEEDS[step]
     runs = campaign.runs_of_kind(kind)
     if not runs:
-        counts = {k: sum(r.kind == k for r in campaign.runs) for k in ("drawbar", "terrain")}
+        counts = {k: sum(r.kind == k for r in campaign.runs) for k in ("drawbar", "terrain", "wheel_rig")}
         have = " and ".join(f"{n} {k} run{'s' if n != 1 else ''}" for k, n in counts.items() if n)
         raise InputError(f"'{step}' needs at least one {kind} run, and the campaign has none ({have}): {why}",
                          campaign.manifest_path)
