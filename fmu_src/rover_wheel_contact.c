@@ -128,16 +128,24 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3])
 }
 
 /* Soil-patch extension: relative stiffness and strength at (x, y), a
- * Gaussian bump of the factors towards soilPatch.* (1 everywhere when off). */
+ * Gaussian bump of the factors towards soilPatch.* (1 everywhere when off),
+ * times a band across x towards soilStrip.* (|x - soilStrip.x| below its
+ * half width; the edges a logistic step of scale 12.5 mm, 10-90 % over
+ * 5.5 cm, so that the forces stay smooth for the integrator). */
 static void soil_factors(const Params *p, double x, double y, double *kh_factor, double *strength_factor)
 {
     *kh_factor = 1.0;
     *strength_factor = 1.0;
+    if (p->strip_khFactor != 1.0 || p->strip_strengthFactor != 1.0) {
+        const double g = 1.0 / (1.0 + exp((fabs(x - p->strip_x) - p->strip_halfWidth) / 0.0125));
+        *kh_factor = 1.0 + (p->strip_khFactor - 1.0) * g;
+        *strength_factor = 1.0 + (p->strip_strengthFactor - 1.0) * g;
+    }
     if (p->patch_khFactor == 1.0 && p->patch_strengthFactor == 1.0) return;
     const double dx = x - p->patch_x, dy = y - p->patch_y;
     const double g = exp(-(dx * dx + dy * dy) / (2 * p->patch_radius * p->patch_radius));
-    *kh_factor = 1.0 + (p->patch_khFactor - 1.0) * g;
-    *strength_factor = 1.0 + (p->patch_strengthFactor - 1.0) * g;
+    *kh_factor *= 1.0 + (p->patch_khFactor - 1.0) * g;
+    *strength_factor *= 1.0 + (p->patch_strengthFactor - 1.0) * g;
 }
 
 /* Multi-pass extension: residual rut depth that side's front wheel left at
@@ -202,7 +210,7 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
         const double rut = p->multipass_rutFraction *
                            rut_depth_at(&m->s, side_of(w), m->s.path[side_of(w)] - p->rover_wheelbase);
         sinkage -= rut;
-        in->kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + 0.002);
+        in->kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + p->multipass_compactionDepth);
     }
     wc->sinkage = sinkage;
     in->sinkage = sinkage;
@@ -338,7 +346,8 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     if (!contact_frame(m, ev, w, Jh, sp, wc, &cf, &in)) return;
     wc->in_contact = 1;
     const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
-                          m->p.grouser_thrustGain, m->p.grouser_lugHeight};
+                          m->p.grouser_thrustGain, m->p.grouser_lugHeight, m->p.slipSinkage_exponent,
+                          m->p.grouser_thrustSlip};
     in.spin = wheel_spin(m, ev, Jw, sp);
     WheelSoilContact sc;
     wheel_soil_slip(&ws, &in, &sc);

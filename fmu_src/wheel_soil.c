@@ -121,9 +121,15 @@ void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilCon
     c->den = fmax(fmax(fabs(c->omega_r), fabs(in->v_long)), cm->slip_v_eps);
     c->slip = (c->omega_r - in->v_long) / c->den;
     c->kh_factor = in->kh_factor;
-    if (ws->slip_sinkage > 0)       /* the soil under a slipping wheel yields: it digs in */
-        c->kh_factor /= 1.0 + ws->slip_sinkage * fmin(fabs(c->slip), 1.0);
-    c->shear_factor = in->strength_factor * (1.0 + ws->thrust_gain);
+    if (ws->slip_sinkage > 0) {     /* the soil under a slipping wheel yields: it digs in */
+        const double s = fmin(fabs(c->slip), 1.0), p = ws->slip_sinkage_power;
+        c->kh_factor /= 1.0 + ws->slip_sinkage * (p > 0 && p != 1.0 ? pow(s, p) : s);
+    }
+    /* Lug thrust that builds up with slip (grouser.thrustSlip > 0): the soil
+     * between the lugs shears before their faces bear. */
+    const double gain = ws->thrust_slip > 0 ? ws->thrust_gain * (1.0 - exp(-fabs(c->slip) / ws->thrust_slip))
+                                            : ws->thrust_gain;
+    c->shear_factor = in->strength_factor * (1.0 + gain);
     /* Grouser lugs (grouser.lugHeight h, volumetric law only): the soil
      * between the lugs turns with the wheel, so the shear surface is the lug
      * tips' circle, h beyond the rim the normal law presses on.  The shear's

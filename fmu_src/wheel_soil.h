@@ -45,6 +45,8 @@ typedef struct {
     double slip_sinkage;                /* slipSinkage.coefficient: k_h / (1 + c |slip|), volumetric */
     double thrust_gain;                 /* grouser.thrustGain: F_taumax (1 + g) */
     double lug_height;                  /* grouser.lugHeight, m: shear radius R + h (volumetric) */
+    double slip_sinkage_power;          /* slipSinkage.exponent p: k_h / (1 + c |slip|^p); 0 or 1: linear */
+    double thrust_slip;                 /* grouser.thrustSlip s_g: F_taumax (1 + g (1 - exp(-|slip| / s_g))); 0: (1 + g) */
 } WheelSoil;
 
 /* The wheel's state relative to the soil, in its contact frame. */

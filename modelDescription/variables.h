@@ -116,6 +116,13 @@
     REAL(500, "drive.frictionLeft",  PARAM, "N.m", 0.0, 0, 400, p.drive_frictionLeft,  "Coulomb friction torque of the left drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
     REAL(501, "drive.frictionRight", PARAM, "N.m", 0.0, 0, 400, p.drive_frictionRight, "Coulomb friction torque of the right drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
     REAL(502, "drive.viscousFriction", PARAM, "N.m.s/rad", 0.0, 0, 1000, p.drive_viscousFriction, "Viscous friction of each side's drivetrain on the wheel side, per rad/s of wheel spin; not in the measured (motor) torque (0 = off)") \
+    REAL(503, "soilStrip.x",        PARAM, "m", 0.0, -NOLIM, NOLIM, p.strip_x,      "Soil strip (a band across x) centre, world x") \
+    REAL(504, "soilStrip.halfWidth", PARAM, "m", 0.5, 0.01, NOLIM, p.strip_halfWidth, "Soil strip half width along x (edges smoothed over about 5 cm)") \
+    REAL(505, "soilStrip.khFactor", PARAM, "1", 1.0, 0.05, 20, p.strip_khFactor, "k_h inside the soil strip relative to outside (1 = off)") \
+    REAL(506, "soilStrip.strengthFactor", PARAM, "1", 1.0, 0.05, 20, p.strip_strengthFactor, "Shear strength (C, tan phi) inside the soil strip relative to outside (1 = off)") \
+    REAL(507, "slipSinkage.exponent", PARAM, "1", 1.0, 0.25, 4, p.slipSinkage_exponent, "Slip-sinkage exponent p: k_h / (1 + c |slip|^p) (1 = the linear law)") \
+    REAL(508, "grouser.thrustSlip", PARAM, "1", 0.0, 0, 1, p.grouser_thrustSlip, "Slip s_g over which the grouser thrust builds up: F_taumax (1 + g (1 - exp(-|slip| / s_g))) (0 = the full gain at any slip)") \
+    REAL(509, "multipass.compactionDepth", PARAM, "m", 0.002, 1e-4, 0.5, p.multipass_compactionDepth, "Rut depth d at which the compaction reaches half its effect: k_h (1 + (multipass.khFactor - 1) rut / (rut + d))") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
     REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \
