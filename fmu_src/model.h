@@ -161,65 +161,6 @@ typedef struct {
 /* The model's name in messages (the FMU's model identifier). */
 #define MODEL_IDENTIFIER "JunoRover"
 
-/* The start values of every parameter and input (from the variable table). */
-void model_set_defaults(Model *m);
-
-/* A fresh model: what m owned freed (m zeroed or a model already), then
- * the start values and flat ground. */
-void model_reset(Model *m);
-
-/* After the parameters are set: checks them, prepares the contact model,
- * loads the terrain and places the rover in static equilibrium.
- * Returns 0, or -1 with a message in err. */
-int model_initialize(Model *m, char *err, size_t errlen);
-
-/* Advances from s.time by h_comm (s) using internal substeps.  Returns 0,
- * or -1 with a message in err (bad input, diverging state). */
-int model_do_step(Model *m, double h_comm, char *err, size_t errlen);
-
-/* Frees what the model owns (the terrain grid, string values) and leaves
- * them empty. */
-void model_free(Model *m);
-
-/* Variable access by value reference (model_vars.c, from the table).
- * Return 0, or -1 for an unknown reference. */
-int model_get_real(const Model *m, unsigned vr, double *value);
-int model_set_real(Model *m, unsigned vr, double value);
-int model_get_int(const Model *m, unsigned vr, int *value);
-int model_set_int(Model *m, unsigned vr, int value);
-/* kind of a variable: 'P' parameter, 'C' calculated parameter, 'I' input,
- * 'O' output, 0 unknown; and its name and inclusive range. */
-int model_var_kind(unsigned vr, char type);
-const char *model_var_name(unsigned vr, char type);
-void model_real_range(unsigned vr, double *min, double *max);
-void model_int_range(unsigned vr, int *min, int *max);
-int model_is_string_var(unsigned vr);
-/* A String variable's value ("" when unset), or NULL for an unknown
- * reference. */
-const char *model_get_string(const Model *m, unsigned vr);
-/* Sets a String variable to a copy of value.  Returns 0, or -1 for an
- * unknown reference or when out of memory (then the value is unchanged). */
-int model_set_string(Model *m, unsigned vr, const char *value);
-
-/* ---- what the FMI layer (fmi2_cs.c) needs beyond the variables; it
- * knows no model except through these ---- */
-
-/* A relative file name among the String variables that names no file
- * here is looked up in the FMU's resources folder (resource_dir, a local
- * path; NULL: none), and replaced by that path if a file is there. */
-void model_resolve_resources(Model *m, const char *resource_dir);
-
-/* The simulation time (s). */
-double model_get_time(const Model *m);
-void model_set_time(Model *m, double time);
-
-/* 0 if a communication step of h (s) is affordable, else -1 with why (a
- * clause that follows "communicationStepSize = <h> s "). */
-int model_check_step_size(const Model *m, double h, char *why, size_t n);
-
-/* One line on the initialised model for the log. */
-void model_describe(const Model *m, char *buf, size_t n);
-
 /* Everything an FMU state must restore: plain data, so a snapshot is a
  * byte copy.  The terrain grid and string values are not in it: they
  * cannot change after initialisation. */
@@ -231,14 +172,11 @@ typedef struct {
     Outputs out;
 } ModelState;
 
-void model_get_state(const Model *m, ModelState *st);
-void model_set_state(Model *m, const ModelState *st);
-
-/* A state from elsewhere (deserialised: a tool's storage, a crafted file)
- * must hold values the model itself could have had: parameters and inputs
- * within their declared ranges, and when it is to be stepped (stepping)
- * a finite, bounded integrator state.  Returns NULL, or what is wrong,
- * written into why. */
-const char *model_state_invalid(const ModelState *st, int stepping, char *why, size_t n);
+/* The life cycle, the variables and the FMU state, as the FMI layer
+ * (fmi2_cs.c) calls them: model_initialize checks the parameters,
+ * prepares the contact laws, loads the terrain and places the rover in
+ * static equilibrium; model_free frees the terrain grid and the string
+ * values. */
+#include "model_hooks.h"
 
 #endif
