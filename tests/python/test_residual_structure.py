@@ -1,0 +1,121 @@
+"""Residual structure: what a model's held-out residuals still contain beyond sensor noise.
+
+The test is run at the true soil of a synthetic campaign, so that what it finds is only what was
+put into the data: nothing when the data is the model's own, and the planted discrepancy, with
+what it follows, when a sensor or the rover does something no model here knows.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness_fixtures import noisy_campaign, harness_fmu  # noqa: F401  (fixtures)
+
+from juno.campaign import load_campaign
+from juno.identify import prepare_run, run_residuals
+from juno.residual_structure import MATERIAL_FRACTION, column_noise, residual_structure
+from juno.rover_model import SOIL_PARAMETERS
+
+BLOCK = 4.0
+STEP = 5e-3
+
+
+def _offset_columns(src: Path, dst: Path, offsets: dict[str, float]) -> Path:
+    """A copy of campaign ``src`` in ``dst`` with a constant added to every sample of some columns."""
+    shutil.copytree(src, dst)
+    for path in (dst / "runs").glob("*.csv"):
+        with path.open(newline="") as f:
+            rows = list(csv.reader(f))
+        header = rows[0]
+        for column, offset in offsets.items():
+            if column in header:
+                i = header.index(column)
+                for row in rows[1:]:
+                    if row[i] != "":
+                        row[i] = repr(float(row[i]) + offset)
+        with path.open("w", newline="") as f:
+            csv.writer(f).writerows(rows)
+    return dst
+
+
+def _structure_at_truth(root: Path, fmu, soil: dict[str, float], seed: int = 3):
+    """The structure test of the drawbar runs of the campaign at ``root`` at the soil ``soil``,
+    with the alternating 4 s training / held-out blocks the diagnosis uses."""
+    campaign = load_campaign(root)
+    prepared = [prepare_run(campaign, run) for run in campaign.runs_of_kind("drawbar")]
+    runs, signals, times = [], [], []
+    for p in prepared:
+        p.params["solver.step"] = STEP
+        for column, (ts, *_rest) in p.targets.items():
+            runs += [p.run_id] * len(ts)
+            signals += [column] * len(ts)
+            times.append(ts)
+    t = np.concatenate(times)
+    block = np.floor(t / BLOCK).astype(int)
+    meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
+    train = block % 2 == 0
+    r = np.concatenate([run_residuals(fmu, p, soil, {}, 0.05) for p in prepared])
+    return residual_structure(campaign, fmu, prepared, meta, train, r, dict(soil), seed=seed)
+
+
+def _signal(result, name):
+    return next(s for s in result.signals if s.signal == name)
+
+
+def test_white_noise_sigma_is_recovered_from_a_smooth_signal_plus_noise():
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 30.0, 0.02)
+    values = 40.0 + 5.0 * np.sin(0.3 * t) + 2.0 * t + 1.7 * rng.standard_normal(len(t))
+    assert column_noise(t, values) == pytest.approx(1.7, rel=0.08)
+
+
+def test_the_models_own_data_has_no_structure(noisy_campaign, harness_fmu):  # noqa: F811
+    result = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil)
+    assert result.signals, "no signal was tested"
+    assert not result.significant, [s.to_json() for s in result.signals if s.significant]
+    for s in result.signals:
+        assert s.noise > 0 and np.isfinite(s.p_value)
+
+
+def test_a_pitch_bias_is_structure_in_pitch_that_follows_a_constant(noisy_campaign, harness_fmu, tmp_path):  # noqa: F811
+    bias = float(np.radians(1.0))
+    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": bias})
+    result = _structure_at_truth(root, harness_fmu, noisy_campaign.soil)
+    pitch = _signal(result, "pitch")
+    assert pitch.significant and pitch.ratio > 5 * MATERIAL_FRACTION
+    assert pitch.follows and pitch.follows[0].name == "constant"
+    assert pitch.follows[0].slope == pytest.approx(bias, rel=0.1)
+    assert [s.signal for s in result.structured()] == ["pitch"]
+
+
+def test_a_drag_on_the_left_wheels_follows_the_side(noisy_campaign, harness_fmu, tmp_path):  # noqa: F811
+    drag = 8.0   # N m more measured on the left than the wheels need
+    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"torque_left": drag})
+    result = _structure_at_truth(root, harness_fmu, noisy_campaign.soil)
+    left = _signal(result, "torque_left")
+    assert left.significant
+    side = next(c for c in left.follows if c.name == "side")
+    assert side.slope == pytest.approx(drag, rel=0.15)
+    assert not _signal(result, "torque_right").significant
+
+
+def test_the_test_is_deterministic_for_a_seed(noisy_campaign, harness_fmu):  # noqa: F811
+    a = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil, seed=5)
+    b = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil, seed=5)
+    assert a.to_json() == b.to_json()
+
+
+def test_the_soil_enters_only_through_the_given_parameters(noisy_campaign, harness_fmu):  # noqa: F811
+    """A soil far from the truth leaves structure in the torques: the test looks at the model
+    it is given, not at the data alone."""
+    wrong = {k: v for k, v in noisy_campaign.soil.items()}
+    wrong["soil.Kvx"] = noisy_campaign.soil["soil.Kvx"] * 3.0
+    result = _structure_at_truth(noisy_campaign.path, harness_fmu, wrong)
+    assert set(SOIL_PARAMETERS) <= set(wrong)
+    assert result.significant
+    assert {"torque_left", "torque_right"} & {s.signal for s in result.structured()}
