@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness_fixtures import noisy_campaign, harness_fmu  # noqa: F401  (fixtures)
-
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
 from juno.residual_structure import MATERIAL_FRACTION, column_noise, residual_structure
 from juno.rover_model import SOIL_PARAMETERS
+
+pytest_plugins = ["harness_fixtures"]
 
 BLOCK = 4.0
 STEP = 5e-3
@@ -74,7 +74,7 @@ def test_white_noise_sigma_is_recovered_from_a_smooth_signal_plus_noise():
     assert column_noise(t, values) == pytest.approx(1.7, rel=0.08)
 
 
-def test_the_models_own_data_has_no_structure(noisy_campaign, harness_fmu):  # noqa: F811
+def test_the_models_own_data_has_no_structure(noisy_campaign, harness_fmu):
     result = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil)
     assert result.signals, "no signal was tested"
     assert not result.significant, [s.to_json() for s in result.signals if s.significant]
@@ -82,7 +82,7 @@ def test_the_models_own_data_has_no_structure(noisy_campaign, harness_fmu):  # n
         assert s.noise > 0 and np.isfinite(s.p_value)
 
 
-def test_a_pitch_bias_is_structure_in_pitch_that_follows_a_constant(noisy_campaign, harness_fmu, tmp_path):  # noqa: F811
+def test_a_pitch_bias_is_structure_in_pitch_that_follows_a_constant(noisy_campaign, harness_fmu, tmp_path):
     bias = float(np.radians(1.0))
     root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": bias})
     result = _structure_at_truth(root, harness_fmu, noisy_campaign.soil)
@@ -93,7 +93,7 @@ def test_a_pitch_bias_is_structure_in_pitch_that_follows_a_constant(noisy_campai
     assert [s.signal for s in result.structured()] == ["pitch"]
 
 
-def test_a_drag_on_the_left_wheels_follows_the_side(noisy_campaign, harness_fmu, tmp_path):  # noqa: F811
+def test_a_drag_on_the_left_wheels_follows_the_side(noisy_campaign, harness_fmu, tmp_path):
     drag = 8.0   # N m more measured on the left than the wheels need
     root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"torque_left": drag})
     result = _structure_at_truth(root, harness_fmu, noisy_campaign.soil)
@@ -104,13 +104,13 @@ def test_a_drag_on_the_left_wheels_follows_the_side(noisy_campaign, harness_fmu,
     assert not _signal(result, "torque_right").significant
 
 
-def test_the_test_is_deterministic_for_a_seed(noisy_campaign, harness_fmu):  # noqa: F811
+def test_the_test_is_deterministic_for_a_seed(noisy_campaign, harness_fmu):
     a = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil, seed=5)
     b = _structure_at_truth(noisy_campaign.path, harness_fmu, noisy_campaign.soil, seed=5)
     assert a.to_json() == b.to_json()
 
 
-def test_the_soil_enters_only_through_the_given_parameters(noisy_campaign, harness_fmu):  # noqa: F811
+def test_the_soil_enters_only_through_the_given_parameters(noisy_campaign, harness_fmu):
     """A soil far from the truth leaves structure in the torques: the test looks at the model
     it is given, not at the data alone."""
     wrong = {k: v for k, v in noisy_campaign.soil.items()}
