@@ -21,6 +21,10 @@ LIDAR scan         1202/m2 5 mm vertical, random scattered points
 The total station's prism sits at the chassis reference point (the FMU's
 ``x, y, z``).  The truth (parameters and hidden effect) goes to
 ``truth.json`` only; file names, columns and order never depend on it.
+
+That is the ``default`` design; ``design="alt"`` (:mod:`juno.synthetic_design`) lays a campaign
+out differently (four drawbar runs at another throttle, a ridge, other instruments and clocks,
+columns in another order), so that the diagnosis can be tested on data it was not shaped on.
 """
 
 from __future__ import annotations
@@ -37,12 +41,13 @@ from .campaign import write_campaign
 from .outputs import check_campaign_dir
 from .pointcloud import Grid, write_esri_ascii
 from .simulator import WHEELS, InputSignals, JunoFMU, SimulationError, default_fmu_path
+from .synthetic_design import DESIGNS, Design, Surface, Sensor, battery_voltage, design_named, mound_surface
 
 #: The paper's Table 2 values, the centre of the synthetic truth.
 TABLE2 = {"soil.kh": 1.58e5, "soil.eta": 0.501, "soil.gamma": 0.0813, "soil.Kvx": 0.819}
 
 #: Drawbar runs: (id, duration s, steady window s), as in the paper.
-DRAWBAR_RUNS = (("dbp1", 22.0, (8.0, 18.0)), ("dbp2", 35.0, (15.0, 25.0)), ("dbp3", 32.0, (15.0, 25.0)))
+DRAWBAR_RUNS = DESIGNS["default"].drawbar_runs
 
 #: Terrain area (m): x from 0 to 8, y from -1.3 to 1.3 (20.8 m^2), scanned at SCAN_DENSITY.  The
 #: scan reaches farther in x where the terrain run's rover went farther (scan_extent): a survey
@@ -50,15 +55,15 @@ DRAWBAR_RUNS = (("dbp1", 22.0, (8.0, 18.0)), ("dbp2", 35.0, (15.0, 25.0)), ("dbp
 TERRAIN_X = (0.0, 8.0)
 TERRAIN_Y = (-1.3, 1.3)
 #: LIDAR points per square metre (25000 over the 20.8 m^2 test area).
-SCAN_DENSITY = 25000 / 20.8
+SCAN_DENSITY = DESIGNS["default"].scan_density
 #: How far the true terrain (truth_grid) reaches in x (m): beyond any terrain run's reach, the
 #: rover started at 0.8 m driving at the motors' no-load speed at THROTTLE (0.50 m/s) for 30 s.
 TRUTH_X_END = 17.0
-TERRAIN_DURATION = 30.0
-THROTTLE = 0.45
+TERRAIN_DURATION = DESIGNS["default"].terrain_duration
+THROTTLE = DESIGNS["default"].throttle[0]
 
 #: Drawbar loads (N, each +-40 N drawn) of the three runs in a random order, at THROTTLE.
-HELD_LOADS = (320.0, 520.0, 720.0)
+HELD_LOADS = DESIGNS["default"].held_loads
 
 #: ``heavy_run=True`` (``juno synthesize --heavy-run``): two runs at these loads at THROTTLE
 #: and a heavy one, in a random order.  In the heavy run the person pulls until the rover
@@ -84,6 +89,7 @@ class Truth:
     soil: dict[str, float]
     extension: dict[str, float] = field(default_factory=dict)   # FMU parameters the extended model needs
     sim: dict[str, float] = field(default_factory=dict)         # FMU parameters of the truth simulation
+    distortion: dict[str, float] = field(default_factory=dict)  # what the instruments get wrong (effects.py)
 
 
 def _ou_process(rng: np.random.Generator, t: np.ndarray, tau: float) -> np.ndarray:
@@ -142,23 +148,13 @@ def load_for_slip(fmu: JunoFMU, params: dict[str, object], slip: float, throttle
     return 0.5 * (low + high)
 
 
-def mound_surface(x: np.ndarray, y: np.ndarray, rng_seed: int) -> np.ndarray:
-    """True elevation (m): a 0.5 m mound plus gentle undulations of about 1 cm."""
-    rng = np.random.default_rng(rng_seed + 7919)
-    z = 0.5 * np.exp(-((x - 4.0) ** 2 / (2 * 0.9**2) + (y - 0.35) ** 2 / (2 * 0.7**2)))
-    for _ in range(4):
-        kx, ky = rng.uniform(1.0, 3.0, 2)
-        phase = rng.uniform(0, 2 * np.pi)
-        z = z + 0.004 * np.sin(kx * x + ky * y + phase)
-    return z
-
-
-def truth_grid(seed: int, cell: float = 0.02) -> Grid:
-    """The true terrain as a fine grid: the test area with a 1 m margin, to TRUTH_X_END in x."""
+def truth_grid(seed: int, cell: float = 0.02, surface: Surface = mound_surface) -> Grid:
+    """The true terrain (``surface``, the design's) as a fine grid: the test area with a 1 m
+    margin, to TRUTH_X_END in x."""
     xs = np.arange(TERRAIN_X[0] - 1.0, TRUTH_X_END + cell / 2, cell)
     ys = np.arange(TERRAIN_Y[0] - 1.0, TERRAIN_Y[1] + 1.0 + cell / 2, cell)
     X, Y = np.meshgrid(xs, ys)
-    return Grid(x0=float(xs[0]), y0=float(ys[0]), cell=cell, z=mound_surface(X, Y, seed))
+    return Grid(x0=float(xs[0]), y0=float(ys[0]), cell=cell, z=surface(X, Y, seed))
 
 
 def scan_extent(path_x: np.ndarray, path_y: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -176,51 +172,61 @@ def scan_extent(path_x: np.ndarray, path_y: np.ndarray) -> tuple[tuple[float, fl
 
 def lidar_scan(rng: np.random.Generator, seed: int, noise: float = 1.0,
                transform: Callable[[np.ndarray], np.ndarray] | None = None,
-               extent: tuple[tuple[float, float], tuple[float, float]] = (TERRAIN_X, TERRAIN_Y)) -> np.ndarray:
+               extent: tuple[tuple[float, float], tuple[float, float]] = (TERRAIN_X, TERRAIN_Y),
+               design: Design = DESIGNS["default"]) -> np.ndarray:
     """Scattered LIDAR points (N, 3) over ``extent`` (x range, y range; default the test area) at
-    SCAN_DENSITY, 5 mm vertical noise at ``noise = 1``.
+    the design's density and vertical noise (SCAN_DENSITY and 5 mm by default, at ``noise = 1``).
 
     ``transform`` maps true points to where the scan reports them (registration errors).
     """
     (x0, x1), (y0, y1) = extent
-    n_points = int(round(SCAN_DENSITY * (x1 - x0) * (y1 - y0)))
+    n_points = int(round(design.scan_density * (x1 - x0) * (y1 - y0)))
     x = rng.uniform(x0, x1, n_points)
     y = rng.uniform(y0, y1, n_points)
-    z = mound_surface(x, y, seed) + noise * 0.005 * rng.standard_normal(n_points)
+    z = design.surface(x, y, seed) + noise * design.scan_sigma * rng.standard_normal(n_points)
     pts = np.column_stack([x, y, z])
     return transform(pts) if transform is not None else pts
 
 
-def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float) -> dict[str, np.ndarray]:
+def measure(rng: np.random.Generator, sim: dict[str, np.ndarray], kind: str, noise: float,
+            design: Design = DESIGNS["default"], distortion: dict[str, float] | None = None,
+            clock_start: float = 0.0) -> dict[str, np.ndarray]:
     """Turns a truth simulation into the columns of a run CSV (the campaign format of
-    juno.campaign: a ``time`` column and one column per sensor).
+    juno.campaign: a ``time`` column and one column per sensor, in the design's order).
 
     Each sensor samples on its own clock; the CSV rows are the union of all
-    sample times with empty cells (NaN) where a sensor has no sample.
+    sample times with empty cells (NaN) where a sensor has no sample.  ``distortion``
+    (:func:`juno.effects.apply_effects_to_truth`) holds what the instruments get wrong:
+    ``imu.pitchBias`` (rad) is added to every pitch sample; ``clock.offset`` (s) is how far the
+    IMU and total-station clocks run ahead of the motor clock (their sample stamped t was taken
+    at motor time t - offset).  ``clock_start`` (s) is the run clock's reading at the start.
     """
+    distortion = distortion or {}
     t_end = float(sim["time"][-1])
     T = sim["time"]
     streams: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    lag = {"imu": distortion.get("clock.offset", 0.0), "station": distortion.get("clock.offset", 0.0)}
 
-    def add(name, values, rate, sigma, offset=0.0):
-        t = np.round(np.arange(offset, t_end + 1e-9, 1.0 / rate), 6)
-        v = np.interp(t, T, values)
-        streams[name] = (t, v + noise * sigma(v) * rng.standard_normal(len(t)))
+    def add(sensor: Sensor) -> None:
+        t = np.round(np.arange(sensor.offset, t_end + 1e-9, 1.0 / sensor.rate), 6)
+        shift = lag.get(sensor.clock, 0.0)
+        v = np.interp(t - shift if shift else t, T, sim[sensor.source])
+        sigma = sensor.sigma + sensor.relative * np.abs(v) if sensor.relative else sensor.sigma
+        measured = v + noise * sigma * rng.standard_normal(len(t))
+        if sensor.column == "pitch" and "imu.pitchBias" in distortion:
+            measured = measured + distortion["imu.pitchBias"]
+        streams[sensor.column] = (t, measured)
 
-    if kind == "drawbar":
-        add("drawbar_force", sim["drawbarForce"], 100, lambda v: 4.0)
-    add("torque_left", sim["torqueLeftApplied"], 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
-    add("torque_right", sim["torqueRightApplied"], 50, lambda v: 1.5 + 0.01 * np.abs(v), 0.002)
-    add("omega_left", sim["omegaLeft"], 50, lambda v: 0.005, 0.004)
-    add("omega_right", sim["omegaRight"], 50, lambda v: 0.005, 0.004)
-    for axis, col, sig in (("x", "pos_x", 0.002), ("y", "pos_y", 0.002), ("z", "pos_z", 0.003)):
-        add(col, sim[axis], 5, lambda v, s=sig: s, 0.013)
-    add("roll", sim["roll"], 100, lambda v: 0.003, 0.001)
-    add("pitch", sim["pitch"], 100, lambda v: 0.003, 0.001)
-    add("yaw", sim["yaw"], 100, lambda v: 0.005, 0.001)
+    for sensor in design.sensors:
+        if kind == "drawbar" or not sensor.drawbar_only:
+            add(sensor)
+    if design.extra_columns:
+        t = np.round(np.arange(0.0, t_end + 1e-9, 0.5), 6)
+        streams["battery_voltage"] = (t, battery_voltage(rng, t, np.interp(t, T, sim["torqueLeftApplied"]),
+                                                         np.interp(t, T, sim["torqueRightApplied"]), noise))
 
     times = np.unique(np.concatenate([t for t, _ in streams.values()]))
-    columns = {"time": times}
+    columns = {"time": np.round(times + clock_start, 6) if clock_start else times}
     for name, (t, v) in streams.items():
         col = np.full(len(times), np.nan)
         col[np.searchsorted(times, t)] = v
@@ -260,25 +266,38 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
                seed: int = 0,
                noise: float = 1.0, fmu: JunoFMU | None = None, time_scale: float = 1.0,
                overwrite: bool = False, progress: Callable[[str], None] | None = None,
-               heavy_run: bool = False) -> Path:
+               heavy_run: bool = False, design: str = "default") -> Path:
     """Writes a synthetic measured campaign to ``out`` and returns its path.
 
     ``noise`` scales every sensor's noise (0 = exact measurements).
     ``time_scale`` < 1 shortens every run (for quick tests); windows scale too.
-    ``heavy_run`` makes one drawbar run a heavy one, held at a slip of about HEAVY_SLIP.
+    ``heavy_run`` makes one drawbar run a heavy one, held at a slip of about HEAVY_SLIP
+    (default design only).  ``design`` names the campaign's layout
+    (:data:`juno.synthetic_design.DESIGNS`: ``default``, the paper's, or ``alt``).
     The folder is written whole or not at all; ``truth.json`` holds the truth.
     ``overwrite`` replaces an existing ``out`` only when it holds exactly what this function
     writes (:func:`juno.outputs.is_synthesized_campaign`); any other non-empty folder is refused
     (:class:`juno.outputs.OutputError`) before anything is simulated.
     """
-    from .effects import scan_transform
+    from .effects import effect_record, scan_transform
     say = progress or (lambda msg: None)
     out_path = Path(out)
+    plan = design_named(design)
+    if heavy_run and plan.name != "default":
+        raise ValueError(f"--heavy-run is a variant of the default design, not of design '{plan.name}'")
     # Before anything is simulated: OUT must be new, empty, or (with overwrite) a campaign this
     # function wrote; a folder holding anything else is never replaced.
     check_campaign_dir(out_path, [fmu.fmu_path if fmu is not None else default_fmu_path()], "OUT", overwrite)
     truth = draw_truth(effect, strength, seed)   # validates the effects before anything is written
     rng = np.random.default_rng([seed, 2])
+    # The layout's own draws (throttle, clocks) come from a stream of their own, so that the
+    # truth and the noise streams do not depend on the design's choices.
+    layout_rng = np.random.default_rng([seed, 3])
+    n_drawbar = len(plan.drawbar_runs)
+    throttle = plan.throttle[0] if plan.throttle[0] == plan.throttle[1] else \
+        round(float(layout_rng.uniform(*plan.throttle)), 3)
+    clock_starts = ([round(float(c), 3) for c in layout_rng.uniform(*plan.clock_start, n_drawbar + 1)]
+                    if plan.clock_start else [0.0] * (n_drawbar + 1))
     own_fmu = fmu is None
     fmu = fmu or JunoFMU()
     try:
@@ -290,44 +309,56 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
             levels = np.array([(*HEAVY_DESIGN_LOADS, heavy)[i] for i in order]) + rng.uniform(-40, 40, 3)
             throttles = [(THROTTLE, THROTTLE, HEAVY_THROTTLE)[i] for i in order]
         else:
-            levels = rng.permutation(list(HELD_LOADS)) + rng.uniform(-40, 40, 3)
-            throttles = [THROTTLE] * 3
-        for (run_id, duration, window), level, throttle in zip(DRAWBAR_RUNS, levels, throttles):
+            levels = rng.permutation(list(plan.held_loads)) + rng.uniform(-plan.load_jitter, plan.load_jitter,
+                                                                          n_drawbar)
+            throttles = [throttle] * n_drawbar
+        for (run_id, duration, window), level, run_throttle, t0 in zip(plan.drawbar_runs, levels, throttles,
+                                                                       clock_starts):
             duration *= time_scale
             window = (window[0] * time_scale, window[1] * time_scale)
+            if t0:
+                window = (window[0] + t0, window[1] + t0)
             say(f"simulating drawbar run {run_id} ({duration:.0f} s)")
             drawbar = hand_drawbar_force(rng, duration, float(level))
             inputs = InputSignals(drawbar.time, {**drawbar.values,
-                                                 "throttleLeft": np.full(len(drawbar.time), throttle),
-                                                 "throttleRight": np.full(len(drawbar.time), throttle)})
+                                                 "throttleLeft": np.full(len(drawbar.time), run_throttle),
+                                                 "throttleRight": np.full(len(drawbar.time), run_throttle)})
             sim = fmu.simulate(base, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
             sim["drawbarForce"] = np.interp(sim["time"], drawbar.time, drawbar.values["drawbarForce"])
-            runs[run_id] = measure(rng, sim, "drawbar", noise)
+            runs[run_id] = measure(rng, sim, "drawbar", noise, plan, truth.distortion, t0)
             manifest_runs.append({"id": run_id, "kind": "drawbar", "file": f"runs/{run_id}.csv",
                                   "steady_window": list(window)})
 
         say("simulating the 3-D terrain run")
         with tempfile.TemporaryDirectory(prefix="juno-truth-") as tmp:
             grid_path = Path(tmp) / "truth.asc"
-            write_esri_ascii(grid_path, truth_grid(seed))
-            params = {**base, "terrain.file": str(grid_path), "init.x": 0.8, "init.y": 0.0}
-            inputs = InputSignals.constant(drawbarForce=0.0, throttleLeft=THROTTLE, throttleRight=THROTTLE)
-            duration = TERRAIN_DURATION * time_scale
+            write_esri_ascii(grid_path, truth_grid(seed, surface=plan.surface))
+            params = {**base, "terrain.file": str(grid_path), "init.x": plan.terrain_start[0],
+                      "init.y": plan.terrain_start[1]}
+            inputs = InputSignals.constant(drawbarForce=0.0, throttleLeft=throttle, throttleRight=throttle)
+            duration = plan.terrain_duration * time_scale
             sim = fmu.simulate(params, inputs, duration, 0.01, outputs=TRUTH_OUTPUTS)
-        runs["t3d"] = measure(rng, sim, "terrain", noise)
+        runs["t3d"] = measure(rng, sim, "terrain", noise, plan, truth.distortion, clock_starts[-1])
         manifest_runs.append({"id": "t3d", "kind": "terrain", "file": "runs/t3d.csv",
                               "terrain": "terrain/scan.xyz"})
         scan = lidar_scan(rng, seed, noise=noise, transform=scan_transform(truth),
-                          extent=scan_extent(sim["x"], sim["y"]))
+                          extent=scan_extent(sim["x"], sim["y"]), design=plan)
 
         # The name must not reveal the seed (the seed regenerates the truth).
         manifest = {"name": "juno-synthetic-campaign", "runs": manifest_runs, "rover": {}}
         names = [e for e, _ in truth.effects]
-        truth_json = json.dumps({"effect": "+".join(names), "strength": truth.effects[0][1],
-                                 "effects": [{"effect": e, "strength": s} for e, s in truth.effects],
-                                 "seed": truth.seed, "noise": noise, "soil": truth.soil,
-                                 "extension": truth.extension},
-                                indent=2)
+        record = {"effect": "+".join(names), "strength": truth.effects[0][1],
+                  "effects": [effect_record(e, s) for e, s in truth.effects],
+                  "seed": truth.seed, "noise": noise, "soil": truth.soil,
+                  "extension": truth.extension}
+        # Keys beyond the catalog's exact forms and the default design only when they say something,
+        # so that a default campaign's truth.json stays as it always was.
+        if truth.distortion or any(not r.get("exact_form", True) for r in record["effects"]):
+            record["hidden"] = {"sim": truth.sim, "distortion": truth.distortion}
+        if plan.name != "default":
+            record["design"] = {"name": plan.name, "throttle": throttle,
+                                "clock_starts": dict(zip([r[0] for r in plan.drawbar_runs] + ["t3d"], clock_starts))}
+        truth_json = json.dumps(record, indent=2)
         say(f"writing {out}")
         write_campaign(out, manifest, runs, {"terrain/scan.xyz": scan},
                        extra_files={"truth.json": truth_json}, overwrite=overwrite)
