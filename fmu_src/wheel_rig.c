@@ -125,7 +125,8 @@ void wheel_rig_force(const Model *m, double z, int at_rest, RigForce *f)
     if (f->sinkage <= 0) return;          /* in the air; a NaN goes on, to be caught as a diverged state */
     const WheelSoil ws = {.contact = &m->d.contact, .wong_reece = &m->d.wong_reece, .law = m->p.contact_model,
                           .slip_sinkage = m->p.slipSinkage_coefficient, .thrust_gain = m->p.grouser_thrustGain,
-                          .lug_height = m->p.grouser_lugHeight};
+                          .lug_height = m->p.grouser_lugHeight, .slip_sinkage_power = m->p.slipSinkage_exponent,
+                          .thrust_slip = m->p.grouser_thrustSlip};
     const WheelSoilInput in = {f->sinkage, f->v_long, f->spin, 1.0, 1.0};
     WheelSoilContact sc;
     wheel_soil_slip(&ws, &in, &sc);

@@ -34,7 +34,7 @@ typedef struct {
     double contact_slipVelocityEps;
     double wr_n, wr_kc, wr_kphi, wr_K, wr_a0, wr_a1;
     int wr_points;
-    double grouser_lugHeight, grouser_thrustGain, slipSinkage_coefficient;
+    double grouser_lugHeight, grouser_thrustGain, grouser_thrustSlip, slipSinkage_coefficient, slipSinkage_exponent;
     double rig_load, rig_mass;
     int rig_driveMode;
     double solver_step;

@@ -31,7 +31,7 @@
     REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0.01, 5, p.wheel_radius,  "Wheel radius including lugs (the Juno wheel: 22 in diameter)") \
     REAL(121, "wheel.width",    PARAM, "m",      0.254,  0.01, 1, p.wheel_width,   "Wheel width (the Juno wheel, assumed: ARGO 22x10.00-8)") \
     /* ---- the rig ---- */ \
-    REAL(700, "rig.load",       PARAM, "N",      779.0,  1, 1e5, p.rig_load, "Vertical load the carriage puts on the wheel (weight of wheel and ballast); default a quarter of the Juno rover's weight") \
+    REAL(700, "rig.load",       PARAM, "N",      779.0,  1, 1e4, p.rig_load, "Vertical load the carriage puts on the wheel (weight of wheel and ballast); default a quarter of the Juno rover's weight") \
     REAL(701, "rig.mass",       PARAM, "kg",     0.0,    0, 1e4, p.rig_mass, "Vertically moving mass (wheel and the carriage part that follows it); 0 = rig.load / 9.81 m/s2") \
     REAL(703, "rig.movingMass", CALC,  "kg",     0.0,    -NOLIM, NOLIM, d.mass, "The vertically moving mass used: rig.mass, or rig.load / 9.81 m/s2 when rig.mass = 0") \
     INT (702, "rig.driveMode",  PARAM, 0, 0, 1, p.rig_driveMode, "0 = slip set (inputs rig.slip, rig.vx); 1 = spin set (inputs rig.omega, rig.vx)") \
@@ -50,7 +50,9 @@
     REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Largest internal integration step") \
     /* ---- contact extensions beyond the paper's model, as in JunoRover; each is off at its default ---- */ \
     REAL(197, "slipSinkage.coefficient", PARAM, "1", 0.0, 0, 50, p.slipSinkage_coefficient, "Slip-sinkage: k_h / (1 + c |slip|) (0 = off)") \
+    REAL(507, "slipSinkage.exponent", PARAM, "1", 1.0, 0.25, 4, p.slipSinkage_exponent, "Slip-sinkage exponent p: k_h / (1 + c |slip|^p) (1 = the linear law)") \
     REAL(198, "grouser.thrustGain", PARAM, "1", 0.0, 0, 5, p.grouser_thrustGain, "Grouser/lug thrust beyond Mohr-Coulomb: F_taumax (1 + g) (0 = off)") \
+    REAL(508, "grouser.thrustSlip", PARAM, "1", 0.0, 0, 1, p.grouser_thrustSlip, "Slip s_g over which the grouser thrust builds up: F_taumax (1 + g (1 - exp(-|slip| / s_g))) (0 = the full gain at any slip)") \
     REAL(189, "grouser.lugHeight", PARAM, "m", 0.0, 0, 0.1, p.grouser_lugHeight, "Grouser/lug height: the lugs shear the soil at R + h, h beyond the rim the normal law presses on (0 = off; volumetric law only)") \
     /* ---- inputs ---- */ \
     REAL(710, "rig.slip",      INPUT, "1",     0.2,  -1, 0.99, in.slip,      "Longitudinal slip set (rig.driveMode 0): spin omega = v / ((1 - slip) R) when driving, v (1 + slip) / R when braking, v = rig.vx cos(rig.slipAngle)") \
