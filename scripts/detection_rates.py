@@ -28,6 +28,16 @@ that depends on the order (the second step is judged against the first cause's m
 
     .venv/bin/python scripts/detection_rates.py --pair drivetrain_loss slip_sinkage \
         --pair-strengths 0.7 0.8 0.9 1.0 --seeds 4 --workers 1 --json pairs.json
+
+--effects also takes the alternative forms of the catalog effects and the decoys outside it
+(juno.effects.ALTERNATIVE_FORMS, DECOYS; --forms and --decoys select all of them), and --design
+alt lays the campaigns out as ``juno synthesize --design alt`` does.  A second table scores them:
+an alternative form is named right when the diagnosis names the catalog cause of its mechanism
+(juno.effects.ALTERNATIVE_OF); a decoy when no catalog cause is named, and the table counts the
+cases the diagnosis called unexplained (a result whose ``cause`` is "unexplained" or whose
+``unexplained`` is true):
+
+    .venv/bin/python scripts/detection_rates.py --forms --decoys --design alt --seeds 3 --json forms.json
 """
 
 from __future__ import annotations
@@ -44,19 +54,19 @@ import numpy as np
 
 from juno.atomic import atomic_write_text
 from juno.diagnose import diagnose
-from juno.effects import EFFECTS
+from juno.effects import ALL_EFFECTS, ALTERNATIVE_FORMS, DECOYS, EFFECT_INFO, EFFECTS
 from juno.synthesize import synthesize
 
 
 def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...], seed: int, workers: int | None,
-             heavy_run: bool = False) -> dict:
-    """Synthesize with ``effect`` hidden (a tuple: several, each at its own ``strength``),
-    diagnose without the truth, and summarise."""
+             heavy_run: bool = False, design: str = "default") -> dict:
+    """Synthesize with ``effect`` hidden (a tuple: several, each at its own ``strength``) in the
+    campaign ``design``, diagnose without the truth, and summarise."""
     effects = list(effect) if isinstance(effect, tuple) else [effect]
     strengths = list(strength) if isinstance(strength, tuple) else [strength]
     with tempfile.TemporaryDirectory(prefix="juno-detect-") as tmp:
         campaign = Path(tmp) / "campaign"
-        synthesize(campaign, effect=effects, strength=strengths, seed=seed, heavy_run=heavy_run)
+        synthesize(campaign, effect=effects, strength=strengths, seed=seed, heavy_run=heavy_run, design=design)
         truth = json.loads((campaign / "truth.json").read_text())
         shutil.move(str(campaign / "truth.json"), Path(tmp) / "truth.json")
         t0 = time.perf_counter()
@@ -65,7 +75,8 @@ def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...],
     gains = {c["name"]: c["gain"] for c in result["candidates"]}
     case = {"effect": "+".join(effects), "strength": strengths[0] if len(strengths) == 1 else strengths,
             "seed": seed, "heavy_run": heavy_run, "cause": result["cause"],
-            "causes": result["causes"], "correct": result["cause"] == effects[0],
+            "causes": result["causes"], "correct": judged_right(effects[0], result),
+            "unexplained": said_unexplained(result),
             "gain": result["gain"]["relative"] if result["cause"] != "none" else 0.0,
             "gain_of_hidden": gains.get(effects[0]), "equally_good": result["equally_good"],
             "extension": result["extended"].get("extension", {}), "truth_extension": truth["extension"],
@@ -73,6 +84,8 @@ def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...],
             # every candidate's evidence, so other decision rules can be studied offline
             "candidates": [_evidence(c) for c in result["candidates"]],
             "second_round": [_evidence(c) for c in result.get("second_round", [])]}
+    if design != "default":
+        case["design"] = design
     if len(effects) > 1:
         # Stronger: the larger one-cause gain, each effect's model judged against the base model.
         stronger_first = sorted(effects, key=lambda e: -gains.get(e, -np.inf))
@@ -82,6 +95,22 @@ def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...],
                      "correct": result["causes"] == stronger_first,
                      "removed_by_step": [s["held_out_mse_before"] - s["held_out_mse_after"] for s in steps]})
     return case
+
+
+def said_unexplained(result: dict) -> bool:
+    """Whether the diagnosis said the data hold something no catalog cause explains."""
+    return bool(result.get("unexplained")) or result.get("cause") == "unexplained"
+
+
+def judged_right(effect: str, result: dict) -> bool:
+    """A catalog effect (or none) is named right when named itself; an alternative form when
+    the catalog cause of its mechanism is named; a decoy when no catalog cause is named."""
+    info = EFFECT_INFO[effect]
+    if info.exact_form:
+        return result["cause"] == effect
+    if info.in_catalog:
+        return result["cause"] == info.catalog_cause
+    return result["cause"] not in EFFECTS or result["cause"] == "none"
 
 
 def _evidence(candidate: dict) -> dict:
@@ -94,11 +123,11 @@ def _evidence(candidate: dict) -> dict:
 def table(cases: list[dict]) -> str:
     """Markdown: per effect, how often the hidden cause was named, and what else was."""
     lines = []
-    if any("effects" not in c for c in cases):
+    if any("effects" not in c and c["effect"] in EFFECTS for c in cases):
         lines += ["| hidden effect | cases | named correctly | named instead | median held-out gain | "
                   "median diagnose wall time |", "|---|---|---|---|---|---|"]
-    for effect in EFFECTS:
-        mine = [c for c in cases if c["effect"] == effect]
+    for effect, design in [(e, d) for e in EFFECTS for d in sorted({c.get("design", "default") for c in cases})]:
+        mine = [c for c in cases if c["effect"] == effect and c.get("design", "default") == design]
         if not mine:
             continue
         right = sum(c["correct"] for c in mine)
@@ -109,8 +138,10 @@ def table(cases: list[dict]) -> str:
         instead = ", ".join(f"{k} {v}" for k, v in sorted(wrong.items(), key=lambda kv: -kv[1])) or "-"
         gains = [c["gain"] for c in mine if c["correct"] and effect != "none"]
         gain = f"{np.median(gains):+.1%}" if gains else "-"
-        lines.append(f"| {effect} | {len(mine)} | {right}/{len(mine)} | {instead} | {gain} | "
+        label = effect if design == "default" else f"{effect} ({design} design)"
+        lines.append(f"| {label} | {len(mine)} | {right}/{len(mine)} | {instead} | {gain} | "
                      f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
+    lines += _forms_table([c for c in cases if "effects" not in c and c["effect"] not in EFFECTS], bool(lines))
     pairs = [c for c in cases if "effects" in c]
     if pairs:
         if lines:
@@ -126,9 +157,39 @@ def table(cases: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _forms_table(cases: list[dict], after_table: bool) -> list[str]:
+    """Markdown rows for the alternative forms and decoys (empty without such cases)."""
+    if not cases:
+        return []
+    lines = [""] if after_table else []
+    lines += ["| hidden effect | design | cases | named right | named instead | said unexplained | "
+              "median diagnose wall time |", "|---|---|---|---|---|---|---|"]
+    for effect in ALL_EFFECTS:
+        for design in sorted({c.get("design", "default") for c in cases}):
+            mine = [c for c in cases if c["effect"] == effect and c.get("design", "default") == design]
+            if not mine:
+                continue
+            info = EFFECT_INFO[effect]
+            label = f"{effect} (as {info.catalog_cause})" if info.in_catalog else f"{effect} (decoy)"
+            wrong: dict[str, int] = {}
+            for c in mine:
+                if not c["correct"]:
+                    wrong[c["cause"]] = wrong.get(c["cause"], 0) + 1
+            instead = ", ".join(f"{k} {v}" for k, v in sorted(wrong.items(), key=lambda kv: -kv[1])) or "-"
+            lines.append(f"| {label} | {design} | {len(mine)} | {sum(c['correct'] for c in mine)}/{len(mine)} | "
+                         f"{instead} | {sum(bool(c.get('unexplained')) for c in mine)}/{len(mine)} | "
+                         f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--effects", nargs="+", default=list(EFFECTS), choices=list(EFFECTS))
+    ap.add_argument("--effects", nargs="+", choices=list(ALL_EFFECTS),
+                    help="effect ids (default: the catalog's, juno.effects.EFFECTS)")
+    ap.add_argument("--forms", action="store_true", help="add every alternative form of a catalog effect")
+    ap.add_argument("--decoys", action="store_true", help="add every decoy outside the catalog")
+    ap.add_argument("--design", choices=("default", "alt"), default="default",
+                    help="campaign layout (juno synthesize --design)")
     ap.add_argument("--seeds", type=int, default=20, help="cases per effect (default 20)")
     ap.add_argument("--first-seed", type=int, default=1000)
     ap.add_argument("--min-strength", type=float, default=0.7)
@@ -145,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="run nothing: print the table of these studies' cases (--json files, finished or "
                          ".partial) together, and write them to --json as one study")
     args = ap.parse_args(argv)
+    if args.heavy_run and args.design != "default":
+        ap.error("--heavy-run is a variant of the default design")
     if args.merge:
         cases = []
         for path in args.merge:
@@ -168,7 +231,9 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--pair-strengths {ranges}: each range LO <= HI within (0, 1]")
         kinds = [tuple(args.pair)]
     else:
-        kinds = list(args.effects)
+        kinds = list(args.effects or ([] if args.forms or args.decoys else EFFECTS))
+        kinds += [e for e in (list(ALTERNATIVE_FORMS) if args.forms else []) + (list(DECOYS) if args.decoys else [])
+                  if e not in kinds]
     # Seed-major: every effect gets its k-th case before any gets its (k+1)-th, so a study
     # stopped early still compares effects on equal footing.
     for k in range(args.seeds):
@@ -182,12 +247,13 @@ def main(argv: list[str] | None = None) -> int:
                 strength = tuple(round(float(rng.uniform(ranges[2 * i], ranges[2 * i + 1])), 3) for i in range(2))
                 name = "+".join(effect)
             else:
-                rng = np.random.default_rng([args.first_seed, list(EFFECTS).index(effect), seed])
+                rng = np.random.default_rng([args.first_seed, list(ALL_EFFECTS).index(effect), seed])
                 strength = 1.0 if effect == "none" else round(float(rng.uniform(args.min_strength, args.max_strength)), 3)
                 name = effect
-            if any(c["effect"] == name and c["seed"] == seed for c in done):
+            if any(c["effect"] == name and c["seed"] == seed and c.get("design", "default") == args.design
+                   for c in done):
                 continue
-            case = one_case(effect, strength, seed, args.workers, args.heavy_run)
+            case = one_case(effect, strength, seed, args.workers, args.heavy_run, args.design)
             cases.append(case)
             shown = "/".join(f"{x:.3f}" for x in strength) if isinstance(strength, tuple) else f"{strength:.3f}"
             print(f"{name:16s} seed {seed} strength {shown}: named {'+'.join(case['causes']) or 'none':16s} "

@@ -292,3 +292,30 @@ def test_bad_designs_and_clashing_effects_are_refused_before_anything_is_written
     with pytest.raises(ValueError, match=needle):
         synthesize(out, seed=1, fmu=harness_fmu, time_scale=TIME_SCALE, **kwargs)
     assert not out.exists() or not any(out.iterdir())
+
+
+# ------------------------------------------------------------------ the opt-in study
+
+def _study():
+    import importlib.util
+    path = Path(__file__).resolve().parents[2] / "scripts" / "detection_rates.py"
+    spec = importlib.util.spec_from_file_location("detection_rates_forms", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_study_scores_a_form_by_its_mechanism_and_a_decoy_by_naming_no_catalog_cause():
+    study = _study()
+    assert study.judged_right("soil_strip", {"cause": "soil_patch"})
+    assert not study.judged_right("soil_strip", {"cause": "multipass"})
+    assert study.judged_right("side_drag", {"cause": "unexplained"})
+    assert study.judged_right("side_drag", {"cause": "none"})
+    assert not study.judged_right("side_drag", {"cause": "drivetrain_loss"})
+    assert study.judged_right("grouser", {"cause": "grouser"})
+    cases = [{"effect": "side_drag", "seed": s, "wall_time": 60.0, "cause": cause, "causes": [cause],
+              "correct": study.judged_right("side_drag", {"cause": cause}), "unexplained": cause == "unexplained",
+              "design": "alt"} for s, cause in ((1, "drivetrain_loss"), (2, "unexplained"))]
+    text = study.table(cases)
+    assert "| side_drag (decoy) | alt | 2 | 1/2 | drivetrain_loss 1 | 1/2 |" in text
+    assert "named correctly" not in text, "no catalog case, no catalog table"
