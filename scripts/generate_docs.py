@@ -6,7 +6,9 @@ hand-typed numbers:
 
 * ``docs/reference/variables.md``: the FMU's variables (name, causality, variability, type,
   unit, start, min, max, description), read from the ``modelDescription.xml`` inside the built
-  FMU (``build/JunoRover.fmu``, generated from ``modelDescription/variables.h``).
+  FMU (``build/JunoRover.fmu``, generated from ``modelDescription/variables.h``); and
+  ``docs/reference/wheel-rig-variables.md``, the same for the single-wheel rig's FMU built beside
+  it (``build/WheelRig.fmu``, from ``modelDescription/wheel_rig_variables.h``).
 * ``docs/results/bench.md`` and ``bench.json`` (``--bench``): a ``juno bench`` run, with the
   date, the commit and the machine it ran on.
 * ``docs/results/detection-rates.md`` and ``detection-rates.json`` (``--detection-rates``,
@@ -49,12 +51,15 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 RESULTS = DOCS / "results"
 VARIABLES_MD = DOCS / "reference" / "variables.md"
+RIG_VARIABLES_MD = DOCS / "reference" / "wheel-rig-variables.md"
 BENCH_JSON = RESULTS / "bench.json"
 BENCH_MD = RESULTS / "bench.md"
 DETECTION_JSON = RESULTS / "detection-rates.json"
 DETECTION_MD = RESULTS / "detection-rates.md"
 FIGURE = DOCS / "images" / "wheel-and-drawbar.png"
 DEFAULT_FMU = ROOT / "build" / "JunoRover.fmu"
+#: The single-wheel rig's FMU, built beside the rover's.
+RIG_FMU_NAME = "WheelRig.fmu"
 
 #: The command that measures the detection rates (shown wherever they are not measured).
 DETECTION_COMMAND = ".venv/bin/python scripts/generate_docs.py --detection-rates"
@@ -168,24 +173,36 @@ def variables_table(fmu: Path = DEFAULT_FMU) -> str:
     for sv in root.iter("ScalarVariable"):
         counts[sv.get("causality", "local")] = counts.get(sv.get("causality", "local"), 0) + 1
     summary = ", ".join(f"{n} {c}" for c, n in sorted(counts.items()))
+    title, table, note = VARIABLE_PAGES[root.get("modelName")]
     return "\n".join([
-        "# FMU variables",
+        title,
         "",
         GENERATED_NOTE,
         "",
-        "Every variable of `build/JunoRover.fmu`, as its `modelDescription.xml` declares it "
+        f"Every variable of `build/{root.get('modelName')}.fmu`, as its `modelDescription.xml` declares it "
         f"(`{root.get('modelName')}`, FMI {root.get('fmiVersion')} Co-Simulation; {summary}). "
         "The XML and the FMU's own accessors are both generated from one table, "
-        "`modelDescription/variables.h`; change a variable there, rebuild (`cmake --build build`) "
+        f"`{table}`; change a variable there, rebuild (`cmake --build build`) "
         "and run `scripts/generate_docs.py`. Units are SI, angles in rad; `min` and `max` are "
         "inclusive, and a value outside them is refused with `fmi2Error`. `vr` is the value reference "
-        "an FMI host addresses the variable by. Wheels are `FL`, `RL`, `FR`, `RR` (front/rear, left/right).",
+        "an FMI host addresses the variable by." + note,
         "",
         "| name | vr | causality | variability | type | unit | start | min | max | description |",
         "|---|---|---|---|---|---|---|---|---|---|",
         *rows,
         "",
     ])
+
+
+#: For each FMU (its modelName): the variables page's title, the variable table it is generated
+#: from, and what the page adds.
+VARIABLE_PAGES = {
+    "JunoRover": ("# FMU variables", "modelDescription/variables.h",
+                  " Wheels are `FL`, `RL`, `FR`, `RR` (front/rear, left/right)."),
+    "WheelRig": ("# WheelRig FMU variables", "modelDescription/wheel_rig_variables.h",
+                 " A variable the rover has too keeps the rover's name, unit, range and value reference; "
+                 "the rig is described in [../fmu.md](../fmu.md#the-single-wheel-test-rig-wheelrigfmu)."),
+}
 
 
 # ------------------------------------------------------------------ benchmark results
@@ -393,7 +410,8 @@ def fill(text: str, name: str, content: str, where: Path) -> str:
 def expected_files(fmu: Path = DEFAULT_FMU) -> dict[Path, str]:
     """Every generated file's expected content, from the FMU and the committed results files."""
     bench, detection = _load_json(BENCH_JSON), _load_json(DETECTION_JSON)
-    out = {VARIABLES_MD: variables_table(fmu), DETECTION_MD: detection_page(detection)}
+    out = {VARIABLES_MD: variables_table(fmu), RIG_VARIABLES_MD: variables_table(fmu.parent / RIG_FMU_NAME),
+           DETECTION_MD: detection_page(detection)}
     if bench is not None:
         out[BENCH_MD] = bench_page(bench)
     for path, parts in sections(bench, detection).items():
