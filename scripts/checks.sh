@@ -6,8 +6,8 @@
 #      and parallel drivers);
 #   2. valgrind memcheck (no leaks, no invalid access) of the conformance
 #      driver and of the parallel driver over the Release FMU and of the
-#      single-wheel rig's model tests, and helgrind (data races) of the
-#      parallel driver;
+#      single-wheel rig's tests (its model and its FMI layer), and helgrind
+#      (data races) of the parallel driver;
 #   3. short time-bounded libFuzzer runs of the terrain reader and the FMU
 #      state deserializer from their committed corpora;
 #   4. the win64 binary cross-compiled with mingw-w64 into
@@ -68,16 +68,17 @@ note "ASan+UBSan: $(cd build-asan && ctest -N | tail -1 | sed 's/Total Tests: //
 # --------------------------------------------------------- 2. valgrind
 t0=$SECONDS
 echo "== checks: valgrind memcheck and helgrind (Release FMU, build/)"
-cmake --build build --target conformance parallel test_wheel_rig
+cmake --build build --target conformance parallel test_wheel_rig test_wheel_rig_fmi
 vg=(valgrind -q --error-exitcode=97 --leak-check=full --show-leak-kinds=definite,indirect,possible
     --errors-for-leak-kinds=definite,indirect,possible --track-origins=yes)
 "${vg[@]}" build/conformance build/fmu build | tail -1
 "${vg[@]}" build/parallel build/fmu build 4 30 | tail -1
 valgrind -q --tool=helgrind --error-exitcode=98 --suppressions=tests/conformance/helgrind.supp \
   build/parallel build/fmu build 4 30 | tail -1
-# the single-wheel rig's model (WheelRig.fmu; its FMI layer is the same fmi2_cs.c as above)
+# the single-wheel rig (WheelRig.fmu): its model, and its FMI layer as a host calls it
 "${vg[@]}" build/test_wheel_rig | tail -1
-note "valgrind: memcheck of conformance, parallel and test_wheel_rig, helgrind of parallel: no errors, no leaks ($((SECONDS - t0)) s)"
+"${vg[@]}" build/test_wheel_rig_fmi | tail -1
+note "valgrind: memcheck of conformance, parallel and the rig's tests, helgrind of parallel: no errors, no leaks ($((SECONDS - t0)) s)"
 
 # ------------------------------------------------------------ 3. fuzzing
 t0=$SECONDS
