@@ -19,7 +19,10 @@
  * Each run is timed whole (instantiation, terrain reading, static
  * equilibrium, every step) and its stepping alone; the figure is the median
  * over --repeats runs, next to the fastest run's (the least disturbed by
- * other jobs on a shared machine).  Printed, never asserted.  Not a test.
+ * other jobs on a shared machine).  --solver-step and --solver-tolerance set
+ * those parameters (solver.tolerance > 0: the automatic step; the internal
+ * steps per run are then counted by the model, in an extra direct run).
+ * Printed, never asserted.  Not a test.
  *
  * --trace PREFIX writes, for the first direct run of each scenario, the
  * time and every Real output after each communication step to
@@ -34,7 +37,7 @@
  * (default 1e-9).
  *
  * usage: bench_fmu [--fmu-dir DIR] [--terrain FILE] [--repeats N]
- *                  [--solver-step S] [--only direct|fmi] [--json FILE]
+ *                  [--solver-step S] [--solver-tolerance T] [--only direct|fmi] [--json FILE]
  *                  [--trace PREFIX [--compare REF [--tolerance T]]]
  *                  [--comm-step S]
  */
@@ -84,11 +87,13 @@ typedef struct {
     double cpu;                       /* CPU s of the whole run */
     double stepping_cpu;              /* CPU s of the stepping */
     double x, y, z;                   /* final position */
+    double steps, rejected;           /* internal steps taken and rejected (direct runs) */
     int ok;
     char error[1024];
 } RunResult;
 
 static double solver_step = 0.0;      /* 0: the FMU's default */
+static double solver_tolerance = 0.0; /* 0: the FMU's default */
 static double comm_step = 0.01;       /* s, the default experiment's */
 static const char *trace_prefix = NULL;
 static const char *compare_prefix = NULL;
@@ -183,6 +188,7 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
     model_set_defaults(m);
     terrain_init_flat(&m->terrain);
     if (solver_step > 0) m->p.solver_step = solver_step;
+    if (solver_tolerance > 0) m->p.solver_tolerance = solver_tolerance;
     m->p.init_x = sc->init_x;
     m->in.drawbarForce = sc->drawbar;
     m->in.throttleLeft = m->in.throttleRight = sc->throttle;
@@ -214,6 +220,8 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
         r.x = m->out.x;
         r.y = m->out.y;
         r.z = m->out.z;
+        r.steps = (double)m->steps_taken;
+        r.rejected = (double)m->steps_rejected;
     }
     model_free(m);
     free(m);
@@ -228,7 +236,7 @@ static Fmu F;
 static int fmu_loaded = 0;
 static unsigned out_vrs[MAX_OUT];
 static size_t n_out;
-static unsigned vr_x, vr_y, vr_z, vr_terrain, vr_init_x, vr_solver_step;
+static unsigned vr_x, vr_y, vr_z, vr_terrain, vr_init_x, vr_solver_step, vr_solver_tolerance;
 
 typedef struct {
     char last[512];
@@ -265,6 +273,7 @@ static RunResult run_fmi(const Scenario *sc)
              fmi->EnterInitializationMode(c) == fmi2OK && fmi->SetReal(c, &vr_init_x, 1, &sc->init_x) == fmi2OK &&
              fmi->SetReal(c, in_vrs, 3, in) == fmi2OK;
     if (ok && solver_step > 0) ok = fmi->SetReal(c, &vr_solver_step, 1, &solver_step) == fmi2OK;
+    if (ok && solver_tolerance > 0) ok = fmi->SetReal(c, &vr_solver_tolerance, 1, &solver_tolerance) == fmi2OK;
     if (ok && sc->terrain) {
         const fmi2String file = sc->terrain;
         ok = fmi->SetString(c, &vr_terrain, 1, &file) == fmi2OK;
@@ -340,6 +349,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--terrain") && i + 1 < argc) terrain = argv[++i];
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--solver-step") && i + 1 < argc) solver_step = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--solver-tolerance") && i + 1 < argc) solver_tolerance = atof(argv[++i]);
         else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
         else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
         else if (!strcmp(argv[i], "--trace") && i + 1 < argc) trace_prefix = argv[++i];
@@ -349,7 +359,7 @@ int main(int argc, char **argv)
         else {
             fprintf(stderr,
                     "usage: %s [--fmu-dir DIR (default: build/fmu beside this program)] [--terrain FILE.asc] "
-                    "[--repeats N (default 5)] [--solver-step S] [--only direct|fmi] [--json FILE] "
+                    "[--repeats N (default 5)] [--solver-step S] [--solver-tolerance T] [--only direct|fmi] [--json FILE] "
                     "[--trace PREFIX [--compare REF [--tolerance T (default 1e-9)]]] [--comm-step S (default 0.01)]\n",
                     argv[0]);
             return 2;
@@ -400,6 +410,7 @@ int main(int argc, char **argv)
         vr_terrain = fmu_var(&F, "terrain.file")->vr;
         vr_init_x = fmu_var(&F, "init.x")->vr;
         vr_solver_step = fmu_var(&F, "solver.step")->vr;
+        vr_solver_tolerance = fmu_var(&F, "solver.tolerance")->vr;
     }
 
     char tmp_grid[] = "/tmp/bench_fmu_mound_XXXXXX";
@@ -418,9 +429,7 @@ int main(int argc, char **argv)
     memset(&probe, 0, sizeof probe);
     model_set_defaults(&probe);
     const double h_solver = solver_step > 0 ? solver_step : probe.p.solver_step;
-    /* model_do_step's substep count per communication step (its internal step is comm_step / n). */
-    int per_comm = (int)ceil(comm_step / h_solver - 1e-9);
-    if (per_comm < 1) per_comm = 1;
+    const double tol = solver_tolerance > 0 ? solver_tolerance : probe.p.solver_tolerance;
     const Scenario scenarios[2] = {
         {"drawbar", 30.0, NULL, probe.p.init_x, probe.in.drawbarForce, probe.in.throttleLeft},
         {"terrain", 60.0, terrain, 0.8, 0.0, 0.45},
@@ -429,11 +438,23 @@ int main(int argc, char **argv)
     Series series[2][2];
     memset(series, 0, sizeof series);
 
-    printf("real-time factor from C (solver.step %g s, communication step %g s, median of %d runs)\n", h_solver,
-           comm_step, repeats);
+    printf("real-time factor from C (solver.step %g s, solver.tolerance %g m/s, communication step %g s, median of "
+           "%d runs)\n", h_solver, tol, comm_step, repeats);
     printf("  drawbar: 30 s, flat, drive.mode 2, drawbar %g N, throttle %g; terrain: 60 s on %s from x = 0.8 m, "
            "throttle 0.45\n", probe.in.drawbarForce, probe.in.throttleLeft, terrain);
     int failures = 0;
+    double steps[2] = {0, 0}, rejected[2] = {0, 0};   /* per scenario, from a direct run (the model counts them) */
+    for (int s = 0; s < 2; ++s) {
+        if (!(tol > 0)) {                              /* fixed: ceil(comm_step / h) substeps per step */
+            int per_comm = (int)ceil(comm_step / h_solver - 1e-9);
+            if (per_comm < 1) per_comm = 1;
+            steps[s] = lround(scenarios[s].duration / comm_step) * (double)per_comm;
+        } else {
+            const RunResult probe_run = run_direct(&scenarios[s], NULL);
+            steps[s] = probe_run.steps;
+            rejected[s] = probe_run.rejected;
+        }
+    }
     for (int s = 0; s < 2; ++s) {
         for (int p = 0; p < 2; ++p) {
             if ((p == 0 && !do_direct) || (p == 1 && !do_fmi)) continue;
@@ -470,13 +491,13 @@ int main(int argc, char **argv)
             }
             const double tot = median(se->total, se->n), stp = median(se->stepping, se->n);
             const double stp_cpu = median(se->stepping_cpu, se->n);
-            const double substeps = lround(dur / comm_step) * (double)per_comm;
-            printf("  %-8s %-7s %8.1fx real time whole run (%.3f s), %8.1fx stepping only; %.2f us per "
-                   "internal step (%.2f us CPU); fastest run %.1fx whole, %.1fx stepping; CPU share %.0f %%; "
-                   "final x %.2f y %.2f m\n",
-                   scenarios[s].name, paths[p], dur / tot, tot, dur / stp, stp / substeps * 1e6,
-                   stp_cpu / substeps * 1e6, dur / fastest(se->total, se->n), dur / fastest(se->stepping, se->n),
-                   100 * se->cpu / se->wall, se->last.x, se->last.y);
+            const double substeps = steps[s] > 0 ? steps[s] : 1;
+            printf("  %-8s %-7s %8.1fx real time whole run (%.3f s), %8.1fx stepping only; %.0f internal steps "
+                   "(mean %.2f ms, %.0f rejected), %.2f us per internal step (%.2f us CPU); fastest run %.1fx whole, "
+                   "%.1fx stepping; CPU share %.0f %%; final x %.2f y %.2f m\n",
+                   scenarios[s].name, paths[p], dur / tot, tot, dur / stp, substeps, dur / substeps * 1e3,
+                   rejected[s], stp / substeps * 1e6, stp_cpu / substeps * 1e6, dur / fastest(se->total, se->n),
+                   dur / fastest(se->stepping, se->n), 100 * se->cpu / se->wall, se->last.x, se->last.y);
         }
     }
 
@@ -486,8 +507,8 @@ int main(int argc, char **argv)
             perror(json);
             return 1;
         }
-        fprintf(f, "{\n  \"solver_step\": %.17g, \"comm_step\": %.17g, \"repeats\": %d, \"terrain\": \"%s\",\n  "
-                   "\"peak_rss_kb\": %ld,\n  \"runs\": [", h_solver, comm_step, repeats,
+        fprintf(f, "{\n  \"solver_step\": %.17g, \"solver_tolerance\": %.17g, \"comm_step\": %.17g, \"repeats\": %d, \"terrain\": \"%s\",\n  "
+                   "\"peak_rss_kb\": %ld,\n  \"runs\": [", h_solver, tol, comm_step, repeats,
                 own_grid ? "(generated)" : "(given)", peak_rss_kb());
         int first = 1;
         for (int s = 0; s < 2; ++s)
@@ -502,11 +523,11 @@ int main(int argc, char **argv)
                     fprintf(f, ", \"total_s\": %.17g, \"stepping_s\": %.17g, \"stepping_cpu_s\": %.17g, "
                                "\"total_min_s\": %.17g, \"stepping_min_s\": %.17g, "
                                "\"final_x\": %.17g, \"final_y\": %.17g, \"final_z\": %.17g, \"n\": %d, "
-                               "\"cpu_share\": %.17g}",
+                               "\"cpu_share\": %.17g, \"steps\": %.17g, \"rejected\": %.17g}",
                             median(se->total, se->n), median(se->stepping, se->n),
                             median(se->stepping_cpu, se->n), fastest(se->total, se->n),
                             fastest(se->stepping, se->n), se->last.x, se->last.y, se->last.z, se->n,
-                            se->cpu / se->wall);
+                            se->cpu / se->wall, steps[s], rejected[s]);
                 else {
                     fputs(", \"error\": \"", f);
                     for (const char *c = se->last.error; *c; ++c) {

@@ -36,7 +36,7 @@ typedef struct {
     double motor_voltage, motor_kt, motor_resistance, motor_gearRatio, motor_efficiency;
     double init_x, init_y, init_yaw, init_vx;
     int contact_method;
-    double contact_slipVelocityEps, solver_step;
+    double contact_slipVelocityEps, solver_step, solver_tolerance;
     /* contact law (contact.model) and the Wong-Reece/Ishigami soil (wong_reece.h) */
     int contact_model;
     double wr_n, wr_kc, wr_kphi, wr_K, wr_a0, wr_a1;
@@ -88,6 +88,7 @@ typedef struct {
     double path[2];                /* forward travel of each side's front wheel, m */
     double rut[2][RUT_SAMPLES];    /* residual rut depth along that travel (ring buffer), m */
     double torque_applied[2];      /* N m, last applied drive torque per side */
+    double step_next;              /* s, the automatic step's next internal step (0: none yet) */
 } State;
 
 typedef struct {
@@ -156,6 +157,9 @@ typedef struct {
     Eval eval;
     EvalKey eval_key;
     int eval_valid;
+    /* Counts of internal steps since initialisation, for benchmarks: taken
+     * (accepted) and rejected by the automatic step's error estimate. */
+    unsigned long steps_taken, steps_rejected;
 } Model;
 
 /* The model's name in messages (the FMU's model identifier). */

@@ -29,6 +29,7 @@ static int check_params(const Params *p, char *err, size_t n)
         return snprintf(err, n, "rover.track = %g must exceed wheel.width = %g", p->rover_track, p->wheel_width), -1;
     if (!(p->env_gravity > 0)) return snprintf(err, n, "env.gravity = %g must be positive", p->env_gravity), -1;
     if (!(p->solver_step > 0)) return snprintf(err, n, "solver.step = %g must be positive", p->solver_step), -1;
+    if (!(p->solver_tolerance >= 0)) return snprintf(err, n, "solver.tolerance = %g must not be negative", p->solver_tolerance), -1;
     if (p->drive_mode == DRIVE_MOTOR) {
         if (!(p->motor_resistance > 0)) return snprintf(err, n, "motor.resistance = %g must be positive", p->motor_resistance), -1;
         if (!(p->motor_gearRatio > 0)) return snprintf(err, n, "motor.gearRatio = %g must be positive", p->motor_gearRatio), -1;
@@ -330,6 +331,7 @@ int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
     m->eval_valid = 0;
+    m->steps_taken = m->steps_rejected = 0;
     if (check_params(p, err, errlen) != 0) return -1;
     if (prepare_volumetric(m, err, errlen) != 0) return -1;
     if (prepare_wong_reece(m, err, errlen) != 0) return -1;
@@ -383,8 +385,8 @@ double model_get_time(const Model *m) { return m->s.time; }
 
 void model_set_time(Model *m, double time) { m->s.time = time; }
 
-/* The model takes ceil(h / solver.step) internal steps: that must stay an
- * affordable int. */
+/* The model takes ceil(h / solver.step) internal steps (at least, with
+ * solver.tolerance > 0): that must stay an affordable int. */
 int model_check_step_size(const Model *m, double h, char *why, size_t n)
 {
     if (h / m->p.solver_step <= 1e7) return 0;
