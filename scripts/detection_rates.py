@@ -70,7 +70,7 @@ def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...],
         truth = json.loads((campaign / "truth.json").read_text())
         shutil.move(str(campaign / "truth.json"), Path(tmp) / "truth.json")
         t0 = time.perf_counter()
-        result = diagnose(campaign, workers=workers)
+        result = diagnose(campaign, workers=workers).to_json()
         wall = time.perf_counter() - t0
     gains = {c["name"]: c["gain"] for c in result["candidates"]}
     case = {"effect": "+".join(effects), "strength": strengths[0] if len(strengths) == 1 else strengths,

@@ -516,8 +516,8 @@ def bench_diagnose(rep: Report, fmu, campaign, say) -> float | None:
     cpu = time.process_time() - c0 + sum(worker_cpu.values())
     cores = os.cpu_count() or 1
     rep.figure("diagnose_s", "diagnose wall time", wall, "s", target="< 2 min", met=bool(wall < TARGETS["diagnose_s"]),
-               note=f"{len(result['candidates'])} candidates on {min(cores, len(result['candidates']))} worker "
-                    f"processes; CPU {cpu / (wall * cores):.0%} of {cores} cores; cause '{result['cause']}'")
+               note=f"{len(result.candidates)} candidates on {min(cores, len(result.candidates))} worker "
+                    f"processes; CPU {cpu / (wall * cores):.0%} of {cores} cores; cause '{result.cause}'")
     return peak[0] / 1024.0 if peak[0] > 0 else None
 
 

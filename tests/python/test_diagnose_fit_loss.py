@@ -95,6 +95,6 @@ def test_a_pair_refitted_from_the_paper_soil_that_loses_the_terrain_replay_is_no
 
 
 def test_plain_squares_when_switched_off(monkeypatch):
-    monkeypatch.setattr(diagnose, "FIT_LOSS_SCALE", None)
+    monkeypatch.setattr(diagnose.fitting, "FIT_LOSS_SCALE", None)
     r = np.array([0.5, -3.0, 40.0])
     assert diagnose.fit_loss(r) == pytest.approx(float(np.mean(r * r)))

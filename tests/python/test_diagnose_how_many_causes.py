@@ -73,7 +73,7 @@ def test_two_hidden_effects_are_named_stronger_first(tmp_path):
 
 def test_a_second_parameter_that_only_frees_the_first_causes_fit_names_no_second_cause(tmp_path):
     """A second extension's gain must survive its own removal with the first cause refitted
-    (diagnose._second_round).  A fixed draw, not a random one: slip-sinkage 1.15
+    (diagnose.second_round).  A fixed draw, not a random one: slip-sinkage 1.15
     (`--effect slip_sinkage --strength 0.767 --seed 4011`).  There slip-sinkage alone stops in
     a local optimum (coefficient 1.03, drawbar training loss 1.48, from the base optimum and from
     the paper's soil alike); fitted beside it, a drivetrain loss of 0.006 carried the soil out of

@@ -1,4 +1,4 @@
-"""How `juno diagnose` judges one candidate against its reference (diagnose._judge), on made-up
+"""How `juno diagnose` judges one candidate against its reference (diagnose.judge), on made-up
 residuals: no simulation, so each rule of the decision is pinned down on its own.
 
 The setting mirrors a real campaign: a drawbar run whose scaled residuals are of order 1 and a
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from juno import diagnose
-from juno.diagnose import (BLOCK, GAIN_MIN, NEGLIGIBLE_CHANGE, FitResult, Problem, _judge, capped_square, paired_z,
-                           penalised_gain, ranked, z_threshold)
+from juno.diagnose import (BLOCK, GAIN_MIN, NEGLIGIBLE_CHANGE, Contender, FitResult, Problem, capped_square, judge,
+                           paired_z, penalised_gain, ranked, z_threshold)
 from juno.identify import PAPER_INITIAL
 
 SAMPLE = 0.05     # s between samples
@@ -61,19 +61,19 @@ def test_the_gain_that_must_be_clear_is_the_pooled_one_not_the_best_kinds():
     reference = _reference(run_kind, 2.0, np.random.default_rng(7))
     extended = np.where(run_kind == "drawbar", reference, 0.9 * reference)
     switched_off = reference.copy()
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("soil_patch", extended, **{"soilPatch.khFactor": 1.04, "soilPatch.strengthFactor": 1.0}),
-                     _fit("soil_patch", switched_off, **{"soilPatch.khFactor": 1.0, "soilPatch.strengthFactor": 1.0}))
-    assert verdict["gain_by_kind"]["terrain"] == pytest.approx(0.19, abs=1e-9)
-    assert verdict["gain_by_kind"]["drawbar"] == 0.0
-    assert verdict["z_by_kind"]["terrain"] > z_threshold(2)
-    assert 0.03 < verdict["gain"] < 0.15
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("soil_patch", extended, **{"soilPatch.khFactor": 1.04, "soilPatch.strengthFactor": 1.0}),
+                    _fit("soil_patch", switched_off, **{"soilPatch.khFactor": 1.0, "soilPatch.strengthFactor": 1.0}))
+    assert verdict.gain_by_kind["terrain"] == pytest.approx(0.19, abs=1e-9)
+    assert verdict.gain_by_kind["drawbar"] == 0.0
+    assert verdict.z_by_kind["terrain"] > z_threshold(2)
+    assert 0.03 < verdict.gain < 0.15
+    assert not verdict.significant
     # The same residuals from a one-parameter extension (3 % needed) are a cause.
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}),
-                     _fit("drivetrain_loss", switched_off, **{"drive.lossFraction": 0.0}))
-    assert verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}),
+                    _fit("drivetrain_loss", switched_off, **{"drive.lossFraction": 0.0}))
+    assert verdict.significant
 
 
 def test_a_gain_does_not_count_if_another_kind_of_run_gets_significantly_worse():
@@ -82,16 +82,16 @@ def test_a_gain_does_not_count_if_another_kind_of_run_gets_significantly_worse()
     problem, run_kind = _problem()
     reference = _reference(run_kind, 2.0, np.random.default_rng(7))
     extended = np.where(run_kind == "drawbar", 0.6 * reference, np.sqrt(1.1) * reference)
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("grouser", extended, **{"grouser.thrustGain": 0.3}))
-    assert verdict["gain"] > 0.1 and verdict["z_by_kind"]["drawbar"] > z_threshold(2)
-    assert verdict["z_by_kind"]["terrain"] < -2.5
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("grouser", extended, **{"grouser.thrustGain": 0.3}))
+    assert verdict.gain > 0.1 and verdict.z_by_kind["drawbar"] > z_threshold(2)
+    assert verdict.z_by_kind["terrain"] < -2.5
+    assert not verdict.significant
     # Without the terrain replay's loss it is a cause.
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("grouser", np.where(run_kind == "drawbar", extended, reference),
-                          **{"grouser.thrustGain": 0.3}))
-    assert verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("grouser", np.where(run_kind == "drawbar", extended, reference),
+                         **{"grouser.thrustGain": 0.3}))
+    assert verdict.significant
 
 
 def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
@@ -99,23 +99,23 @@ def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
     over all runs; 10 % everywhere (significant by the rank test) is not enough."""
     problem, run_kind, reference, _ = setting
     extended = np.sqrt(0.9) * reference
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("soil_patch", extended, **{"soilPatch.khFactor": 0.6, "soilPatch.strengthFactor": 0.7}))
-    assert verdict["gain_by_kind"]["drawbar"] == pytest.approx(0.1, abs=1e-9)
-    assert min(verdict["z_by_kind"].values()) > z_threshold(2)
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("soil_patch", extended, **{"soilPatch.khFactor": 0.6, "soilPatch.strengthFactor": 0.7}))
+    assert verdict.gain_by_kind["drawbar"] == pytest.approx(0.1, abs=1e-9)
+    assert min(verdict.z_by_kind.values()) > z_threshold(2)
+    assert not verdict.significant
     # The same residuals from a one-parameter extension (3 % needed) are significant.
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}))
-    assert verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}))
+    assert verdict.significant
 
 
 def test_an_extension_at_its_neutral_setting_names_nothing(setting):
     problem, run_kind, reference, _ = setting
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("drivetrain_loss", 0.6 * reference, **{"drive.lossFraction": 0.001}))
-    assert verdict["gain"] > 0.3 and not verdict["acts"]
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("drivetrain_loss", 0.6 * reference, **{"drive.lossFraction": 0.001}))
+    assert verdict.gain > 0.3 and not verdict.acts
+    assert not verdict.significant
 
 
 def test_a_gain_that_survives_switching_the_extension_off_lives_in_the_soil_and_does_not_count(setting):
@@ -124,12 +124,12 @@ def test_a_gain_that_survives_switching_the_extension_off_lives_in_the_soil_and_
     problem, run_kind, reference, rng = setting
     extended = 0.6 * reference
     switched_off = extended + 0.01 * rng.standard_normal(len(reference))
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("grouser", extended, **{"grouser.thrustGain": 0.3}),
-                     _fit("grouser", switched_off, **{"grouser.thrustGain": 0.0}))
-    assert verdict["gain"] > 0.3
-    assert abs(verdict["ablation"]["gain"]) < 0.01
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("grouser", extended, **{"grouser.thrustGain": 0.3}),
+                    _fit("grouser", switched_off, **{"grouser.thrustGain": 0.0}))
+    assert verdict.gain > 0.3
+    assert abs(verdict.ablation.gain) < 0.01
+    assert not verdict.significant
 
 
 def _torque_only_effect(rng: np.random.Generator) -> tuple[Problem, np.ndarray, np.ndarray, np.ndarray]:
@@ -152,12 +152,12 @@ def test_an_ablation_that_changes_one_signal_everywhere_and_the_others_not_at_al
     block's mean square): the torques' 10 held-out units are 100 times worse, and the dust on
     the other 20 does not outvote them."""
     problem, run_kind, fitted, switched_off = _torque_only_effect(np.random.default_rng(204))
-    verdict = _judge(problem, run_kind, _fit("base", switched_off),
-                     _fit("drivetrain_loss", fitted, **{"drive.lossFraction": 0.2}),
-                     _fit("drivetrain_loss", switched_off, **{"drive.lossFraction": 0.0}))
-    assert verdict["ablation"]["gain"] > 0.9
-    assert verdict["ablation"]["z_by_kind"]["drawbar"] > z_threshold(2)
-    assert verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", switched_off),
+                    _fit("drivetrain_loss", fitted, **{"drive.lossFraction": 0.2}),
+                    _fit("drivetrain_loss", switched_off, **{"drive.lossFraction": 0.0}))
+    assert verdict.ablation.gain > 0.9
+    assert verdict.ablation.z_by_kind["drawbar"] > z_threshold(2)
+    assert verdict.significant
 
 
 def test_the_dust_counted_as_change_would_outvote_the_torques(monkeypatch):
@@ -168,7 +168,7 @@ def test_the_dust_counted_as_change_would_outvote_the_torques(monkeypatch):
     problem, run_kind, fitted, switched_off = _torque_only_effect(np.random.default_rng(204))
     drawbar = run_kind == "drawbar"
     assert paired_z(problem, switched_off, fitted, drawbar) > z_threshold(2)
-    monkeypatch.setattr(diagnose, "NEGLIGIBLE_CHANGE", 0.0)
+    monkeypatch.setattr(diagnose.judging, "NEGLIGIBLE_CHANGE", 0.0)
     assert paired_z(problem, switched_off, fitted, drawbar) < z_threshold(2)
 
 
@@ -184,30 +184,30 @@ def test_dust_alone_is_no_evidence(setting):
 def test_a_model_that_fails_on_a_run_gains_nothing(setting):
     problem, run_kind, reference, _ = setting
     failed = np.where(run_kind == "terrain", np.nan, 0.5 * reference)
-    verdict = _judge(problem, run_kind, _fit("base", reference),
-                     _fit("grouser", failed, **{"grouser.thrustGain": 0.3}))
-    assert verdict["gain"] == -np.inf and verdict["gain_by_kind"]["terrain"] == -np.inf
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("grouser", failed, **{"grouser.thrustGain": 0.3}))
+    assert verdict.gain == -np.inf and verdict.gain_by_kind["terrain"] == -np.inf
+    assert not verdict.significant
 
 
 def test_of_two_candidates_that_explain_the_data_alike_the_one_with_fewer_parameters_ranks_first():
     """Measured on a grouser campaign with a heavy drawbar run: a 5-parameter soil patch grown
     over the whole test area (a uniform strength factor, which is what a grouser's thrust gain
     is) gained 77.0 %, the grouser 76.7 %; each parameter costs GAIN_MIN in the ranking."""
-    patch = {"name": "soil_patch", "gain": 0.770, "n_params": 5}
-    grouser = {"name": "grouser", "gain": 0.767, "n_params": 1}
-    assert [c["name"] for c in ranked([patch, grouser])] == ["grouser", "soil_patch"]
+    patch = Contender("soil_patch", 0.770, 5)
+    grouser = Contender("grouser", 0.767, 1)
+    assert [c.name for c in ranked([patch, grouser])] == ["grouser", "soil_patch"]
     assert penalised_gain(patch) == pytest.approx(0.770 - 5 * GAIN_MIN)
 
 
 def test_a_clearly_larger_gain_outranks_fewer_parameters():
-    patch = {"name": "soil_patch", "gain": 0.80, "n_params": 5}
-    loss = {"name": "drivetrain_loss", "gain": 0.80 - 5 * GAIN_MIN, "n_params": 1}
-    assert [c["name"] for c in ranked([loss, patch])] == ["soil_patch", "drivetrain_loss"]
+    patch = Contender("soil_patch", 0.80, 5)
+    loss = Contender("drivetrain_loss", 0.80 - 5 * GAIN_MIN, 1)
+    assert [c.name for c in ranked([loss, patch])] == ["soil_patch", "drivetrain_loss"]
 
 
-def _significant(name: str, gain: float, n_params: int) -> dict:
-    return {"name": name, "gain": gain, "n_params": n_params, "significant": True}
+def _significant(name: str, gain: float, n_params: int) -> Contender:
+    return Contender(name, gain, n_params)
 
 
 def test_a_runner_up_with_more_parameters_leads_when_the_held_out_data_prefer_it_unit_by_unit():
@@ -220,14 +220,14 @@ def test_a_runner_up_with_more_parameters_leads_when_the_held_out_data_prefer_it
     loss = _reference(run_kind, 2.0, rng)
     lugs = np.where(run_kind == "drawbar", 0.9 * loss, loss)
     ranking = ranked([_significant("drivetrain_loss", 0.250, 1), _significant("grouser", 0.265, 2)])
-    assert ranking[0]["name"] == "drivetrain_loss"
+    assert ranking[0].name == "drivetrain_loss"
     order, duels = diagnose.leader_after_head_to_head(
         problem, run_kind, ranking, [_fit("drivetrain_loss", loss), _fit("grouser", lugs)])
-    assert [c["name"] for c in order] == ["grouser", "drivetrain_loss"]
-    assert len(duels) == 1 and duels[0]["challenger_better"]
-    assert duels[0]["z_by_kind"]["drawbar"] > z_threshold(2) and duels[0]["gain"] > 0
+    assert [c.name for c in order] == ["grouser", "drivetrain_loss"]
+    assert len(duels) == 1 and duels[0].challenger_better
+    assert duels[0].z_by_kind["drawbar"] > z_threshold(2) and duels[0].gain > 0
     assert "grouser (more parameters) explains the held-out data better than drivetrain_loss" in \
-        diagnose._duel_sentence(duels[0])
+        diagnose.duel_sentence(duels[0])
 
 
 def test_a_runner_up_that_is_better_only_by_chance_stays_behind_the_simpler_leader():
@@ -240,8 +240,8 @@ def test_a_runner_up_that_is_better_only_by_chance_stays_behind_the_simpler_lead
     ranking = ranked([_significant("drivetrain_loss", 0.250, 1), _significant("grouser", 0.265, 2)])
     order, duels = diagnose.leader_after_head_to_head(
         problem, run_kind, ranking, [_fit("drivetrain_loss", loss), _fit("grouser", lugs)])
-    assert [c["name"] for c in order] == ["drivetrain_loss", "grouser"]
-    assert len(duels) == 1 and not duels[0]["challenger_better"]
+    assert [c.name for c in order] == ["drivetrain_loss", "grouser"]
+    assert len(duels) == 1 and not duels[0].challenger_better
 
 
 def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to_the_duel():
@@ -253,7 +253,7 @@ def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to
     for challenger in (_significant("slip_sinkage", 0.30, 1), _significant("grouser", 0.24, 2)):
         order, duels = diagnose.leader_after_head_to_head(
             problem, run_kind, [_significant("drivetrain_loss", 0.25, 1), challenger], fits)
-        assert order[0]["name"] == "drivetrain_loss" and duels == []
+        assert order[0].name == "drivetrain_loss" and duels == []
 
 
 def test_of_two_alternative_first_causes_the_final_model_that_explains_more_is_reported():
@@ -283,13 +283,13 @@ def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_h
     grouser = _fit("grouser", 0.6 * base.residuals)
     pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, noisy], [loss, loss_slip]])
     if duels:   # the noisy model's raw gain came out larger: it was put to the test, and lost
-        assert duels[0]["challenger"] == "grouser+slip_sinkage" and not duels[0]["challenger_better"]
-        assert duels[0]["stage"] == "final models"
+        assert duels[0].challenger == "grouser+slip_sinkage" and not duels[0].challenger_better
+        assert duels[0].stage == "final models"
     assert pick == 1
     better = _fit("slip_sinkage", 0.95 * loss_slip.residuals)   # 1.6 points of raw gain, under GAIN_MIN
     pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, better], [loss, loss_slip]])
-    assert pick == 0 and len(duels) == 1 and duels[0]["challenger_better"]
-    assert duels[0]["leader"] == "drivetrain_loss+slip_sinkage"
+    assert pick == 0 and len(duels) == 1 and duels[0].challenger_better
+    assert duels[0].leader == "drivetrain_loss+slip_sinkage"
 
 
 def test_a_runner_up_trailing_by_less_than_one_parameters_charge_gets_its_own_second_round():
@@ -301,14 +301,14 @@ def test_a_runner_up_trailing_by_less_than_one_parameters_charge_gets_its_own_se
     patch = _significant("soil_patch", 0.70, 5)          # 0.55: 0.0275 behind, within NEAR_TIE too
     far = _significant("multipass", 0.57, 2)             # 0.51: too far behind
     ranking = ranked([far, patch, loss, grouser])
-    assert [c["name"] for c in ranking] == ["grouser", "drivetrain_loss", "soil_patch", "multipass"]
-    assert [b["name"] for b in diagnose.first_cause_branches(ranking[0], ranking[0], ranking)] == \
+    assert [c.name for c in ranking] == ["grouser", "drivetrain_loss", "soil_patch", "multipass"]
+    assert [b.name for b in diagnose.first_cause_branches(ranking[0], ranking[0], ranking)] == \
         ["grouser", "drivetrain_loss"]
-    assert [b["name"] for b in diagnose.first_cause_branches(grouser, grouser, [grouser, far])] == ["grouser"]
+    assert [b.name for b in diagnose.first_cause_branches(grouser, grouser, [grouser, far])] == ["grouser"]
     # The head-to-head winner and the ranking's leader it overturned both go on, and the
     # closest other one within NEAR_TIE of the better of them.
     winner = _significant("grouser", 0.62, 2)            # 0.56, won its duel against the loss
-    assert [b["name"] for b in diagnose.first_cause_branches(winner, loss, ranked([loss, winner, patch, far]))] == \
+    assert [b.name for b in diagnose.first_cause_branches(winner, loss, ranked([loss, winner, patch, far]))] == \
         ["grouser", "drivetrain_loss", "soil_patch"]
 
 
@@ -338,9 +338,9 @@ def test_a_registration_with_clear_pose_evidence_is_a_cause_even_if_its_replay_g
     four parameters need: judged on the replay, no cause was named.  It is judged on the pose."""
     problem, run_kind, _reference_r, _rng = setting
     base, registered = _replay_gaining(setting, 0.97)
-    verdict = _judge(problem, run_kind, base, registered, registration=_pose_evidence(8.5))
-    assert verdict["gain"] < GAIN_MIN * 4                      # the replay alone would not name it
-    assert verdict["significant"] and verdict["kinematic"]["ratio"] == pytest.approx(8.5)
+    verdict = judge(problem, run_kind, base, registered, registration=_pose_evidence(8.5))
+    assert verdict.gain < GAIN_MIN * 4                      # the replay alone would not name it
+    assert verdict.significant and verdict.kinematic.ratio == pytest.approx(8.5)
 
 
 def test_a_registration_without_pose_evidence_is_no_cause_however_its_replay_gains(setting):
@@ -348,16 +348,16 @@ def test_a_registration_without_pose_evidence_is_no_cause_however_its_replay_gai
     wrong on the terrain run; without the pose's evidence it is not a cause."""
     problem, run_kind, _reference_r, _rng = setting
     base, registered = _replay_gaining(setting, 0.5)
-    verdict = _judge(problem, run_kind, base, registered, registration=_pose_evidence(0.9 * diagnose.HELD_OUT_RATIO))
-    assert verdict["gain"] > 0.2 and not verdict["significant"]
+    verdict = judge(problem, run_kind, base, registered, registration=_pose_evidence(0.9 * diagnose.HELD_OUT_RATIO))
+    assert verdict.gain > 0.2 and not verdict.significant
 
 
 def test_a_registration_whose_replay_gets_significantly_worse_is_no_cause(setting):
     problem, run_kind, _reference_r, _rng = setting
     base, registered = _replay_gaining(setting, 1.3)
-    verdict = _judge(problem, run_kind, base, registered, registration=_pose_evidence(30.0))
-    assert verdict["z_by_kind"]["terrain"] < -diagnose.Z_MIN
-    assert not verdict["significant"]
+    verdict = judge(problem, run_kind, base, registered, registration=_pose_evidence(30.0))
+    assert verdict.z_by_kind["terrain"] < -diagnose.Z_MIN
+    assert not verdict.significant
 
 
 def test_on_top_of_another_cause_a_registration_is_judged_on_the_replay_like_the_others(setting):
@@ -365,10 +365,10 @@ def test_on_top_of_another_cause_a_registration_is_judged_on_the_replay_like_the
     cause, and a soft soil patch sinks the rover as a lowered scan would), the replay decides,
     with GAIN_MIN per parameter."""
     problem, run_kind, _reference_r, _rng = setting
-    verdict = _judge(problem, run_kind, *_replay_gaining(setting, 0.97))
-    assert verdict["kinematic"] is None and not verdict["significant"]
-    verdict = _judge(problem, run_kind, *_replay_gaining(setting, 0.5))
-    assert verdict["significant"]
+    verdict = judge(problem, run_kind, *_replay_gaining(setting, 0.97))
+    assert verdict.kinematic is None and not verdict.significant
+    verdict = judge(problem, run_kind, *_replay_gaining(setting, 0.5))
+    assert verdict.significant
 
 
 def _two_fits(run_kind: np.ndarray, drawbar: tuple[float, float], terrain: tuple[float, float]
@@ -390,8 +390,8 @@ def test_of_a_candidates_two_fits_the_drawbar_runs_choose_unless_their_choice_lo
     assert diagnose.better_of_two_fits(problem, run_kind, from_base, from_paper) is from_base
     assert diagnose.better_of_two_fits(problem, run_kind, from_paper, from_base) is from_base
     lost, kept = _two_fits(run_kind, drawbar=(1.0, 1.1), terrain=(6.0, 1.0))
-    assert diagnose._loss_on(lost, problem.train & (run_kind == "terrain")) > \
-        diagnose.LOST_RATIO * diagnose._loss_on(kept, problem.train & (run_kind == "terrain"))
+    assert diagnose.loss_on(lost, problem.train & (run_kind == "terrain")) > \
+        diagnose.LOST_RATIO * diagnose.loss_on(kept, problem.train & (run_kind == "terrain"))
     assert diagnose.better_of_two_fits(problem, run_kind, lost, kept) is kept
     assert diagnose.better_of_two_fits(problem, run_kind, kept, lost) is kept
     # A failed fit never wins, and never unseats a fit that ran.

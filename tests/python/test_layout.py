@@ -13,7 +13,16 @@ import juno
 from juno.commands import COMMANDS
 
 PACKAGE = Path(juno.__file__).parent
-LIBRARY_MODULES = sorted(p for p in PACKAGE.glob("*.py") if p.name not in ("cli.py", "__main__.py"))
+#: Every module of the library, its subpackages' (juno.diagnose) too; not the command line (cli.py,
+#: __main__.py, juno.commands).
+LIBRARY_MODULES = sorted(p for p in PACKAGE.rglob("*.py") if p.name not in ("cli.py", "__main__.py")
+                         and p.relative_to(PACKAGE).parts[0] != "commands")
+
+
+def _module_name(path: Path) -> str:
+    """The dotted name of the library module at ``path`` (a package's __init__.py is the package)."""
+    parts = path.relative_to(PACKAGE).with_suffix("").parts
+    return ".".join(("juno",) + (parts[:-1] if parts[-1] == "__init__" else parts))
 
 
 def _imported_modules(path: Path) -> set[str]:
@@ -30,7 +39,7 @@ def _imported_modules(path: Path) -> set[str]:
     return names
 
 
-@pytest.mark.parametrize("path", LIBRARY_MODULES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", LIBRARY_MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_the_library_never_imports_the_command_line(path):
     """No library module imports juno.cli or juno.commands (not even inside a function)."""
     imported = _imported_modules(path)
@@ -63,4 +72,4 @@ def test_every_subcommand_is_on_the_command_line():
 
 def test_the_package_imports_every_module():
     for path in LIBRARY_MODULES:
-        importlib.import_module(f"juno.{path.stem}")
+        importlib.import_module(_module_name(path))

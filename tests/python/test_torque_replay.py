@@ -113,7 +113,7 @@ def test_the_diagnosis_replays_the_terrain_run_by_the_drive_that_fits_its_traini
     campaign, _run, grid, truth = climbing_at_high_slip
     problem = diagnose.build_problem(campaign, str(harness_fmu.fmu_path), grid)
     params = {**truth["soil"], **truth["extension"]}
-    at_truth = diagnose._replayed(problem, "base", params, diagnose.all_residuals(harness_fmu, problem, params))
+    at_truth = diagnose.replayed(problem, "base", params, diagnose.all_residuals(harness_fmu, problem, params))
     chosen, base, drive, losses = diagnose.choose_terrain_drive(campaign, problem, at_truth)
     assert set(losses) == set(REPLAY_DRIVES)
     assert drive == min(losses, key=losses.get) == "torque", losses
@@ -142,7 +142,7 @@ def test_once_the_candidates_are_fitted_the_terrain_run_is_judged_by_the_drive_t
     problems = diagnose.drive_problems(campaign, problem)
 
     def replayed(name, params):
-        return diagnose._replayed(problem, name, params, diagnose.all_residuals(harness_fmu, problem, params))
+        return diagnose.replayed(problem, name, params, diagnose.all_residuals(harness_fmu, problem, params))
     wrong = replayed("base", dict(PAPER_INITIAL))
     right = replayed("truth", {**truth["soil"], **truth["extension"]})
     failed = diagnose.FitResult("broken", {}, np.inf, np.inf, np.zeros(0), 0, 0.0, error="did not converge")

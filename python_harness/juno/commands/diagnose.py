@@ -45,5 +45,5 @@ def run(args: argparse.Namespace) -> int:
     write_json(args.json, public_json(result))
     for line in summary_lines(result):
         print(line)
-    print(f"diagnosis took {result['wall_time']:.0f} s", file=sys.stderr)
+    print(f"diagnosis took {result.wall_time:.0f} s", file=sys.stderr)
     return 0

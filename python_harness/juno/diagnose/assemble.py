@@ -1,0 +1,114 @@
+"""The numbers of the diagnosis's result: the base model's fit, where it is wrong, the model with
+every named cause and what it gains on the held-out blocks, assembled into a DiagnosisResult."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..simulator import SOIL_PARAMETERS
+from .candidates import CANDIDATES
+from .fitting import FitResult
+from .judging import capped_square
+from .problem import Problem
+from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
+                      NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
+
+if TYPE_CHECKING:
+    from .search import Outcome
+
+
+def per_signal_rms(problem: Problem, r: np.ndarray, scale: bool = True,
+                   mask: np.ndarray | None = None) -> dict[str, float]:
+    """Held-out RMS of each signal, in the signal's own units (scaled residual x sigma; with
+    ``scale`` False, in sigma), over the residuals in ``mask`` (default: all)."""
+    test = ~problem.train if mask is None else (~problem.train & mask)
+    sigmas = {}
+    for p in problem.prepared:
+        for column, (_t, _v, _o, sigma, _lag) in p.targets.items():
+            sigmas[column] = sigma
+    out = {}
+    for sig in np.unique(problem.meta["signal"]):
+        here = test & (problem.meta["signal"] == sig)
+        if np.any(here):
+            out[str(sig)] = float(np.sqrt(np.mean(r[here] ** 2)) * (sigmas[str(sig)] if scale else 1.0))
+    return out
+
+
+def residual_analysis(problem: Problem, r: np.ndarray) -> ResidualAnalysis:
+    """Where the residuals ``r`` (the base model's) are wrong: mean and RMS by run and signal,
+    and the overall mean square."""
+    meta = problem.meta
+    by = {}
+    for run in np.unique(meta["run"]):
+        for sig in np.unique(meta["signal"]):
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if np.any(m):
+                by[f"{run}/{sig}"] = {"mean": float(np.mean(r[m])), "rms": float(np.sqrt(np.mean(r[m] ** 2)))}
+    return ResidualAnalysis(by, float(np.mean(r ** 2)))
+
+
+def baseline(problem: Problem, base: FitResult) -> Baseline:
+    """The base model's fit as reported."""
+    return Baseline({k: base.params[k] for k in SOIL_PARAMETERS}, base.test_mse, base.train_mse,
+                    per_signal_rms(problem, base.residuals), base.status, base.failed_evaluations)
+
+
+def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], res: FitResult) -> ExtendedModel:
+    """The model with every named cause (``res``, its fit) as reported, with its held-out RMS per
+    signal on every kind of run."""
+    judged = np.isin(run_kind, sorted(set(run_kind.tolist())))
+    return ExtendedModel("+".join(causes), causes, {k: res.params[k] for k in SOIL_PARAMETERS},
+                         {k: v for k, v in res.params.items() if k not in SOIL_PARAMETERS}, res.test_mse,
+                         per_signal_rms(problem, res.residuals, mask=judged))
+
+
+def cause_gain(problem: Problem, run_kind: np.ndarray, base: FitResult, outcome: Outcome) -> CauseGain:
+    """What the model with every named cause gains over ``base`` on the held-out blocks of every
+    run, as each cause was judged (judging.judge): overall, per step (each cause against its
+    reference) and per signal; with the registration's pose evidence when it is a cause."""
+    res, causes = outcome.chosen[-1], [r.name for r in outcome.chosen]
+    judged_on = sorted(set(run_kind.tolist()))
+    judged = np.isin(run_kind, judged_on)
+    test = ~problem.train
+    before = float(np.nanmean(capped_square(base.residuals[test & judged])))
+    after_mse = float(np.mean(capped_square(res.residuals[test & judged])))
+    after = per_signal_rms(problem, res.residuals, mask=judged)
+    before_judged = per_signal_rms(problem, base.residuals, mask=judged)
+    steps = [outcome.best] + ([outcome.second_round[0]] if len(outcome.chosen) > 1 else [])
+    per_signal = {k: SignalGain(before_judged[k], after.get(k, float("nan")),
+                                1 - after.get(k, np.nan) / before_judged[k] if before_judged[k] > 0 else 0.0)
+                  for k in before_judged}
+    pose_judged = next((c.kinematic for c in outcome.candidates if c.name == "terrain_offset"), None)
+    return CauseGain(before, after_mse, judged_on, (before - after_mse) / before, outcome.best.z,
+                     [GainStep(c.name, c.gain, c.z, c.held_out_mse_before, c.held_out_mse_after) for c in steps],
+                     per_signal, pose_judged if "terrain_offset" in causes and pose_judged else None)
+
+
+def no_cause_gain(base: FitResult, candidates: list[JudgedCandidate]) -> NoCauseGain:
+    """With no cause named: no gain, and the best candidate (the ranking's first)."""
+    return NoCauseGain(base.test_mse, base.test_mse, 0.0, candidates[0].name if candidates else None,
+                       candidates[0].gain if candidates else 0.0)
+
+
+def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, duels: list[Duel], outcome: Outcome,
+                     criteria: Criteria, t_start: float) -> DiagnosisResult:
+    """The whole diagnosis from the search's ``outcome`` (the first round's comparisons ``duels``,
+    judged on ``problem`` against the reference ``base``); wall time since ``t_start``
+    (time.perf_counter, s)."""
+    causes = [r.name for r in outcome.chosen]
+    if outcome.chosen:
+        extended = extended_model(problem, run_kind, causes, outcome.chosen[-1])
+        gain: CauseGain | NoCauseGain = cause_gain(problem, run_kind, base, outcome)
+    else:
+        extended, gain = ExtendedModel(None, []), no_cause_gain(base, outcome.candidates)
+    explanation = ("; then ".join(CANDIDATES[c].cause for c in causes) if causes
+                   else "no extension explains the held-out data significantly better")
+    plot_data = PlotData(problem.meta, problem.train, base.residuals,
+                         outcome.chosen[-1].residuals if outcome.chosen else None)
+    return DiagnosisResult(causes[0] if causes else "none", causes, explanation, outcome.equally_good,
+                           outcome.apart, duels + outcome.branch_duels, outcome.candidates, outcome.second_round,
+                           baseline(problem, base), criteria, residual_analysis(problem, base.residuals), extended,
+                           gain, time.perf_counter() - t_start, plot_data)

@@ -1,0 +1,265 @@
+"""How a candidate is judged against its reference on the held-out blocks: the paired rank test
+over held-out units (paired_z), the gain thresholds, the ranking by penalised gain, the
+head-to-head test of a runner-up with more parameters, and the judge itself (judge).
+
+Everything here works on residuals already computed: no simulation."""
+
+from __future__ import annotations
+
+from typing import Sequence, TypeVar
+
+import numpy as np
+
+from ..registration import HeldOutEvidence
+from ..simulator import SOIL_PARAMETERS
+from .candidates import CANDIDATES, Candidate
+from .fitting import FitResult
+from .problem import Problem
+from .results import Ablation, Duel, JudgedCandidate, KinematicEvidence, Ranked
+
+Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
+GAIN_MIN = 0.03      # and at least 3 % less held-out mean squared residual (per parameter added)
+RESIDUAL_CAP = 10.0  # scaled residuals beyond this count as this when candidates are judged
+TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the data about as well
+#: A runner-up whose penalised gain (penalised_gain) is within this of the leader's also gets its
+#: own second round, and the final models decide (search.choose_branch): a one-cause ranking
+#: settled by less than one parameter's charge is not evidence for either cause (a grouser with
+#: long lugs and a drivetrain loss of the same traction ratio h / (R + h) explain drawbar data
+#: almost equally).
+NEAR_TIE = GAIN_MIN
+#: A held-out unit (run, block, signal) whose mean squared scaled residual moved by less than this
+#: is unchanged for the rank test: 1 % of the sensor noise's variance, a 16th of the scatter of a
+#: 4 s block's mean square (80 samples: sqrt(2/80) = 0.16).  Counted, such numerical dust (signals
+#: a candidate does not touch, moved by 1e-4 by the solver) can outvote the units that carry real
+#: evidence.  Dropping units symmetrically about zero keeps the test's null distribution.
+NEGLIGIBLE_CHANGE = 0.01
+#: Fewer held-out units than this left after the ties are dropped give z = 0 (no evidence): the
+#: smallest one-sided p of the signed-rank test over n units is 2^-n, so with fewer than 6 no z
+#: could pass Z_MIN or fall below -Z_MIN anyway.
+MIN_UNITS = 6
+
+R = TypeVar("R", bound=Ranked)
+
+
+# ------------------------------------------------------------------ the held-out comparison
+
+def capped_square(r: np.ndarray) -> np.ndarray:
+    """Squared scaled residuals, capped at RESIDUAL_CAP^2 for judging candidates.  A replay that
+    loses the rover (on the terrain run, a slightly different soil can leave the model stuck
+    where the rover climbed, or the reverse) gives residuals of hundreds of sigma that say only
+    "lost"; uncapped, one such run would outweigh every other run's evidence."""
+    return np.minimum(r * r, RESIDUAL_CAP ** 2)
+
+
+def z_threshold(n_tests: int) -> float:
+    """Z_MIN corrected for ``n_tests`` one-sided tests (Bonferroni): the z of p(Z_MIN) / n."""
+    from scipy.stats import norm
+    return float(norm.isf(norm.sf(Z_MIN) / max(n_tests, 1)))
+
+
+def paired_z(problem: Problem, base: np.ndarray, ext: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """Significance of the held-out improvement from residuals ``base`` to ``ext`` (over the
+    residuals in ``mask``), as a one-sided z: the Wilcoxon signed-rank test over held-out units
+    (run, 4 s block, signal) of the change in mean squared residual.
+    Ranks make it robust to a few units with huge residuals (which defeat a mean-based test),
+    and unlike a plain sign test it credits a local effect (a soil patch the rover crosses in
+    a few blocks) by the size of the improvement where it acts.  Units that moved by no more
+    than NEGLIGIBLE_CHANGE are ties (dropped); with fewer than MIN_UNITS left, z is 0; -inf if
+    ``ext`` failed on a run (NaN residuals)."""
+    from scipy.stats import norm, wilcoxon
+    test = ~problem.train if mask is None else (~problem.train & mask)
+    keys = np.char.add(np.char.add(problem.meta["run"][test], problem.meta["block"][test].astype(str)),
+                       problem.meta["signal"][test])
+    d = capped_square(base[test]) - capped_square(ext[test])
+    if np.any(~np.isfinite(d)):
+        return -np.inf
+    _, inverse = np.unique(keys, return_inverse=True)
+    means = np.bincount(inverse, weights=d) / np.maximum(np.bincount(inverse), 1)
+    means = means[np.abs(means) > NEGLIGIBLE_CHANGE]
+    if len(means) < MIN_UNITS:
+        return 0.0
+    p = float(wilcoxon(means, alternative="greater").pvalue)
+    return float(np.clip(norm.isf(max(p, 1e-300)), -40.0, 40.0))
+
+
+def held_out_mse(problem: Problem, r: np.ndarray, where: np.ndarray) -> float:
+    """The capped mean squared scaled residual of ``r`` on the held-out blocks within ``where``
+    (NaN residuals, of runs the model could not simulate, left out)."""
+    return float(np.nanmean(capped_square(r[~problem.train & where])))
+
+
+def relative_gain(problem: Problem, before_r: np.ndarray, after_r: np.ndarray, where: np.ndarray) -> float:
+    """Relative drop of the held-out capped mean squared residual over ``where``, from the
+    residuals ``before_r`` to ``after_r``; -inf if the model behind ``after_r`` failed on a run."""
+    test = ~problem.train
+    b = float(np.nanmean(capped_square(before_r[test & where])))
+    a = float(np.mean(capped_square(after_r[test & where])))
+    if not np.isfinite(a):
+        return -np.inf
+    return (b - a) / b if b > 0 else 0.0
+
+
+def kinds_of(run_kind: np.ndarray) -> tuple[str, ...]:
+    """The kinds of run present, sorted: every candidate is judged on each of them."""
+    return tuple(sorted(set(run_kind.tolist())))
+
+
+def gain_by_kind(problem: Problem, run_kind: np.ndarray, before_r: np.ndarray, after_r: np.ndarray
+                 ) -> dict[str, float]:
+    """relative_gain on each kind of run."""
+    return {k: relative_gain(problem, before_r, after_r, run_kind == k) for k in kinds_of(run_kind)}
+
+
+def z_by_kind(problem: Problem, run_kind: np.ndarray, before_r: np.ndarray, after_r: np.ndarray
+              ) -> dict[str, float]:
+    """paired_z on each kind of run."""
+    return {k: paired_z(problem, before_r, after_r, run_kind == k) for k in kinds_of(run_kind)}
+
+
+# ------------------------------------------------------------------ the judge
+
+def passes(n_params: int, gain: float, zs: dict[str, float]) -> bool:
+    """The significance rule for a gain: the pooled held-out relative ``gain`` exceeds GAIN_MIN
+    per parameter added, the paired test's z (``zs``, per kind of run) exceeds the Bonferroni
+    threshold on some kind of run, and no kind of run gets significantly worse (z > -Z_MIN).
+
+    Why per kind: drawbar and terrain runs differ too much for one pooled rank test, where
+    hundreds of unchanged drawbar units would drown a validation run's gain.  Why the pooled
+    gain, not the best kind's: judged per kind, the open-loop terrain replay alone is noisy
+    enough to name false causes (a many-parameter soil patch fitting the replay's drift), and
+    it adds no hidden effect that the pooled gain misses.  Why GAIN_MIN per parameter: each
+    parameter must buy its share of held-out error (a soil patch, 5 parameters, can take a few
+    per cent on top of a right first cause by fitting local residual features)."""
+    return bool(gain > GAIN_MIN * n_params and max(zs.values()) > z_threshold(len(zs)) and min(zs.values()) > -Z_MIN)
+
+
+def ablation(problem: Problem, run_kind: np.ndarray, switched_off: FitResult, res: FitResult) -> Ablation:
+    """The held-out gain and paired z of ``res`` over its own fit with the extension switched off."""
+    z_off = z_by_kind(problem, run_kind, switched_off.residuals, res.residuals)
+    everywhere = np.isin(run_kind, kinds_of(run_kind))
+    return Ablation(relative_gain(problem, switched_off.residuals, res.residuals, everywhere),
+                    float(max(z_off.values())), z_off,
+                    gain_by_kind(problem, run_kind, switched_off.residuals, res.residuals))
+
+
+def kinematic_evidence(registration: HeldOutEvidence) -> KinematicEvidence:
+    """The registration's held-out pose evidence as reported."""
+    return KinematicEvidence(registration.held_out_ms_as_scanned, registration.held_out_ms_registered,
+                             registration.ratio, registration.gain, registration.significant)
+
+
+def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, float], off: Ablation | None,
+                   registration: HeldOutEvidence | None) -> bool:
+    """Whether a judged candidate names a cause.  The registration, with its kinematic evidence
+    given: that evidence is significant, the extension acts and no kind of run's replay gets
+    significantly worse.  Every other candidate: its gain passes (passes), the extension acts,
+    and switching it off loses the gain by the same rule (when the ablation is given)."""
+    if registration is not None and candidate.is_registration:
+        return bool(registration.significant and acts and min(zs.values()) > -Z_MIN)
+    n = len(candidate.params)
+    return passes(n, gain, zs) and acts and (off is None or passes(n, off.gain, off.z_by_kind))
+
+
+def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
+          switched_off: FitResult | None = None, registration: HeldOutEvidence | None = None) -> JudgedCandidate:
+    """A candidate's held-out gain over ``reference`` (the base model, or the first cause), and
+    whether it is significant (is_significant).
+
+    Every candidate is judged on the held-out blocks of every run: the same data for every
+    candidate, so their gains compare.  A physical extension is fitted on the drawbar runs only,
+    so for it the terrain run is a validation run, as in the paper (grouser thrust, which
+    drawbar tests at moderate slip cannot tell from K_vx, shows when the rover climbs); the
+    registration is chosen on the terrain run's training blocks.  gain_by_kind is reported, not
+    judged.
+
+    With ``switched_off`` (the candidate's own fit with its extension at neutral), the gain must
+    also survive that ablation: a gain that lives in the refitted soil, not in the extension,
+    does not count.  It does not catch everything: a weak multi-pass on top of a right
+    slip-sinkage fit can keep a gain of a few per cent against its own switched-off fit
+    (docs/diagnosis.md, known limits).
+
+    With ``registration`` (its kinematic held-out evidence, starts.registration_evidence; given
+    in the first round only), the registration candidate (terrain_offset) is judged on it, and
+    its replayed gain is reported, not judged.  Why: a misregistration is a fact of geometry,
+    which the measured pose along the path shows directly, while the terrain replay's gain also
+    carries how well the rover is replayed over the mound.  On synthetic campaigns the
+    registration fitted on the training blocks explained the held-out pose several to a hundred
+    times better than the scan as it is where the scan was misregistered, and about as well
+    (0.5-1.5 times) where it was not, while its replayed gain was often only a few per cent.  On
+    top of another cause the kinematic evidence is not given: a soft soil patch, which the
+    kinematic model does not know, sinks the rover as a lowered scan would."""
+    candidate = CANDIDATES[res.name]
+    if res.error:
+        return JudgedCandidate(res.name, candidate.cause, 0.0, 0.0, False, False, "failed", res.failed_evaluations,
+                               error=res.error)
+    kinds = kinds_of(run_kind)
+    everywhere = np.isin(run_kind, kinds)
+    gain = relative_gain(problem, reference.residuals, res.residuals, everywhere)
+    zs = z_by_kind(problem, run_kind, reference.residuals, res.residuals)
+    acts = candidate.acts(res.params)
+    off = None if switched_off is None else ablation(problem, run_kind, switched_off, res)
+    use_pose = registration is not None and candidate.is_registration
+    own = {e.name for e in candidate.params}
+    return JudgedCandidate(
+        res.name, candidate.cause, float(gain), float(max(zs.values())),
+        is_significant(candidate, acts, gain, zs, off, registration), acts, res.status, res.failed_evaluations,
+        gain_by_kind=gain_by_kind(problem, run_kind, reference.residuals, res.residuals), z_by_kind=zs,
+        ablation=off, kinematic=kinematic_evidence(registration) if use_pose else None, judged_on=list(kinds),
+        held_out_mse_before=held_out_mse(problem, reference.residuals, everywhere),
+        held_out_mse_after=float(np.mean(capped_square(res.residuals[~problem.train & everywhere]))),
+        test_mse=res.test_mse, train_mse=res.train_mse, n_params=len(candidate.params),
+        soil={k: res.params[k] for k in SOIL_PARAMETERS},
+        extension={k: v for k, v in res.params.items() if k in own},
+        evaluations=res.evaluations, wall_time=res.wall_time)
+
+
+# ------------------------------------------------------------------ ranking and head to head
+
+def penalised_gain(judged: Ranked) -> float:
+    """A candidate's held-out relative gain less GAIN_MIN per parameter it adds: the ranking of
+    candidates, so that of two that explain the data about as well the one with fewer parameters
+    is named.  Why: a soil patch (5 parameters) grown over the whole test area is a uniform
+    F_taumax scale, which is what a grouser's thrust gain (one parameter) is; unpenalised, the
+    larger model wins such a tie by a fraction of a point."""
+    return float(judged.gain) - GAIN_MIN * int(judged.n_params)
+
+
+def ranked(judged: Sequence[R]) -> list[R]:
+    """Judged candidates (judge) best first, by penalised_gain."""
+    return sorted(judged, key=lambda c: -penalised_gain(c))
+
+
+def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, challenger: FitResult) -> Duel:
+    """Whether ``challenger`` (a significant candidate with more parameters and a larger raw gain
+    than the leader of the penalised ranking) explains the held-out data significantly better
+    than ``leader``: the paired test of judge with the leader's model as the reference (z over
+    the Bonferroni threshold on some kind of run, above -Z_MIN on every kind).
+
+    The fixed charge of GAIN_MIN per parameter keeps a model with more parameters out when the
+    two explain the data alike; it should not keep it out when the held-out data prefer it
+    unit by unit: on grouser campaigns (thrust gain and lugs, 2 parameters) a drivetrain loss of
+    h / (R + h) mimics the lugs with one, and the grouser's raw held-out gain can beat the loss's
+    by a point or two and still lose the penalised ranking."""
+    zs = z_by_kind(problem, run_kind, leader.residuals, challenger.residuals)
+    gain = relative_gain(problem, leader.residuals, challenger.residuals, np.ones(len(run_kind), bool))
+    better = bool(max(zs.values()) > z_threshold(len(zs)) and min(zs.values()) > -Z_MIN and gain > 0)
+    return Duel(leader.name, challenger.name, zs, gain, better)
+
+
+def leader_after_head_to_head(problem: Problem, run_kind: np.ndarray, significant: Sequence[R],
+                              results: Sequence[FitResult]) -> tuple[list[R], list[Duel]]:
+    """The significant candidates (ranked) with the leader replaced by any runner-up that has more
+    parameters, a larger raw gain and wins head_to_head against it; returns (the reordered
+    list, the comparisons made).  ``results``: the fits, found by name."""
+    order = list(significant)
+    fits = {r.name: r for r in results}
+    duels = []
+    for c in list(order[1:]):
+        lead = order[0]
+        if c.n_params > lead.n_params and c.gain > lead.gain:
+            duel = head_to_head(problem, run_kind, fits[lead.name], fits[c.name])
+            duels.append(duel)
+            if duel.challenger_better:
+                order.remove(c)
+                order.insert(0, c)
+    return order, duels

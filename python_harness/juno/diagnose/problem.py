@@ -1,0 +1,130 @@
+"""The data of a diagnosis (Problem): every run prepared for replay, and each scaled residual
+labelled with its run, signal, time and block (training or held out); and the residuals of a
+model on it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..campaign import Campaign
+from ..identify import PreparedRun, prepare_run
+from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
+
+BLOCK = 4.0          # s, length of the alternating training / held-out blocks
+OUTPUT_INTERVAL = 0.05   # s between the FMU's output samples the residuals are read from
+#: Integration step of the diagnosis (s).  The base model and every candidate share it; its error
+#: against 0.25 ms is 0.12 % in torque and 0.0008 in slip on the drawbar benchmark run
+#: (docs/benchmarks.md).  The terrain replay uses it too: a coarser step makes the replay of the
+#: mound's transients worse than the sensor noise.
+DIAGNOSE_STEP = 5e-3
+
+
+@dataclass
+class Problem:
+    """Everything a fit needs; picklable so worker processes can rebuild it."""
+
+    campaign_root: str
+    grid_file: str | dict[str, str] | None   # each terrain run's gridded scan (run id -> file)
+    fmu_path: str
+    prepared: list[PreparedRun] = field(default_factory=list)
+    train: np.ndarray | None = None      # boolean mask over the concatenated residuals
+    meta: dict[str, np.ndarray] = field(default_factory=dict)   # per residual: run, signal, time, block
+
+
+def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, str] | None,
+                  terrain_segment: float | None = None, terrain_drive: str = "spin") -> Problem:
+    """Prepares every run and labels each residual with its run, signal, time and block.
+    ``grid_file``: each terrain run's gridded scan (run id -> file; a run without one is left
+    out), or one file for every terrain run, or None (no terrain run).
+    ``terrain_segment`` (s): replay terrain runs in segments restarted at the measured pose
+    (identify.prepare_run; experimental, off by default).  ``terrain_drive``: how terrain runs
+    are replayed (identify.REPLAY_DRIVES); drawbar runs follow the measured spins."""
+    prepared = _prepared_runs(campaign, grid_file, terrain_segment, terrain_drive)
+    runs, signals, times = [], [], []
+    for p in prepared:
+        for column, (ts, _vs, _out, _sigma, _lag) in p.targets.items():
+            runs += [p.run_id] * len(ts)
+            signals += [column] * len(ts)
+            times.append(ts)
+    for p in prepared:
+        p.params["solver.step"] = DIAGNOSE_STEP
+    t = np.concatenate(times) if times else np.zeros(0)
+    block = np.floor(t / BLOCK).astype(int)
+    problem = Problem(str(campaign.root), grid_file, fmu_path, prepared)
+    problem.train = (block % 2) == 0
+    problem.meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
+    return problem
+
+
+def _prepared_runs(campaign: Campaign, grid_file: str | dict[str, str] | None, terrain_segment: float | None,
+                   terrain_drive: str) -> list[PreparedRun]:
+    """Every run of the campaign prepared for replay (build_problem); a terrain run without a
+    gridded scan is left out."""
+    prepared = []
+    for run in campaign.runs:
+        terrain = run.kind == "terrain"
+        grid = grid_file.get(run.id) if isinstance(grid_file, dict) else grid_file
+        if terrain and grid is None:
+            continue
+        prepared.append(prepare_run(campaign, run, terrain_file=grid if terrain else None,
+                                    segment=terrain_segment, drive=terrain_drive if terrain else "spin"))
+    return prepared
+
+
+def run_kinds(problem: Problem) -> np.ndarray:
+    """The kind of run ("drawbar" or "terrain") of every residual of ``problem``."""
+    kind_of = {p.run_id: p.kind for p in problem.prepared}
+    return np.array([kind_of[r] for r in problem.meta["run"]])
+
+
+def all_residuals(fmu: JunoFMU, problem: Problem, params: dict[str, object]) -> np.ndarray:
+    """Residuals of every run; a run the model cannot simulate gets NaN (judged as failed)."""
+    return residuals_by_run(fmu, problem, params)[0]
+
+
+def residuals_by_run(fmu: JunoFMU, problem: Problem, params: dict[str, object]
+                     ) -> tuple[np.ndarray, dict[str, str]]:
+    """all_residuals's residuals, and for each run that failed (run id), why (its run, file,
+    simulation time and FMU message)."""
+    parts, failures = [], {}
+    for p in problem.prepared:
+        one = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, [p])
+        r, failure = residuals_or_failure(fmu, one, params, (p.kind,))
+        n = sum(len(v[0]) for v in p.targets.values())
+        parts.append(r if r is not None else np.full(n, np.nan))
+        if failure is not None:
+            failures[p.run_id] = failure
+    return np.concatenate(parts), failures
+
+
+def residuals_for(fmu: JunoFMU, problem: Problem, params: dict[str, object],
+                  kinds: tuple[str, ...] = ("drawbar", "terrain")) -> np.ndarray | None:
+    """Scaled residuals of the runs of ``kinds`` for the FMU parameters ``params`` (in the
+    order of ``problem.prepared``); None if a run fails."""
+    return residuals_or_failure(fmu, problem, params, kinds)[0]
+
+
+def residuals_or_failure(fmu: JunoFMU, problem: Problem, params: dict[str, object],
+                         kinds: tuple[str, ...] = ("drawbar", "terrain")) -> tuple[np.ndarray | None, str | None]:
+    """(residuals_for's residuals, None), or (None, why the first failed run failed: its run,
+    file, simulation time and FMU message)."""
+    from ..identify import run_residuals
+    soil = {k: params[k] for k in SOIL_PARAMETERS}
+    extra = {k: v for k, v in params.items() if k not in SOIL_PARAMETERS}
+    # The registration belongs to the scan: runs on flat ground (no terrain file) do not get it
+    # (the FMU would raise its flat ground by terrain.offsetZ).
+    flat_extra = {k: v for k, v in extra.items() if not k.startswith("terrain.")}
+    parts = []
+    for p in problem.prepared:
+        if p.kind not in kinds:
+            continue
+        try:
+            part = run_residuals(fmu, p, soil, extra if "terrain.file" in p.params else flat_extra, OUTPUT_INTERVAL)
+        except SimulationError as exc:
+            return None, str(exc)
+        if not np.all(np.isfinite(part)):
+            return None, f"run '{p.run_id}' ({p.file}): the simulation gives non-finite values"
+        parts.append(part)
+    return (np.concatenate(parts) if parts else np.zeros(0)), None

@@ -1,0 +1,206 @@
+"""The diagnosis for people: a few lines of text (summary_lines), residual figures
+(residual_figures) and the report's section (report_section)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .candidates import CANDIDATES
+from .results import DiagnosisResult, Duel, JudgedCandidate, TiedPair
+
+
+def summary_lines(result: DiagnosisResult) -> list[str]:
+    """The diagnosis in a few lines of text: the cause, every candidate's held-out gain and
+    significance, the head-to-head judgements, ties and the run that would settle them, the
+    second round and the causes named, strongest first."""
+    lines = [f"cause: {result.cause} ({result.explanation})"]
+    for c in result.candidates:
+        mark = "*" if c.significant else " "
+        lines.append(f" {mark} {c.name:16s} held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
+    lines += [duel_sentence(duel) for duel in result.head_to_head]
+    if result.equally_good:
+        lines.append("equally good: " + ", ".join(result.equally_good))
+    lines += [apart_sentence(a) for a in result.telling_apart]
+    if result.second_round:
+        lines.append(f"on top of {result.cause}:")
+        for c in result.second_round:
+            mark = "*" if c.significant else " "
+            lines.append(f" {mark} {c.name:16s} further held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
+    if len(result.causes) > 1:
+        lines.append("causes, strongest first: " + ", ".join(result.causes))
+    return lines
+
+
+def by_kind(c: JudgedCandidate) -> str:
+    """A candidate's held-out gain and z on each kind of run, e.g. 'drawbar +12.0 % (z 3.1)'."""
+    gains, zs = c.gain_by_kind, c.z_by_kind
+    return ", ".join(f"{k} {gains[k]:+.1%} (z {zs[k]:.1f})" for k in gains if k in zs) or "-"
+
+
+def duel_sentence(duel: Duel) -> str:
+    """One line on a head_to_head comparison: who won, by how much, how significantly."""
+    zs = ", ".join(f"{k} z {z:.1f}" for k, z in duel.z_by_kind.items())
+    verdict = "explains the held-out data better than" if duel.challenger_better else \
+        "is not significantly better than"
+    stage = "head to head of the final models" if duel.stage == "final models" else "head to head"
+    return (f"{stage}: {duel.challenger} (more parameters) {verdict} {duel.leader}: "
+            f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")
+
+
+def apart_sentence(a: TiedPair) -> str:
+    """One sentence on the run that would tell a tied candidate from the cause (tied_models_apart)."""
+    named, other = a.models
+    return (f"What would tell {named} from {other}: a steady drawbar run on flat ground at {a.load_N:.0f} N "
+            f"and throttle {a.throttle:g} (the load ramped in over 4 s), where the fitted models settle at "
+            f"slips {a.slip[named]:.3f} ({named}) and {a.slip[other]:.3f} ({other}); up to this "
+            f"campaign's heaviest drawbar load they differ by at most {a.difference_within_campaign:.3f}.")
+
+
+# ------------------------------------------------------------------ figures
+
+def residual_figures(result: DiagnosisResult, out: Path) -> list[str]:
+    """Residuals of the base model (and the extended one) against time, by run and signal, and
+    the base model's bias by run and signal; written into ``out``, their file names returned."""
+    import matplotlib
+    matplotlib.use("Agg")
+    return [_residuals_in_time(result, out), _bias_by_run_and_signal(result, out)]
+
+
+def _residuals_in_time(result: DiagnosisResult, out: Path) -> str:
+    """Scaled residuals against time within each run, runs side by side, one panel per signal."""
+    import matplotlib.pyplot as plt
+    data = result.plot_data
+    meta, base, best = data.problem_meta, data.base_residuals, data.best_residuals
+    runs, signals = list(np.unique(meta["run"])), list(np.unique(meta["signal"]))
+    fig, axes = plt.subplots(len(signals), 1, figsize=(10, 2.0 * len(signals)), sharex=False)
+    axes = np.atleast_1d(axes)
+    for ax, sig in zip(axes, signals):
+        offset = 0.0
+        for run in runs:
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if not np.any(m):
+                continue
+            ax.plot(meta["time"][m] + offset, base[m], lw=0.5, color="C0", label="base" if offset == 0 else None)
+            if best is not None:
+                ax.plot(meta["time"][m] + offset, best[m], lw=0.5, color="C1",
+                        label=f"extended ({result.cause})" if offset == 0 else None)
+            ax.axvline(offset, color="0.7", lw=0.5)
+            ax.text(offset, 0, f" {run}", fontsize=7, va="bottom")
+            offset += float(meta["time"][m].max()) + 2.0
+        ax.set_ylabel(f"{sig}\n[sigma]", fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[-1].set_xlabel("time within each run, runs side by side [s]")
+    fig.suptitle("Scaled residuals (measured - simulated) / sigma")
+    fig.tight_layout()
+    fig.savefig(out / "residuals_time.png", dpi=100)
+    plt.close(fig)
+    return "residuals_time.png"
+
+
+def _bias_by_run_and_signal(result: DiagnosisResult, out: Path) -> str:
+    """Mean residual per run and signal, left against right: where and on which side."""
+    import matplotlib.pyplot as plt
+    meta, base = result.plot_data.problem_meta, result.plot_data.base_residuals
+    fig, ax = plt.subplots(figsize=(10, 3.5))
+    labels, vals = [], []
+    for run in np.unique(meta["run"]):
+        for sig in np.unique(meta["signal"]):
+            m = (meta["run"] == run) & (meta["signal"] == sig)
+            if np.any(m):
+                labels.append(f"{run}\n{sig}")
+                vals.append(float(np.mean(base[m])))
+    colours = ["C2" if "left" in lab else "C3" if "right" in lab else "C0" for lab in labels]
+    ax.bar(range(len(vals)), vals, color=colours)
+    ax.set_xticks(range(len(vals)))
+    ax.set_xticklabels(labels, fontsize=6, rotation=90)
+    ax.set_ylabel("mean residual [sigma]")
+    ax.set_title("Base model bias by run and signal (green left, red right side)")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "residuals_bias.png", dpi=100)
+    plt.close(fig)
+    return "residuals_bias.png"
+
+
+# ------------------------------------------------------------------ the report's section
+
+def report_section(result: DiagnosisResult, out: Path) -> list[str]:
+    """Markdown lines of the diagnosis for the report (figures written into ``out``)."""
+    lines = ["## 5. What the model gets wrong: diagnosis", ""]
+    figs = residual_figures(result, out) if result.plot_data is not None else []
+    lines += _base_model_lines(result)
+    for f in figs:
+        lines += [f"![{f}]({f})", ""]
+    lines += _candidates_table(result)
+    if result.cause == "none":
+        lines += ["**Cause: none.** No extension explains the held-out data significantly better than the "
+                  "paper's model.", ""]
+    else:
+        lines += _cause_lines(result)
+    return lines
+
+
+def _base_model_lines(result: DiagnosisResult) -> list[str]:
+    """The base model's held-out error and how the terrain run was replayed."""
+    criteria = result.criteria
+    lines = [f"Base model fitted on alternate {criteria.block_s:g} s training blocks of every run; "
+             f"held-out mean squared scaled residual {result.baseline.test_mse:.3g} (1 = sensor noise).", ""]
+    settled = criteria.terrain_drive_settled or {}
+    if settled:
+        drive = criteria.terrain_drive
+        how = "following the measured spins" if drive == "spin" else "driven by the measured torque"
+        lines += [f"The terrain run is replayed {how} for every model: the replay under which a fitted model "
+                  f"({settled[drive]['model']}) fits its training blocks best (lowest training loss: "
+                  + ", ".join(f"{d} {v['loss']:.3g}" for d, v in settled.items()) + ").", ""]
+    return lines
+
+
+def _candidates_table(result: DiagnosisResult) -> list[str]:
+    """Every candidate's held-out gain and significance, and the registration's pose evidence."""
+    lines = ["| candidate extension | physical cause | held-out gain | per kind of run | significant |",
+             "|---|---|---|---|---|"]
+    for c in result.candidates:
+        lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {'yes' if c.significant else 'no'} |")
+    lines.append("")
+    for c in result.candidates:
+        if c.kinematic:
+            k = c.kinematic
+            lines += [f"The registration ({c.name}) is judged on the measured pose, not on the replay: fitted on "
+                      f"the terrain run's training blocks, it explains the held-out blocks' height, pitch and roll "
+                      f"{k.ratio:.3g} times better than the scan as it is (mean squared scaled residual "
+                      f"{k.held_out_ms_as_scanned:.3g} against {k.held_out_ms_registered:.3g}; evidence from "
+                      f"{result.criteria.registration_held_out_ratio:g} times).", ""]
+    return lines
+
+
+def _cause_lines(result: DiagnosisResult) -> list[str]:
+    """The cause, the comparisons, ties, the second round, and the extended model's gain per signal."""
+    lines = [f"**Cause: {result.cause}** - {CANDIDATES[result.cause].cause}.", ""]
+    for duel in result.head_to_head:
+        lines += [duel_sentence(duel), ""]
+    if result.equally_good:
+        lines += ["Explaining the data about as well: " + ", ".join(result.equally_good) + ".", ""]
+    for a in result.telling_apart:
+        lines += [apart_sentence(a), ""]
+    if result.second_round:
+        lines += [f"Further causes on top of {result.cause} (each refitted together with it):", "",
+                  "| candidate extension | further held-out gain | per kind of run | significant |",
+                  "|---|---|---|---|"]
+        for c in result.second_round:
+            lines.append(f"| {c.name} | {c.gain:+.1%} | {by_kind(c)} | {'yes' if c.significant else 'no'} |")
+        lines.append("")
+        if len(result.causes) > 1:
+            lines += [f"**Second cause: {result.causes[1]}** - {CANDIDATES[result.causes[1]].cause}. "
+                      "The extended model below has both.", ""]
+    extension = result.extended.extension or {}
+    lines += ["Fitted extension parameters: " + ", ".join(f"{k} = {v:.4g}" for k, v in extension.items())
+              + ".", "", f"Held-out RMS per signal on the {' and '.join(result.gain.judged_on)} runs, "
+              "where the extension was fitted:", "",
+              "| signal | held-out RMS before | after | gain |", "|---|---|---|---|"]
+    for k, g in result.gain.per_signal.items():
+        lines.append(f"| {k} | {g.before:.4g} | {g.after:.4g} | {g.relative:+.1%} |")
+    lines.append("")
+    return lines

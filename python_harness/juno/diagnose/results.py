@@ -1,0 +1,346 @@
+"""The diagnosis's results as typed records: a judged candidate, a head-to-head comparison, a pair
+of tied models and the run that would tell them apart, and the whole diagnosis.  Each record's
+``to_json()`` is the plain JSON object ``juno diagnose --json`` writes (NaN and infinities are
+made null by juno.core.write_json)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any, Protocol
+
+import numpy as np
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with every record in it (anything with a ``to_json``) as its JSON object."""
+    if hasattr(value, "to_json"):
+        return value.to_json()
+    if isinstance(value, list):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+def _fields_json(record: Any, omit_if_none: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A record's fields in their declared order as a JSON object; the fields named in
+    ``omit_if_none`` are left out when they are None."""
+    return {f.name: _plain(getattr(record, f.name)) for f in fields(record)
+            if not (f.name in omit_if_none and getattr(record, f.name) is None)}
+
+
+class Ranked(Protocol):
+    """What ranking and head-to-head comparisons need of a model: its name, its held-out relative
+    gain over the reference and the number of parameters it adds."""
+
+    name: str
+    gain: float
+    n_params: int
+
+
+@dataclass(frozen=True)
+class Contender:
+    """A model in a ranking that is not a judged candidate (a branch's final model)."""
+
+    name: str
+    gain: float
+    n_params: int
+
+
+@dataclass(frozen=True)
+class Ablation:
+    """A candidate's fit against the same fit with its extension switched off: the held-out relative
+    gain and the paired test's z, overall and per kind of run."""
+
+    gain: float
+    z: float
+    z_by_kind: dict[str, float]
+    gain_by_kind: dict[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class KinematicEvidence:
+    """The registration's held-out evidence on the measured pose (juno.registration): mean squared
+    scaled residual of height, pitch and roll with the scan as it is and registered, their ratio,
+    the relative gain, and whether it is significant (registration.HELD_OUT_RATIO)."""
+
+    held_out_ms_as_scanned: float
+    held_out_ms_registered: float
+    ratio: float
+    gain: float
+    significant: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class JudgedCandidate:
+    """One candidate's fit judged against its reference (judging.judge): held-out relative gain
+    and paired-test z over all runs and per kind of run, whether the extension acts, the ablation
+    and kinematic evidence where given, held-out mean squared scaled residual before and after,
+    the fitted soil and extension, and the fit's cost (evaluations, failures, wall time in s).
+    A failed fit has ``error`` set, ``status`` "failed", no gain and no parameters."""
+
+    name: str
+    cause: str
+    gain: float
+    z: float
+    significant: bool
+    acts: bool
+    status: str
+    failed_evaluations: int
+    error: str | None = None
+    gain_by_kind: dict[str, float] = field(default_factory=dict)
+    z_by_kind: dict[str, float] = field(default_factory=dict)
+    ablation: Ablation | None = None
+    kinematic: KinematicEvidence | None = None
+    judged_on: list[str] = field(default_factory=list)
+    held_out_mse_before: float = float("nan")
+    held_out_mse_after: float = float("nan")
+    test_mse: float = float("nan")
+    train_mse: float = float("nan")
+    #: parameters the extension adds (0 for a failed fit, which is charged for none)
+    n_params: int = 0
+    soil: dict[str, float] = field(default_factory=dict)
+    extension: dict[str, float] = field(default_factory=dict)
+    evaluations: int = 0
+    wall_time: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        if self.error:
+            return {"name": self.name, "cause": self.cause, "error": self.error, "status": self.status,
+                    "failed_evaluations": self.failed_evaluations, "significant": self.significant,
+                    "acts": self.acts, "gain": self.gain, "z": self.z}
+        return {"name": self.name, "cause": self.cause, "gain": self.gain, "z": self.z,
+                "gain_by_kind": self.gain_by_kind, "z_by_kind": self.z_by_kind, "acts": self.acts,
+                "ablation": _plain(self.ablation), "kinematic": _plain(self.kinematic),
+                "judged_on": self.judged_on,
+                "held_out_mse_before": self.held_out_mse_before, "held_out_mse_after": self.held_out_mse_after,
+                "significant": self.significant, "test_mse": self.test_mse, "train_mse": self.train_mse,
+                "n_params": self.n_params, "soil": self.soil, "extension": self.extension,
+                "evaluations": self.evaluations, "failed_evaluations": self.failed_evaluations,
+                "status": self.status, "wall_time": self.wall_time}
+
+
+@dataclass(frozen=True)
+class Duel:
+    """A head-to-head comparison (judging.head_to_head): whether ``challenger`` (more parameters,
+    larger raw gain) explains the held-out data significantly better than ``leader``; the paired
+    test's z per kind of run and the challenger's relative gain against the leader.  ``stage`` is
+    "final models" when the compared models are branches' final models (search.choose_branch)."""
+
+    leader: str
+    challenger: str
+    z_by_kind: dict[str, float]
+    gain: float
+    challenger_better: bool
+    stage: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self, omit_if_none=("stage",))
+
+
+@dataclass(frozen=True)
+class TiedPair:
+    """The steady drawbar run that would tell a model reported equally good from the cause
+    (juno.telling_apart): ``models`` (the cause first), throttle (-), load (N), each model's
+    steady slip there, their difference, the largest difference within the campaign's loads,
+    and the slip ladders over every load at that throttle."""
+
+    models: list[str]
+    throttle: float
+    load_N: float
+    slip: dict[str, float]
+    difference: float
+    difference_within_campaign: float
+    ladder: dict[str, list[float]]
+
+    @classmethod
+    def from_telling_apart(cls, found: dict[str, Any]) -> TiedPair:
+        """The record of one of juno.telling_apart.telling_apart's results."""
+        return cls(**{f.name: found[f.name] for f in fields(cls)})
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """The base model's fit: soil, held-out and training mean squared scaled residual, held-out
+    RMS per signal (in the signal's units), status and failed evaluations."""
+
+    soil: dict[str, float]
+    test_mse: float
+    train_mse: float
+    rms: dict[str, float]
+    status: str
+    failed_evaluations: int
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """The thresholds the diagnosis judged by and how the terrain runs were replayed: block
+    length (s), z and gain thresholds, tie ratio, terrain segment (s or None), the terrain drive
+    and each drive's training loss (at the base model, and the lowest over every fitted model
+    with that model's name), the negligible change of the paired test and the registration's
+    held-out ratio."""
+
+    block_s: float
+    z_min: float
+    gain_min: float
+    tie_ratio: float
+    terrain_segment_s: float | None
+    terrain_drive: str
+    terrain_drive_training_loss: dict[str, float]
+    terrain_drive_settled: dict[str, dict[str, Any]]
+    negligible_change: float
+    registration_held_out_ratio: float
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class ResidualAnalysis:
+    """Where the base model is wrong: mean and RMS scaled residual per "run/signal", and the
+    overall mean square."""
+
+    by_run_signal: dict[str, dict[str, float]]
+    overall_mse: float
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class ExtendedModel:
+    """The model with every named cause: its name ("a+b"), causes, soil, extension parameters,
+    held-out mean squared scaled residual and held-out RMS per signal; with no cause named, only
+    ``name`` None and no causes."""
+
+    name: str | None
+    causes: list[str]
+    soil: dict[str, float] | None = None
+    extension: dict[str, float] | None = None
+    test_mse: float | None = None
+    rms: dict[str, float] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        if self.name is None:
+            return {"name": None, "causes": self.causes}
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class GainStep:
+    """What one named cause gained over its reference (held-out relative gain, z, held-out mean
+    squared scaled residual before and after)."""
+
+    cause: str
+    relative: float
+    z: float
+    held_out_mse_before: float
+    held_out_mse_after: float
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class SignalGain:
+    """One signal's held-out RMS (its units) before and after the extension, and the relative gain."""
+
+    before: float
+    after: float
+    relative: float
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class CauseGain:
+    """The gain of the model with every named cause over the base model on the held-out blocks of
+    the runs ``judged_on``: mean squared scaled residual before and after, relative gain, the
+    first cause's z, each cause's step, per signal, and the registration's pose evidence when
+    the registration is a cause."""
+
+    held_out_mse_before: float
+    held_out_mse_after: float
+    judged_on: list[str]
+    relative: float
+    z: float
+    steps: list[GainStep]
+    per_signal: dict[str, SignalGain]
+    registration: KinematicEvidence | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self, omit_if_none=("registration",))
+
+
+@dataclass(frozen=True)
+class NoCauseGain:
+    """With no cause named: the base model's held-out mean squared scaled residual (before and
+    after alike), no gain, and the best candidate with its gain (None and 0 without candidates)."""
+
+    held_out_mse_before: float
+    held_out_mse_after: float
+    relative: float
+    best_candidate: str | None
+    best_candidate_gain: float
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
+class PlotData:
+    """What the residual figures need (not part of the JSON): every residual's run, signal, time
+    and block, the training mask, the base model's residuals and the extended model's (None
+    when no cause is named)."""
+
+    problem_meta: dict[str, np.ndarray]
+    train: np.ndarray
+    base_residuals: np.ndarray
+    best_residuals: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class DiagnosisResult:
+    """The whole diagnosis: the cause(s) named strongest first and their physical explanation,
+    the candidates reported equally good and the runs that would tell them apart, every
+    head-to-head comparison, every candidate judged (ranked) and the second round, the base
+    model, the criteria, where the base model is wrong, the extended model and its gain, and
+    the wall time (s)."""
+
+    cause: str
+    causes: list[str]
+    explanation: str
+    equally_good: list[str]
+    telling_apart: list[TiedPair]
+    head_to_head: list[Duel]
+    candidates: list[JudgedCandidate]
+    second_round: list[JudgedCandidate]
+    baseline: Baseline
+    criteria: Criteria
+    residual_analysis: ResidualAnalysis
+    extended: ExtendedModel
+    gain: CauseGain | NoCauseGain
+    wall_time: float
+    plot_data: PlotData | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``juno diagnose --json`` (everything but the figures' data)."""
+        return {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name != "plot_data"}
+
+
+def public_json(result: DiagnosisResult) -> dict[str, Any]:
+    """The JSON object of ``juno diagnose --json`` (DiagnosisResult.to_json)."""
+    return result.to_json()

@@ -1,0 +1,431 @@
+"""The search for the cause: fit the base model and every candidate, judge them (the first
+round), look for a further cause on top of the first (the second round), and when two first
+causes are close, give each its own second round and compare the final models (choose_branch).
+diagnose() runs it all and returns a DiagnosisResult."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ..campaign import Campaign, load_campaign
+from ..identify import PAPER_INITIAL, gridded_scans, require_runs
+from ..registration import HELD_OUT_RATIO, HeldOutEvidence
+from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
+from ..telling_apart import heaviest_drawbar_load, telling_apart
+from .assemble import diagnosis_result
+from .candidates import CANDIDATES, Candidate, combined
+from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
+                      fit_objective, run_jobs, training_objective)
+from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, judge, leader_after_head_to_head,
+                      penalised_gain, ranked, relative_gain)
+from .problem import BLOCK, Problem, build_problem, run_kinds
+from .references import best_reference, on_reference_soil
+from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
+from .starts import patch_grid, patch_start, registration_evidence, registration_start
+from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
+
+#: The fits of a first cause on a longer budget than a candidate's (search.second_round): a
+#: soil patch's search alone makes several short fits and a long one, about three candidate
+#: budgets, and a further extension must beat the first cause fitted on as long.
+LONG_FIT = 3 * CANDIDATE_ITERATIONS
+
+
+@dataclass
+class Search:
+    """What every step of the search shares: the campaign, the problem as the candidates are
+    judged on it (and each residual's kind of run), the candidates searched with a campaign-made
+    grid, the registration's kinematic evidence, where the fits run, and the progress reporter."""
+
+    campaign: Campaign
+    problem: Problem
+    searched: dict[str, Candidate]
+    registration: HeldOutEvidence | None
+    workers: int | None
+    scheduler: str | None
+    say: Callable[[str], None]
+    run_kind: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.run_kind = run_kinds(self.problem)
+
+    def fits(self, jobs: list[FitJob]) -> list[FitResult]:
+        return run_jobs(jobs, self.workers, self.scheduler, self.say)
+
+
+@dataclass
+class Setting:
+    """The campaign prepared: the problem (terrain runs replayed by ``terrain_drive``), the
+    problem under every drive, the base model's fit, the training loss of each drive at the base
+    model, the first terrain run's gridded scan and the candidates that can be fitted."""
+
+    problem: Problem
+    problems: dict[str, Problem]
+    base: FitResult
+    terrain_drive: str
+    drive_losses: dict[str, float]
+    grid: Any
+    names: list[str]
+
+
+@dataclass
+class FirstRound:
+    """Every candidate fitted and judged against the base model (or the better reference): the
+    fits, the reference, the judged candidates (significant first, the head-to-head winner
+    leading), the penalised ranking's leader, the comparisons made and how the terrain runs were
+    finally replayed (with each drive's lowest training loss)."""
+
+    results: list[FitResult]
+    base: FitResult
+    candidates: list[JudgedCandidate]
+    significant: list[JudgedCandidate]
+    ranked_first: JudgedCandidate | None
+    duels: list[Duel]
+    terrain_drive: str
+    settled_losses: dict[str, dict[str, Any]]
+
+
+@dataclass
+class Outcome:
+    """What the search names: the first cause's judged record (None: no cause), the candidates
+    (the named first cause leading), the ones equally good and the runs that would tell them
+    apart, the second round, the chosen fits (the first cause's, then the model with both) and
+    the comparisons between branches' final models."""
+
+    best: JudgedCandidate | None
+    candidates: list[JudgedCandidate]
+    equally_good: list[str]
+    second_round: list[JudgedCandidate] = field(default_factory=list)
+    chosen: list[FitResult] = field(default_factory=list)
+    branch_duels: list[Duel] = field(default_factory=list)
+    apart: list[TiedPair] = field(default_factory=list)
+
+
+# ------------------------------------------------------------------ the whole diagnosis
+
+def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, workers: int | None = None,
+             candidates: Sequence[str] | None = None,
+             progress: Callable[[str], None] | None = None, scheduler: str | None = None,
+             terrain_segment: float | None = None) -> DiagnosisResult:
+    """Runs the whole analysis (the package's docstring) and returns the diagnosis.
+    ``terrain_segment`` (s, experimental): replay the terrain run in segments of that length,
+    each restarted at the measured pose and speed (build_problem); None: one whole replay."""
+    say = progress or (lambda m: None)
+    t_start = time.perf_counter()
+    campaign = load_campaign(campaign) if not isinstance(campaign, Campaign) else campaign
+    from ..simulator import default_fmu_path
+    fmu_path = str(fmu.fmu_path) if fmu is not None else str(default_fmu_path())
+    names = list(candidates or CANDIDATES)
+    require_runs(campaign, "diagnose")
+    with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp:
+        setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say)
+        registration = registration_evidence(campaign, setting.grid) if setting.grid is not None else None
+        if registration is not None:
+            say(f"registration fitted on the terrain run's training blocks: held-out pose "
+                f"{registration.ratio:.3g} times better than the scan as it is")
+        searched = {"soil_patch": replace(CANDIDATES["soil_patch"], grid=patch_grid(campaign))}
+        search = Search(campaign, setting.problem, searched, registration, workers, scheduler, say)
+        first = first_round(search, setting)
+        outcome = further_causes(search, first)
+    criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
+                        first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
+    return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start)
+
+
+def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terrain_segment: float | None,
+            say: Callable[[str], None]) -> Setting:
+    """Grids every terrain run's scan into ``tmp`` (each terrain run is replayed on its own), builds
+    the problem, fits the base model (an error if it fails) and chooses the terrain drive the
+    candidates are fitted with.  Without a terrain run the candidates that need one are left out."""
+    grid_file: dict[str, str] | None = None
+    grid = None
+    if campaign.runs_of_kind("terrain"):
+        scans = gridded_scans(campaign, tmp, "validate")
+        grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
+        grid = next(iter(scans.values()))[1]
+    else:
+        names = [n for n in names if not CANDIDATES[n].needs_terrain]
+    problem = build_problem(campaign, fmu_path, grid_file, terrain_segment)
+    say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
+    base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
+    if base.error:
+        raise SimulationError("the base model could not be fitted", [base.error])
+    terrain_drive, drive_losses, problems = "spin", {}, {"spin": problem}
+    if grid_file is not None:
+        problems = drive_problems(campaign, problem, terrain_segment)
+        problem, base, terrain_drive, drive_losses = choose_terrain_drive(campaign, problem, base,
+                                                                          terrain_segment, problems)
+        say("terrain run replayed by " + terrain_drive + " (training fit loss at the base model: "
+            + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
+    say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
+    return Setting(problem, problems, base, terrain_drive, drive_losses, grid, names)
+
+
+# ------------------------------------------------------------------ the first round
+
+def first_round(search: Search, setting: Setting) -> FirstRound:
+    """Fits every candidate, settles the terrain drive over every fitted model, and judges each
+    candidate against the better reference (best_reference); ``search`` is updated to the
+    problem the candidates are judged on."""
+    names, base = setting.names, setting.base
+    fitted, restarts = _first_fits(search, setting)
+    terrain_drive, settled_losses = setting.terrain_drive, {}
+    if len(setting.problems) > 1:
+        fitted_drive = terrain_drive
+        terrain_drive, settled_losses, settled = settle_terrain_drive(setting.problems, terrain_drive,
+                                                                      [base] + fitted)
+        base, fitted = settled[0], settled[1:]
+        search.problem = setting.problems[terrain_drive]
+        search.run_kind = run_kinds(search.problem)
+        search.say(f"terrain run judged as replayed by {terrain_drive} (fitted with {fitted_drive}; lowest "
+                   "training fit loss: " + ", ".join(f"{d} {v['loss']:.3g} ({v['model']})"
+                                                     for d, v in settled_losses.items()) + ")")
+    problem, run_kind = search.problem, search.run_kind
+    results = fitted[:len(names)]
+    for n, again in zip(restarts, fitted[len(names):]):
+        i = names.index(n)
+        results[i] = better_of_two_fits(problem, run_kind, results[i], again)
+    base, switched_off = best_reference(problem, run_kind, base, results, "base")
+    moved = [on_reference_soil(problem, run_kind, base, res) for res in results]
+    for old_fit, res in zip(results, moved):
+        if res is not old_fit:          # its extension switched off is now the reference itself
+            switched_off[res.name] = base
+    results = moved
+    judged = ranked([judge(problem, run_kind, base, res, switched_off.get(res.name), search.registration)
+                     for res in results])
+    significant = [c for c in judged if c.significant]
+    ranked_first = significant[0] if significant else None
+    significant, duels = leader_after_head_to_head(problem, run_kind, significant, results)
+    candidates = significant + [c for c in judged if not c.significant]
+    return FirstRound(results, base, candidates, significant, ranked_first, duels, terrain_drive, settled_losses)
+
+
+def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list[str]]:
+    """Every candidate's fit from the base optimum (with its extension at its start: a soil patch
+    where the base model is worst, the registration where the pose puts it), then, for those that
+    restart from the paper's soil (Candidate.soil_restart), their fits from there; and the names
+    of those.
+
+    Starting at the base optimum with the extension at (or next to) its neutral setting is
+    starting at the base model: least squares accepts only improving steps, so a nested
+    extension can never end worse than the base on the training data."""
+    names, base, problem = setting.names, setting.base, setting.problem
+    start_soil = {k: base.params[k] for k in SOIL_PARAMETERS}
+    first_starts = {"soil_patch": patch_start(search.campaign, problem, base.residuals),
+                    "terrain_offset": registration_start(search.registration)}
+    jobs = [(problem, search.searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)) for n in names]
+    restarts = [n for n in names if CANDIDATES[n].soil_restart]
+    jobs += [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None) for n in restarts]
+    return search.fits(jobs), restarts
+
+
+def equally_good_as(best: JudgedCandidate | None, significant: Sequence[JudgedCandidate]) -> list[str]:
+    """The significant runners-up whose gain is at least TIE_RATIO of the cause's."""
+    return [c.name for c in significant[1:] if best and c.gain >= TIE_RATIO * best.gain]
+
+
+# ------------------------------------------------------------------ further causes and branches
+
+def further_causes(search: Search, first: FirstRound) -> Outcome:
+    """The second round on top of the first cause.  When the head-to-head test put a candidate
+    with more parameters ahead of the penalised ranking's leader, or a runner-up is within
+    NEAR_TIE of the leader after the charge, the two are alternatives whose duel was decided on
+    one-cause models only, so each gets its own second round and the final models are compared
+    (choose_branch)."""
+    significant = first.significant
+    best = significant[0] if significant else None
+    equally_good = equally_good_as(best, significant)
+    if not best:
+        return Outcome(None, first.candidates, equally_good)
+    branches = first_cause_branches(best, first.ranked_first, significant)
+    excluded = set(equally_good) | {b.name for b in branches}
+    more = [c.name for c in first.candidates if c.name not in excluded and not c.error]
+    fit_of = {r.name: r for r in first.results}
+    rounds = [second_round(search, fit_of[b.name], more) for b in branches]
+    pick, branch_duels = 0, []
+    if len(branches) > 1:
+        pick, branch_duels = choose_branch(search.problem, search.run_kind, first.base, [r[1] for r in rounds])
+    best, (judged_second, chosen) = branches[pick], rounds[pick]
+    significant = [best] + [c for c in significant if c.name != best.name]
+    candidates = significant + [c for c in first.candidates if not c.significant]
+    equally_good = equally_good_as(best, significant)
+    apart = tied_models_apart(search.campaign, search.problem, fit_of[best.name], [fit_of[n] for n in equally_good])
+    return Outcome(best, candidates, equally_good, judged_second, chosen, branch_duels, apart)
+
+
+def first_cause_branches(best: Ranked, ranked_first: Ranked, significant: Sequence[Ranked]) -> list[Ranked]:
+    """The first causes that each get a second round: the leader (``best``, after any
+    head-to-head test), the penalised ranking's leader if the head-to-head test overturned it,
+    and the closest other significant candidate (``significant`` is ranked) whose penalised gain
+    is within NEAR_TIE of theirs."""
+    branches = [best] + ([ranked_first] if ranked_first.name != best.name else [])
+    top = max(penalised_gain(b) for b in branches)
+    close = [c for c in significant if c.name not in {b.name for b in branches}
+             and top - penalised_gain(c) < NEAR_TIE]
+    return branches + close[:1]
+
+
+def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
+                  branches: Sequence[Sequence[FitResult]]) -> tuple[int, list[Duel]]:
+    """Which of several alternative explanations (each the chosen fits of one first cause and
+    its second round) to report: their final models are ranked by held-out gain over ``base``
+    less GAIN_MIN per parameter, and a runner-up with more parameters and a larger raw gain
+    leads if it wins head_to_head, as in the first round.  Returns the index of the chosen
+    branch and the comparisons made (stage "final models").
+
+    Why: the first round compares one-cause models.  With two effects hidden, a two-parameter
+    grouser (lugs that mimic a drivetrain loss, a thrust gain that takes up part of a
+    slip-sinkage) can beat a one-parameter loss head to head, and grouser (+ slip-sinkage) be
+    named where the truth is loss + slip-sinkage."""
+    summaries, fits = [], []
+    everywhere = np.ones(len(run_kind), bool)
+    for chosen in branches:
+        label = "+".join(r.name for r in chosen)
+        final = replace(chosen[-1], name=label)
+        n_params = sum(len(CANDIDATES[r.name].params) for r in chosen)   # a two-cause fit is named after its second
+        gain = relative_gain(problem, base.residuals, final.residuals, everywhere)
+        summaries.append(Contender(label, gain, n_params))
+        fits.append(final)
+    order, duels = leader_after_head_to_head(problem, run_kind, ranked(summaries), fits)
+    duels = [replace(d, stage="final models") for d in duels]
+    return next(i for i, s in enumerate(summaries) if s.name == order[0].name), duels
+
+
+def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, tied: list[FitResult]
+                      ) -> list[TiedPair]:
+    """The steady drawbar run that would tell the cause's fit from each fit reported equally
+    good (juno.telling_apart), with the campaign's rover; [] when nothing is tied.  Two models
+    that fit the campaign equally well usually part at loads beyond the campaign's heaviest
+    run, where their predicted steady slips differ by far more than the sensor noise."""
+    if not tied:
+        return []
+    fixed = dict(campaign.rover)
+    with JunoFMU(problem.fmu_path) as fmu:
+        found = telling_apart(fmu, (named.name, {**fixed, **named.params}),
+                              {r.name: {**fixed, **r.params} for r in tied}, heaviest_drawbar_load(campaign))
+    return [TiedPair.from_telling_apart(f) for f in found]
+
+
+# ------------------------------------------------------------------ the second round
+
+def second_round(search: Search, first_res: FitResult, more: list[str]
+                 ) -> tuple[list[JudgedCandidate], list[FitResult]]:
+    """Is there a further cause on top of ``first_res``?  Each candidate named in ``more`` (even
+    one that did not help on its own: an unmodelled first cause can hide it) is refitted
+    together with the first cause (starting at its optimum, and from the paper's soil too where
+    both restart) and judged against it with the same criteria.  Returns the judged second round
+    (ranked) and the chosen fits: ``[first_res]``, or
+    ``[first_res, model with both causes]`` when the best of the round is significant."""
+    first = CANDIDATES[first_res.name]
+    if not more:
+        return [], [first_res]
+    search.say(f"first cause: {first.name}; looking for a second cause among {', '.join(more)}")
+    problem, run_kind = search.problem, search.run_kind
+    results, continued = _second_fits(search, first_res, more)
+    reference = continued if fit_objective(problem, run_kind, continued) <= \
+        fit_objective(problem, run_kind, first_res) else first_res
+    reference, switched_off = best_reference(problem, run_kind, reference, results, first_res.name)
+    judged = ranked([judge(problem, run_kind, reference, res, switched_off.get(res.name)) for res in results])
+    judged, adopted = _survives_first_cause_refit(search, first_res, reference, results, switched_off, judged)
+    named_second = bool(judged and judged[0].significant)
+    # With no second cause, a first-cause fit that the refit improved is the model reported.
+    chosen = [adopted if adopted is not None and not named_second else first_res]
+    if named_second:
+        both = next(r for r in results if r.name == judged[0].name)
+        chosen.append(refit_from_paper_soil(search, first, both))
+    return judged, chosen
+
+
+def _second_fits(search: Search, first_res: FitResult, more: list[str]) -> tuple[list[FitResult], FitResult]:
+    """Every candidate of ``more`` fitted together with the first cause (the better of two starts
+    where both restart from the paper's soil), and the first cause alone fitted on for LONG_FIT.
+
+    The reference is the first cause's model fitted on for at least as long as the others (its
+    fit may not have converged): a second extension must beat that, not merely the first fit's
+    stopping point; otherwise an extension "on top" can merely finish an unconverged first fit
+    and be named a second cause.
+
+    Two causes that both restart from the paper's soil (Candidate.soil_restart) are also fitted
+    together from there: the first cause's optimum has its soil bent to absorb the second cause
+    as well, and a joint fit started in that basin can stay in it and judge the right second
+    cause too weak.  The better fit of each pair is chosen by training_objective, not the
+    drawbar-only fit_objective (why: its docstring)."""
+    first = CANDIDATES[first_res.name]
+    problem = search.problem
+    start_soil = {k: first_res.params[k] for k in SOIL_PARAMETERS}
+    start_ext = {k: v for k, v in first_res.params.items() if k not in SOIL_PARAMETERS}
+    second_starts = {"soil_patch": patch_start(search.campaign, problem, first_res.residuals),
+                     "terrain_offset": registration_start(search.registration)}
+    jobs = [(problem, combined(first, search.searched.get(n, CANDIDATES[n])), start_soil,
+             {**start_ext, **second_starts.get(n, {})}) for n in more]
+    jobs.append((problem, replace(first, grid=()), start_soil, start_ext, LONG_FIT))
+    restarts = [n for n in more if first.soil_restart and CANDIDATES[n].soil_restart]
+    jobs += [(problem, combined(first, CANDIDATES[n]), dict(PAPER_INITIAL), None) for n in restarts]
+    fitted = search.fits(jobs)
+    results, continued, from_paper = fitted[:len(more)], fitted[len(more)], fitted[len(more) + 1:]
+    for n, again in zip(restarts, from_paper):
+        i = more.index(n)
+        if training_objective(problem, again) < training_objective(problem, results[i]):
+            search.say(f"  {first.name} + {n}: the fit from the paper's soil is kept (lower training loss on "
+                       "every run)")
+            results[i] = again
+    return results, continued
+
+
+def _survives_first_cause_refit(search: Search, first_res: FitResult, reference: FitResult,
+                                results: list[FitResult], switched_off: dict[str, FitResult],
+                                judged: list[JudgedCandidate]) -> tuple[list[JudgedCandidate], FitResult | None]:
+    """A second cause must survive its own removal with the first cause refitted: the winner's
+    fit with its extension switched off is the start of one more fit of the first cause alone,
+    and that fit becomes the reference (the round is judged again) if it fits the training data
+    better.  Why: the extra parameter can merely carry the fit out of a local optimum of the
+    first cause, and its gain is then the first cause's own, not a second cause's.  Returns the
+    judged round and the adopted first-cause refit (None if none was better)."""
+    first = CANDIDATES[first_res.name]
+    problem, run_kind = search.problem, search.run_kind
+    own = {e.name for e in first.params}
+    refitted: set[str] = set()
+    adopted: FitResult | None = None
+    while judged and judged[0].significant and judged[0].name not in refitted:
+        top = judged[0].name
+        refitted.add(top)
+        top_fit = next(r for r in results if r.name == top)
+        start = CANDIDATES[top].switched_off(top_fit.params)
+        search.say(f"  {first.name} alone, refitted from the {first.name} + {top} optimum with {top} switched off")
+        alone = search.fits([(problem, replace(first, grid=()), {k: start[k] for k in SOIL_PARAMETERS},
+                              {k: v for k, v in start.items() if k in own}, LONG_FIT)])[0]
+        cost_alone = fit_objective(problem, run_kind, alone)
+        cost_reference = fit_objective(problem, run_kind, reference)
+        if cost_alone >= cost_reference:
+            break
+        search.say(f"  it fits the drawbar runs' training blocks better ({cost_alone:.4g} against "
+                   f"{cost_reference:.4g}): it is the reference now")
+        reference = adopted = replace(alone, name=first_res.name)
+        judged = ranked([judge(problem, run_kind, reference, res, switched_off.get(res.name)) for res in results])
+    return judged, adopted
+
+
+def refit_from_paper_soil(search: Search, first: Candidate, both_fit: FitResult) -> FitResult:
+    """The model with both named causes, refitted once more from the paper's initial soil with
+    both extensions at their starts; the better of the two fits by fit_objective is reported.
+    Only the reported model changes: the causes are already named.
+
+    Why: the second round starts from the first cause's optimum, where the soil has been bent to
+    absorb the second cause too, and the joint fit can stay in that basin, as a single
+    candidate's can (Candidate.soil_restart).  Only for two causes that both restart from the
+    paper's soil (a soil patch needs its own search to be found at all)."""
+    second = CANDIDATES[both_fit.name]
+    if not (first.soil_restart and second.soil_restart):
+        return both_fit
+    search.say(f"refitting {first.name} + {second.name} from the paper's initial soil")
+    job = (search.problem, combined(first, replace(second, grid=())), dict(PAPER_INITIAL), None, LONG_FIT)
+    again = search.fits([job])[0]
+    kept, other = (fit_objective(search.problem, search.run_kind, both_fit),
+                   fit_objective(search.problem, search.run_kind, again))
+    search.say(f"  training objective {kept:.4g} from the first cause's optimum, {other:.4g} from the paper's soil")
+    return again if other < kept else both_fit
