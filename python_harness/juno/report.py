@@ -246,9 +246,12 @@ def _truth_section(truth: dict[str, Any], joint: JointResult | None) -> list[str
 def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperResult],
                  joint: JointResult | None, validations: Sequence[tuple[str, ValidationResult]],
                  diagnosis: dict[str, Any] | None = None, overwrite: bool = True,
-                 truth: dict[str, Any] | None = None, timings: dict[str, float] | None = None) -> Path:
+                 truth: dict[str, Any] | None = None, timings: dict[str, float] | None = None,
+                 rig: Any = None) -> Path:
     """Writes ``out_dir/report.md`` and its figures; returns the report path.
 
+    ``rig``: the fits of the campaign's wheel_rig runs (juno.wheel_rig_report.RigResults), drawn
+    in their own section.
     ``validations``: (label, result) pairs, e.g. joint-fit and paper-style parameters.
     ``truth``: a synthetic campaign's truth, shown in its own clearly marked section.
     ``overwrite``: replace an existing ``out_dir`` written by this function before (it holds
@@ -269,6 +272,9 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
             lines += _paper_section(campaign, paper, tmp)
         if joint is not None:
             lines += _joint_section(joint)
+        if rig is not None:
+            from .wheel_rig_report import rig_section
+            lines += rig_section(rig, tmp)
         if paper or joint is not None:
             geometry = rover_model.rover(campaign.rover)
             name = figure_traction(paper, joint, measured_traction_points(paper, geometry), geometry, tmp)
@@ -288,5 +294,7 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                    "paper": [{"run": p.run_id, "final": p.final, "cost": p.cost} for p in paper],
                    "joint": None if joint is None else {"params": joint.params, "std": joint.std},
                    "validation": {label: v.rms for label, v in validations}}
+        if rig is not None:
+            summary["rig"] = {law: {"params": f.params, "std": f.std, "rms": f.rms} for law, f in rig.fits.items()}
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     return out_dir / "report.md"

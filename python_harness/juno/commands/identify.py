@@ -1,5 +1,6 @@
 """``juno identify``: the soil parameters from a campaign's drawbar runs, per run as the paper
-does and jointly over every run's whole time series."""
+does and jointly over every run's whole time series; from its wheel_rig runs (single-wheel
+testbed tables) by a least-squares fit of each contact law (juno.wheel_rig)."""
 
 from __future__ import annotations
 
@@ -16,8 +17,18 @@ OUTPUTS: dict[str, str] = {}
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("campaign", metavar="CAMPAIGN")
-    p.add_argument("--method", choices=("paper", "joint", "both"), default="both",
-                   help="paper: per drawbar run from steady-window averages; joint: all runs, whole time series")
+    p.add_argument("--method", choices=("paper", "joint", "both", "rig"), default="both",
+                   help="paper: per drawbar run from steady-window averages; joint: all runs, whole time series; "
+                        "both: paper and joint on the drawbar runs (and the rig fit when the campaign has "
+                        "wheel_rig runs; a campaign of wheel_rig runs only gets the rig fit alone); rig: only the "
+                        "fit of the wheel_rig runs")
+    p.add_argument("--law", choices=("volumetric", "wong-reece", "both"), default="both",
+                   help="rig fit: the contact law(s) fitted to the wheel_rig runs (default both, side by side)")
+    p.add_argument("--slip-sinkage", action="store_true",
+                   help="rig fit: fit the slip-sinkage coefficient with the volumetric law too (sinkage rising "
+                        "with slip, which testbeds measure)")
+    p.add_argument("--rig-fmu", metavar="FMU",
+                   help="rig fit: the WheelRig FMU (default: build/WheelRig.fmu or $JUNO_RIG_FMU)")
     p.add_argument("--with-terrain", action="store_true", help="include the terrain runs in the joint fit")
     p.add_argument("--optimizer", choices=("least-squares", "nelder-mead"), default="least-squares",
                    help="joint fit: trust-region Gauss-Newton (default) or Nelder-Mead then a polish")
@@ -40,6 +51,12 @@ def run(args: argparse.Namespace) -> int:
     enforce_plausibility(campaign, force=args.force)
     batch = {"workers": args.workers, "scheduler": args.scheduler}
     out: dict[str, Any] = {"campaign": campaign.name}
+    has_rig = bool(campaign.runs_of_kind("wheel_rig"))
+    if args.method == "rig" or (has_rig and args.method == "both"):
+        out["rig"] = _rig_fits(campaign, args, say)
+        if args.method == "rig" or not campaign.runs_of_kind("drawbar"):
+            write_json(args.json, out)
+            return 0
     with JunoFMU(args.fmu) as fmu:
         if args.method in ("paper", "both"):
             runs = campaign.runs_of_kind("drawbar")
@@ -73,3 +90,23 @@ def run(args: argparse.Namespace) -> int:
             print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
     write_json(args.json, out)
     return 0
+
+
+def _rig_fits(campaign, args: argparse.Namespace, say) -> dict[str, Any]:
+    """The rig fit of each requested contact law on the campaign's wheel_rig runs, printed."""
+    from ..wheel_rig import RigFMU, fit_rig, rig_runs
+    runs = rig_runs(campaign)
+    laws = ("volumetric", "wong-reece") if args.law == "both" else (args.law,)
+    fits: dict[str, Any] = {}
+    with RigFMU(args.rig_fmu) as fmu:
+        for law in laws:
+            say(f"rig fit ({law} contact law) of " + ", ".join(r.run_id for r in runs))
+            fit = fit_rig(fmu, campaign, law, runs=runs, slip_sinkage=args.slip_sinkage and law == "volumetric",
+                          progress=say)
+            fits[law] = fit
+            for k, v in fit.params.items():
+                print(f"rig {law}: {k} = {v:.5g} +- {fit.std[k]:.2g} ({fit.identifiability[k]})")
+            print(f"rig {law}: rms error " + ", ".join(f"{c} {v:.3g}" for c, v in fit.rms.items()) +
+                  f"; noise {', '.join(f'{c}: {n}' for c, n in fit.noise.items())}; {fit.evaluations} "
+                  f"evaluations in {fit.wall_time:.1f} s; status {fit.status}")
+    return fits

@@ -20,6 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="DIR", required=True,
                    help="report folder: new, empty, or written by juno report before (then replaced whole)")
     p.add_argument("--diagnose", action="store_true", help="include the discrepancy diagnosis")
+    p.add_argument("--rig-fmu", metavar="FMU",
+                   help="the WheelRig FMU for the wheel_rig runs (default: build/WheelRig.fmu or $JUNO_RIG_FMU)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,6 +35,21 @@ def run(args: argparse.Namespace) -> int:
     campaign = load_campaign(args.campaign)
     enforce_plausibility(campaign, force=args.force)
     timings: dict[str, float] = {}
+    rig = None
+    if campaign.runs_of_kind("wheel_rig"):
+        from ..wheel_rig import RigFMU
+        from ..wheel_rig_report import rig_results
+        t = time.perf_counter()
+        say("fitting both contact laws to the wheel_rig runs")
+        with RigFMU(args.rig_fmu) as rig_fmu:
+            rig = rig_results(rig_fmu, campaign, progress=say)
+        timings["single-wheel testbed fits"] = time.perf_counter() - t
+        if not campaign.runs_of_kind("drawbar"):
+            path = write_report(args.out, campaign, [], None, [], rig=rig, timings=timings)
+            print(f"wrote report {path}")
+            write_json(args.json, {"report": str(path), "rig": {law: f.params for law, f in rig.fits.items()},
+                                   "timings": timings})
+            return 0
     with JunoFMU(args.fmu) as fmu:
         t = time.perf_counter()
         say("paper-style identification of every drawbar run (one task per run, on the cores)")
@@ -64,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
             timings["diagnosis"] = time.perf_counter() - t
     truth_path = Path(campaign.root) / "truth.json"
     truth = json.loads(truth_path.read_text()) if truth_path.is_file() else None
-    path = write_report(args.out, campaign, paper, joint, validations, diagnosis, truth=truth, timings=timings)
+    path = write_report(args.out, campaign, paper, joint, validations, diagnosis, truth=truth, timings=timings,
+                        rig=rig)
     print(f"wrote report {path}")
     write_json(args.json, {"report": str(path), "joint": joint.params, "timings": timings})
     return 0

@@ -1,0 +1,197 @@
+"""Specification of the single-wheel testbed fit (juno.wheel_rig): the WheelRig FMU simulates a
+table's points to their steady state; the fit gives back the parameters of a table the FMU made
+itself, within their uncertainty; on published testbed data it reproduces the measurements it
+was fitted on, with the shapes measured (drawbar pull rising and saturating with slip, lugs
+pulling harder than a smooth rim); a fit whose simulations fail is an error.
+
+Deterministic: fixed seeds, fixed optimiser settings.  The slowest test is the fit of the
+published set (about 10 s), shared by three tests."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import chi2 as chi2_distribution
+
+from juno.campaign import RigSetup, load_campaign, write_campaign
+from juno.identify import FitError
+from juno.wheel_rig import (RigFMU, RigPoints, fit_rig, law_parameters, predict, rig_runs, simulate_points)
+
+from harness_fixtures import run_juno
+
+REPO = Path(__file__).resolve().parents[2]
+RIG_FMU = REPO / "build" / "WheelRig.fmu"
+EXAMPLE = REPO / "docs" / "example-rig-campaign"
+SEED = 5
+
+#: The synthetic soil: every fitted volumetric parameter away from the fit's starting point.
+TRUTH = {"soil.kh": 4.0e5, "soil.eta": 0.7, "soil.gamma": 0.15, "soil.Kvx": 0.35, "soil.phi": 0.6}
+SLIPS = np.array([0.0, 0.05, 0.1, 0.2, 0.3, 0.45, 0.6])
+WHEEL = RigSetup(radius=0.15, width=0.12)
+
+
+@pytest.fixture(scope="module")
+def rig_fmu():
+    """build/WheelRig.fmu (built by cmake if missing), one instance for the module."""
+    if not RIG_FMU.is_file():
+        cmake = shutil.which("cmake")
+        if cmake is None:
+            pytest.fail(f"{RIG_FMU} is missing and cmake is not on PATH", pytrace=False)
+        subprocess.run([cmake, "--build", str(REPO / "build")], check=True, capture_output=True)
+    with RigFMU(RIG_FMU) as fmu:
+        yield fmu
+
+
+def synthetic_campaign(fmu, root: Path, truth: dict, loads=(60.0, 120.0), slips=SLIPS, seed: int = SEED):
+    """A campaign of one wheel at each load, its table simulated at ``truth`` with Gaussian noise
+    of the stated per-point standard deviations (1 % of the load in drawbar pull, 0.2 % of load
+    times radius in torque, 0.2 mm in sinkage)."""
+    rng = np.random.default_rng(seed)
+    tables, runs = {}, []
+    for load in loads:
+        sim = simulate_points(fmu, WHEEL, RigPoints.of(load, slips), truth)
+        sd = {"drawbar_pull": 0.01 * load, "torque": 0.002 * load * WHEEL.radius, "sinkage": 2e-4}
+        table = {"vertical_load": np.full(len(slips), load), "slip": np.asarray(slips, float)}
+        for column, s in sd.items():
+            table[column] = sim[column] + rng.normal(0.0, s, len(slips))
+            table[column + "_std"] = np.full(len(slips), s)
+        run_id = f"load{load:.0f}"
+        tables[run_id] = table
+        runs.append({"id": run_id, "kind": "wheel_rig", "wheel": {"radius": WHEEL.radius, "width": WHEEL.width}})
+    return write_campaign(root, {"name": "synthetic-rig", "runs": runs}, tables)
+
+
+def test_each_point_reaches_its_steady_state(rig_fmu):
+    """The averaged outputs of a point do not drift over the averaging window (both laws), and
+    the soil carries the load there."""
+    for law in (0, 1):
+        sim = simulate_points(rig_fmu, WHEEL, RigPoints.of(80.0, [0.0, 0.3, 0.6]), {"contact.model": law})
+        assert sim.unsteady < 1e-2
+        np.testing.assert_allclose(sim["vertical_force"], 80.0, rtol=2e-3)
+
+
+def test_a_table_made_by_the_fmu_gives_back_its_soil(rig_fmu, tmp_path):
+    """Two loads (60 and 120 N) separate k_h from eta; every parameter comes back within 3 sigma
+    of the truth, and the chi-square lies inside its central 99.9 % for the degrees of freedom."""
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "syn", TRUTH)
+    fit = fit_rig(rig_fmu, campaign, "volumetric")
+    assert fit.status == "ok" and fit.failed_evaluations == 0
+    assert list(fit.params) == list(law_parameters("volumetric", False))
+    assert fit.noise == {c: "per-point std" for c in ("drawbar_pull", "torque", "sinkage")}
+    for name, true in TRUTH.items():
+        z = (fit.params[name] - true) / fit.std[name]
+        assert abs(z) < 3.0, (name, fit.params[name], fit.std[name], true)
+    low, high = chi2_distribution.ppf([0.0005, 0.9995], fit.dof)
+    assert low < fit.chi2 < high
+
+
+def test_the_wong_reece_law_fits_through_the_same_path(rig_fmu, tmp_path):
+    """A Wong-Reece table (friction angle and shear modulus unknown) comes back within 3 sigma."""
+    truth = {"contact.model": 1, "soil.phi": 0.55, "wongReece.K": 0.02}
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "wr", truth, loads=(80.0,), slips=[0.05, 0.15, 0.3, 0.5])
+    fit = fit_rig(rig_fmu, campaign, "wong-reece", parameters=("soil.phi", "wongReece.K"))
+    assert fit.status == "ok" and fit.fixed["contact.model"] == 1
+    for name in ("soil.phi", "wongReece.K"):
+        assert abs(fit.params[name] - truth[name]) < 3.0 * fit.std[name], (name, fit.params[name], fit.std[name])
+
+
+def test_a_fit_whose_simulations_fail_is_an_error(rig_fmu):
+    """A soil the FMU refuses fails every simulation: FitError naming the FMU's reason, no result."""
+    campaign = load_campaign(EXAMPLE)
+    with pytest.raises(FitError, match="soil.cohesion"):
+        fit_rig(rig_fmu, campaign, "volumetric", fixed={"soil.cohesion": -1.0}, max_evaluations=20)
+
+
+@pytest.fixture(scope="module")
+def published_fit(rig_fmu):
+    """The volumetric law fitted to the example campaign: a smooth and a lugged wheel of Ding et
+    al. 2011 (figure values, no standard deviations: noise scales estimated)."""
+    campaign = load_campaign(EXAMPLE)
+    runs = {r.run_id: r for r in rig_runs(campaign)}
+    fit = fit_rig(rig_fmu, campaign, "volumetric", runs=list(runs.values()))
+    return campaign, runs, fit
+
+
+def scatter_about_a_smooth_curve(runs, column: str) -> float:
+    """The data's scatter: the residual standard deviation of each wheel's points about a
+    quadratic in slip of their own (3 parameters per wheel and quantity, unbiased for its
+    degrees of freedom)."""
+    ss, dof = 0.0, 0
+    for run in runs.values():
+        y = run.measured[column]
+        fit = np.polyfit(run.points.slip, y, 2)
+        ss += float(np.sum((y - np.polyval(fit, run.points.slip)) ** 2))
+        dof += len(y) - 3
+    return float(np.sqrt(ss / dof))
+
+
+def test_published_measurements_are_reproduced_within_their_scatter(published_fit):
+    """Drawbar pull and torque at the fitted slips within 1.5 times the data's scatter about a
+    smooth curve: a model that fits as well as the smoother leaves residuals of at most that
+    scatter; 1.5 allows for the scatter's own uncertainty (18 degrees of freedom: about 17 %).
+    Sinkage is not held to it: testbeds measure it rising with slip, which the paper's law
+    lacks (the next test)."""
+    _campaign, runs, fit = published_fit
+    assert fit.status == "ok" and fit.failed_evaluations <= 0.05 * fit.evaluations
+    for column in ("drawbar_pull", "torque"):
+        assert fit.rms[column] <= 1.5 * scatter_about_a_smooth_curve(runs, column), column
+    assert fit.noise["drawbar_pull"].startswith("estimated")
+
+
+def test_slip_sinkage_is_what_the_published_sinkage_needs(rig_fmu, published_fit):
+    """Measured sinkage rises with slip (more than doubles from slip 0 to 0.6); the paper's law
+    leaves most of it unexplained; the slip-sinkage extension halves the sinkage error."""
+    campaign, runs, fit = published_fit
+    for run in runs.values():
+        z = run.measured["sinkage"][np.argsort(run.points.slip)]
+        assert z[-1] > 2 * z[0]
+    extended = fit_rig(rig_fmu, campaign, "volumetric", runs=list(runs.values()), slip_sinkage=True)
+    assert extended.rms["sinkage"] < 0.5 * fit.rms["sinkage"]
+
+
+def test_drawbar_pull_rises_and_saturates_with_slip_as_measured(rig_fmu, published_fit):
+    """The fitted volumetric law, like the measurements of the smooth wheel: drawbar pull rising
+    with slip, three times more from slip 0 to 0.2 than from 0.4 to 0.6."""
+    _campaign, runs, fit = published_fit
+    smooth = runs["smooth"]
+    measured = dict(zip(smooth.points.slip.tolist(), smooth.measured["drawbar_pull"].tolist()))
+    assert measured[0.2] - measured[0.0] > 3 * (measured[0.6] - measured[0.4])
+    slips = np.linspace(0.0, 0.6, 13)
+    grid = smooth.subset(np.zeros(len(slips), int))
+    grid = type(grid)(grid.run_id, grid.file, grid.setup, RigPoints.of(80.0, slips), {}, {})
+    dp = predict(rig_fmu, grid, fit.model_parameters())["drawbar_pull"]
+    assert np.all(np.diff(dp) > 0)
+    assert dp[4] - dp[0] > 3 * (dp[12] - dp[8])
+
+
+def test_the_lugged_wheel_pulls_harder_than_the_smooth_one(rig_fmu, published_fit):
+    """Same soil, same load: the fitted model's lugged wheel (10 mm lugs, fitted thrust gain)
+    out-pulls the smooth one at every driving slip, as measured."""
+    _campaign, runs, fit = published_fit
+    assert fit.params["grouser.thrustGain"] >= 0
+    lugged = predict(rig_fmu, runs["lug10"], fit.model_parameters())["drawbar_pull"]
+    smooth = predict(rig_fmu, runs["smooth"], fit.model_parameters())["drawbar_pull"]
+    driving = runs["smooth"].points.slip >= 0.1
+    np.testing.assert_array_equal(runs["smooth"].points.slip, runs["lug10"].points.slip)
+    assert np.all(lugged[driving] > smooth[driving])
+    assert np.all(runs["lug10"].measured["drawbar_pull"][driving] > runs["smooth"].measured["drawbar_pull"][driving])
+
+
+def test_juno_identify_fits_a_rig_campaign(tmp_path):
+    """`juno identify` on a campaign of wheel_rig runs fits them (one law here), prints each
+    parameter with its uncertainty and writes them to --json; the campaign is left as it was."""
+    before = {p: p.read_bytes() for p in EXAMPLE.rglob("*") if p.is_file()}
+    out = tmp_path / "fit.json"
+    proc = run_juno("identify", EXAMPLE, "--law", "volumetric", "--json", out, "--quiet", timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "rig volumetric: soil.Kvx = " in proc.stdout
+    data = json.loads(out.read_text())
+    fit = data["rig"]["volumetric"]
+    assert set(fit["params"]) == set(law_parameters("volumetric", True))
+    assert "paper" not in data and "joint" not in data
+    assert before == {p: p.read_bytes() for p in EXAMPLE.rglob("*") if p.is_file()}
