@@ -1,0 +1,119 @@
+"""The diagnosis's typed results (juno.diagnose.results) write the JSON object `juno diagnose --json`
+has always written: the same keys in the same order, a failed candidate in its short form, and
+optional parts (a duel's stage, the registration's pose evidence) only when there is one.
+
+No simulation: the records are built from made-up residuals and values.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from juno.core import to_jsonable
+from juno.diagnose import (Baseline, CauseGain, Contender, Criteria, DiagnosisResult, Duel, ExtendedModel, FitResult,
+                           GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, Problem, ResidualAnalysis,
+                           SignalGain, TiedPair, judge, public_json, summary_lines)
+from juno.identify import PAPER_INITIAL
+
+JUDGED_KEYS = ["name", "cause", "gain", "z", "gain_by_kind", "z_by_kind", "acts", "ablation", "kinematic", "judged_on",
+               "held_out_mse_before", "held_out_mse_after", "significant", "test_mse", "train_mse", "n_params", "soil",
+               "extension", "evaluations", "failed_evaluations", "status", "wall_time"]
+RESULT_KEYS = ["cause", "causes", "explanation", "equally_good", "telling_apart", "head_to_head", "candidates",
+               "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time"]
+
+
+def _problem() -> tuple[Problem, np.ndarray]:
+    """A drawbar and a terrain run of 40 s at 20 Hz, one signal each, in alternate 4 s blocks."""
+    t = np.arange(0.0, 40.0, 0.05)
+    runs = np.array(["dbp1"] * len(t) + ["t3d"] * len(t))
+    times = np.concatenate([t, t])
+    block = np.floor(times / 4.0).astype(int)
+    problem = Problem("campaign", None, "unused.fmu", [], (block % 2) == 0,
+                      {"run": runs, "signal": np.array(["speed"] * len(runs)), "time": times, "block": block})
+    return problem, np.where(runs == "dbp1", "drawbar", "terrain")
+
+
+def _fit(name: str, residuals: np.ndarray, **extension: float) -> FitResult:
+    return FitResult(name, {**PAPER_INITIAL, **extension}, 1.0, 1.0, residuals, 3, 0.5)
+
+
+def test_a_judged_candidate_writes_every_key_in_order_and_nested_records_as_objects():
+    problem, run_kind = _problem()
+    reference = np.random.default_rng(1).standard_normal(len(run_kind))
+    verdict = judge(problem, run_kind, _fit("base", reference),
+                    _fit("drivetrain_loss", 0.5 * reference, **{"drive.lossFraction": 0.2}),
+                    _fit("drivetrain_loss", reference, **{"drive.lossFraction": 0.0}))
+    out = verdict.to_json()
+    assert list(out) == JUDGED_KEYS
+    assert list(out["ablation"]) == ["gain", "z", "z_by_kind", "gain_by_kind"]
+    assert out["kinematic"] is None and out["judged_on"] == ["drawbar", "terrain"]
+    assert out["extension"] == {"drive.lossFraction": 0.2} and out["n_params"] == 1
+    assert out["status"] == "ok" and out["gain"] == pytest.approx(0.75)    # residuals halved: squares quartered
+    json.dumps(to_jsonable(out))      # plain JSON, nothing left as a record
+
+
+def test_a_failed_candidate_writes_its_short_form():
+    problem, run_kind = _problem()
+    failed = FitResult("grouser", {}, np.inf, np.inf, np.zeros(0), 0, 0.1, error="diverged", failed_evaluations=7)
+    verdict = judge(problem, run_kind, _fit("base", np.ones(len(run_kind))), failed)
+    assert verdict.to_json() == {"name": "grouser", "cause": verdict.cause, "error": "diverged", "status": "failed",
+                                 "failed_evaluations": 7, "significant": False, "acts": False, "gain": 0.0, "z": 0.0}
+    assert verdict.n_params == 0     # a failed fit is charged for no parameters in the ranking
+
+
+def test_a_duels_stage_and_the_registrations_evidence_appear_only_when_given():
+    duel = Duel("drivetrain_loss", "grouser", {"drawbar": 3.1}, 0.02, True)
+    assert list(duel.to_json()) == ["leader", "challenger", "z_by_kind", "gain", "challenger_better"]
+    assert replace(duel, stage="final models").to_json()["stage"] == "final models"
+    gain = CauseGain(2.0, 1.0, ["drawbar"], 0.5, 4.0, [GainStep("terrain_offset", 0.5, 4.0, 2.0, 1.0)],
+                     {"speed": SignalGain(0.2, 0.1, 0.5)})
+    assert "registration" not in gain.to_json()
+    pose = KinematicEvidence(3.0, 0.3, 10.0, 0.9, True)
+    with_pose = replace(gain, registration=pose).to_json()
+    assert with_pose["registration"] == {"held_out_ms_as_scanned": 3.0, "held_out_ms_registered": 0.3, "ratio": 10.0,
+                                         "gain": 0.9, "significant": True}
+
+
+def _no_cause_result() -> DiagnosisResult:
+    candidate = JudgedCandidate("slip_sinkage", "sinkage grows with slip", 0.01, 0.4, False, True, "ok", 0,
+                                gain_by_kind={"drawbar": 0.01}, z_by_kind={"drawbar": 0.4}, n_params=1)
+    tied = TiedPair(["a", "b"], 0.8, 1400.0, {"a": 1.0, "b": 0.9}, 0.1, 0.02, {"load_N": [1400.0], "a": [1.0],
+                                                                               "b": [0.9]})
+    return DiagnosisResult(
+        "none", [], "no extension explains the held-out data significantly better", [], [tied], [], [candidate], [],
+        Baseline({"soil.kh": 1e5}, 1.2, 1.1, {"speed": 0.01}, "ok", 0),
+        Criteria(4.0, 2.5, 0.03, 0.75, None, "spin", {}, {}, 0.01, 4.0),
+        ResidualAnalysis({"dbp1/speed": {"mean": 0.1, "rms": 1.1}}, 1.2),
+        ExtendedModel(None, []), NoCauseGain(1.2, 1.2, 0.0, "slip_sinkage", 0.01), 12.0)
+
+
+def test_the_diagnosis_writes_its_keys_in_order_without_the_figures_data():
+    out = public_json(_no_cause_result())
+    assert list(out) == RESULT_KEYS
+    assert out["extended"] == {"name": None, "causes": []}
+    assert list(out["gain"]) == ["held_out_mse_before", "held_out_mse_after", "relative", "best_candidate",
+                                 "best_candidate_gain"]
+    assert list(out["telling_apart"][0]) == ["models", "throttle", "load_N", "slip", "difference",
+                                             "difference_within_campaign", "ladder"]
+    assert list(out["criteria"]) == ["block_s", "z_min", "gain_min", "tie_ratio", "terrain_segment_s",
+                                     "terrain_drive", "terrain_drive_training_loss", "terrain_drive_settled",
+                                     "negligible_change", "registration_held_out_ratio"]
+    json.dumps(to_jsonable(out))
+
+
+def test_the_printout_reads_the_typed_result():
+    lines = summary_lines(_no_cause_result())
+    assert lines[0] == "cause: none (no extension explains the held-out data significantly better)"
+    assert lines[1].startswith("   slip_sinkage ") and "drawbar +1.0% (z 0.4)" in lines[1]
+    assert lines[2].startswith("What would tell a from b: a steady drawbar run on flat ground at 1400 N")
+
+
+def test_a_branch_contender_ranks_like_a_judged_candidate():
+    """choose_branch ranks final models (Contender) by the rule judged candidates are ranked by."""
+    from juno.diagnose import ranked
+    assert [c.name for c in ranked([Contender("a", 0.50, 3), Contender("b", 0.45, 1)])] == ["b", "a"]
+    assert ranked([Contender("a", 0.50, 3)])[0].gain == pytest.approx(0.50)
