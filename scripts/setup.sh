@@ -50,8 +50,10 @@ echo "setup: building the FMU"
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DJUNO_WERROR="${JUNO_WERROR:-OFF}" >/dev/null
 cmake --build build
 test -f build/JunoRover.fmu
+test -f build/WheelRig.fmu
 # The package carries the FMU too (juno/data, ignored by git), so a wheel built from
 # python_harness runs outside this checkout.
 mkdir -p python_harness/juno/data
 cp build/JunoRover.fmu python_harness/juno/data/JunoRover.fmu
-echo "setup: done (build/JunoRover.fmu, .venv/bin/juno)"
+cp build/WheelRig.fmu python_harness/juno/data/WheelRig.fmu
+echo "setup: done (build/JunoRover.fmu, build/WheelRig.fmu, .venv/bin/juno)"

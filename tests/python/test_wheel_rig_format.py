@@ -182,3 +182,22 @@ def test_write_campaign_round_trips_a_rig_table_exactly(tmp_path):
     for name, values in table.items():
         np.testing.assert_array_equal(back[name], values)
     assert format_rig_csv(table).splitlines()[0] == "vertical_load,slip,drawbar_pull,sinkage"
+
+
+def test_a_mixed_campaign_keeps_rig_tables_out_of_the_replays(tmp_path):
+    """A campaign may hold drawbar, terrain and wheel_rig runs: it loads and is checked whole; the
+    diagnosis replays only the time series (the rig fit takes the tables)."""
+    import shutil
+
+    from juno.diagnose.problem import _prepared_runs
+
+    root = tmp_path / "mixed"
+    shutil.copytree(REPO / "docs" / "example-campaign", root)
+    (root / "runs" / "rig.csv").write_text(GOOD_TABLE)
+    doc = json.loads((root / "campaign.json").read_text())
+    doc["runs"].append({"id": "rig", "kind": "wheel_rig", "file": "runs/rig.csv", "wheel": WHEEL})
+    (root / "campaign.json").write_text(json.dumps(doc, indent=2))
+    campaign = load_campaign(root)
+    assert [r.kind for r in campaign.runs] == ["drawbar", "terrain", "wheel_rig"]
+    assert [f for f in check_campaign(campaign) if f.severity == "error"] == []
+    assert [p.run_id for p in _prepared_runs(campaign, None, None, "spin")] == ["dbp1"]

@@ -61,9 +61,11 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, 
 def _prepared_runs(campaign: Campaign, grid_file: str | dict[str, str] | None, terrain_segment: float | None,
                    terrain_drive: str) -> list[PreparedRun]:
     """Every run of the campaign prepared for replay (build_problem); a terrain run without a
-    gridded scan is left out."""
+    gridded scan is left out, and so is a wheel_rig table (steady testbed points, not a replay)."""
     prepared = []
     for run in campaign.runs:
+        if run.kind == "wheel_rig":
+            continue
         terrain = run.kind == "terrain"
         grid = grid_file.get(run.id) if isinstance(grid_file, dict) else grid_file
         if terrain and grid is None:
