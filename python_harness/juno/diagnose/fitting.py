@@ -81,6 +81,7 @@ class SearchSpace:
 
     @classmethod
     def of(cls, candidate: Candidate | None) -> SearchSpace:
+        """The search vector of ``candidate``'s fit (the soil alone for the base model, None)."""
         return cls(candidate.params, dict(candidate.fixed)) if candidate else cls((), {})
 
     def start(self, start_soil: dict[str, float], start_ext: dict[str, float] | None) -> np.ndarray:
@@ -255,11 +256,14 @@ def _result_at_optimum(session: _FitSession, candidate: Candidate | None, x: np.
 
 # ------------------------------------------------------------------ many fits at once
 
-#: One fit to run: (problem, candidate, start soil, start extension or None[, evaluations]).
-FitJob = tuple
+#: One fit to run: (problem, candidate or None for the base model, start soil, start extension or
+#: None[, evaluations per fit]).
+FitJob = (tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | None]
+          | tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | None, int])
 
 
 def _fit_job(args: FitJob) -> FitResult:
+    """fit_candidate for one job (a picklable task for juno.parallel)."""
     problem, candidate, start_soil, start_ext, *budget = args
     return fit_candidate(problem, candidate, start_soil, max_nfev=budget[0] if budget else CANDIDATE_ITERATIONS,
                          start_ext=start_ext)

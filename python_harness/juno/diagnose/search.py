@@ -55,6 +55,7 @@ class Search:
         self.run_kind = run_kinds(self.problem)
 
     def fits(self, jobs: list[FitJob]) -> list[FitResult]:
+        """The fits of ``jobs``, in order (fitting.run_jobs, where this search's fits run)."""
         return run_jobs(jobs, self.workers, self.scheduler, self.say)
 
 
