@@ -19,8 +19,8 @@
  * Each run is timed whole (instantiation, terrain reading, static
  * equilibrium, every step) and its stepping alone; the figure is the median
  * over --repeats runs, next to the fastest run's (the least disturbed by
- * other jobs on a shared machine).  --solver-step and --solver-tolerance set
- * those parameters (solver.tolerance > 0: the automatic step; the internal
+ * other jobs on a shared machine).  --solver-step, --solver-tolerance and
+ * --contact-model set those parameters (solver.tolerance > 0: the automatic step; the internal
  * steps per run are then counted by the model, in an extra direct run).
  * Printed, never asserted.  Not a test.
  *
@@ -37,7 +37,8 @@
  * (default 1e-9).
  *
  * usage: bench_fmu [--fmu-dir DIR] [--terrain FILE] [--repeats N]
- *                  [--solver-step S] [--solver-tolerance T] [--only direct|fmi] [--json FILE]
+ *                  [--solver-step S] [--solver-tolerance T] [--contact-model 0|1]
+ *                  [--only direct|fmi] [--json FILE]
  *                  [--trace PREFIX [--compare REF [--tolerance T]]]
  *                  [--comm-step S]
  */
@@ -94,6 +95,7 @@ typedef struct {
 
 static double solver_step = 0.0;      /* 0: the FMU's default */
 static double solver_tolerance = 0.0; /* 0: the FMU's default */
+static int contact_model = -1;        /* < 0: the FMU's default */
 static double comm_step = 0.01;       /* s, the default experiment's */
 static const char *trace_prefix = NULL;
 static const char *compare_prefix = NULL;
@@ -189,6 +191,7 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
     terrain_init_flat(&m->terrain);
     if (solver_step > 0) m->p.solver_step = solver_step;
     if (solver_tolerance > 0) m->p.solver_tolerance = solver_tolerance;
+    if (contact_model >= 0) m->p.contact_model = contact_model;
     m->p.init_x = sc->init_x;
     m->in.drawbarForce = sc->drawbar;
     m->in.throttleLeft = m->in.throttleRight = sc->throttle;
@@ -236,7 +239,7 @@ static Fmu F;
 static int fmu_loaded = 0;
 static unsigned out_vrs[MAX_OUT];
 static size_t n_out;
-static unsigned vr_x, vr_y, vr_z, vr_terrain, vr_init_x, vr_solver_step, vr_solver_tolerance;
+static unsigned vr_x, vr_y, vr_z, vr_terrain, vr_init_x, vr_solver_step, vr_solver_tolerance, vr_contact_model;
 
 typedef struct {
     char last[512];
@@ -274,6 +277,7 @@ static RunResult run_fmi(const Scenario *sc)
              fmi->SetReal(c, in_vrs, 3, in) == fmi2OK;
     if (ok && solver_step > 0) ok = fmi->SetReal(c, &vr_solver_step, 1, &solver_step) == fmi2OK;
     if (ok && solver_tolerance > 0) ok = fmi->SetReal(c, &vr_solver_tolerance, 1, &solver_tolerance) == fmi2OK;
+    if (ok && contact_model >= 0) ok = fmi->SetInteger(c, &vr_contact_model, 1, &contact_model) == fmi2OK;
     if (ok && sc->terrain) {
         const fmi2String file = sc->terrain;
         ok = fmi->SetString(c, &vr_terrain, 1, &file) == fmi2OK;
@@ -350,6 +354,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--solver-step") && i + 1 < argc) solver_step = atof(argv[++i]);
         else if (!strcmp(argv[i], "--solver-tolerance") && i + 1 < argc) solver_tolerance = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--contact-model") && i + 1 < argc) contact_model = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
         else if (!strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
         else if (!strcmp(argv[i], "--trace") && i + 1 < argc) trace_prefix = argv[++i];
@@ -359,14 +364,15 @@ int main(int argc, char **argv)
         else {
             fprintf(stderr,
                     "usage: %s [--fmu-dir DIR (default: build/fmu beside this program)] [--terrain FILE.asc] "
-                    "[--repeats N (default 5)] [--solver-step S] [--solver-tolerance T] [--only direct|fmi] [--json FILE] "
+                    "[--repeats N (default 5; 0 with --trace: the traces only)] [--solver-step S] [--solver-tolerance T] "
+                    "[--contact-model 0|1] [--only direct|fmi] [--json FILE] "
                     "[--trace PREFIX [--compare REF [--tolerance T (default 1e-9)]]] [--comm-step S (default 0.01)]\n",
                     argv[0]);
             return 2;
         }
     }
-    if (repeats < 1 || repeats > MAX_REPEATS) {
-        fprintf(stderr, "bench_fmu: --repeats must be 1..%d\n", MAX_REPEATS);
+    if (repeats < (trace_prefix ? 0 : 1) || repeats > MAX_REPEATS) {
+        fprintf(stderr, "bench_fmu: --repeats must be 1..%d (0: with --trace)\n", MAX_REPEATS);
         return 2;
     }
     if (compare_prefix && !trace_prefix) {
@@ -411,6 +417,7 @@ int main(int argc, char **argv)
         vr_init_x = fmu_var(&F, "init.x")->vr;
         vr_solver_step = fmu_var(&F, "solver.step")->vr;
         vr_solver_tolerance = fmu_var(&F, "solver.tolerance")->vr;
+        vr_contact_model = fmu_var(&F, "contact.model")->vr;
     }
 
     char tmp_grid[] = "/tmp/bench_fmu_mound_XXXXXX";
@@ -449,7 +456,7 @@ int main(int argc, char **argv)
             int per_comm = (int)ceil(comm_step / h_solver - 1e-9);
             if (per_comm < 1) per_comm = 1;
             steps[s] = lround(scenarios[s].duration / comm_step) * (double)per_comm;
-        } else {
+        } else if (repeats > 0) {
             const RunResult probe_run = run_direct(&scenarios[s], NULL);
             steps[s] = probe_run.steps;
             rejected[s] = probe_run.rejected;
@@ -473,6 +480,7 @@ int main(int argc, char **argv)
                     if (compare_traces(ref, path, scenarios[s].name) != 1) failures++;
                 }
             }
+            if (repeats == 0) continue;                       /* the trace only */
             for (int r = 0; r < repeats; ++r) {
                 se->last = p == 0 ? run_direct(&scenarios[s], NULL) : run_fmi(&scenarios[s]);
                 if (!se->last.ok) break;

@@ -11,8 +11,13 @@ processes took the CPU and the wall-clock figure is inflated):
 * ``fmu-c``    - real-time factor of the FMU from C (``bench_fmu``): a 30 s
   drawbar run (defaults) and a 60 s run on a synthetic mound grid, both
   through ``model_do_step`` and through the FMI functions of the shared
-  library; and the same runs through ``model_do_step`` at ``solver.step``
-  20 ms, where the results are within 0.22 % of a 0.25 ms reference.
+  library, and the CPU time per internal step; the same runs through
+  ``model_do_step`` at other step settings (10 ms, 20 ms, the automatic
+  step), each as a ratio to the default 1 ms step measured in the same run
+  and with its accuracy: the largest RMS difference of slip, torque and
+  sinkage from a 0.0625 ms reference (the metric of
+  tests/python/test_fmu_accuracy.py); and the Wong-Reece law's cost per
+  internal step as a ratio to the volumetric law's over the same runs.
 * ``fmpy``     - the same two runs through fmpy (:meth:`JunoFMU.simulate`).
 * ``cost``     - cost-function evaluations per second: the joint fit's
   residuals (:func:`juno.identify.run_residuals` over the three drawbar runs
@@ -48,7 +53,10 @@ import numpy as np
 TARGETS = {
     "contact_speedup": 30.0,       # closed form >= 30x faster than Wong-Reece at matching sinkage
     "sinkage_match": 0.05,         # ... matching within 5 %
-    "rtf_c_terrain": 5000.0,       # FMU >= 5000x real time on a terrain grid from C
+    "rtf_c": 5000.0,               # FMU >= 5000x real time from C (drawbar and terrain runs)
+    "us_per_step": 1.0,            # <= 1 us CPU per internal step of the rover
+    "accuracy": 0.002,             # slip, torque, sinkage within 0.2 % RMS of a converged reference
+    "wr_ratio": 30.0,              # Wong-Reece >= 30x the volumetric law's cost per step over whole runs
     "rtf_fmpy": 1000.0,            # >= 1000x through fmpy
     "joint_s": 10.0,               # joint identification of three drawbar runs < 10 s
     "diagnose_s": 120.0,           # diagnose < 2 min
@@ -119,6 +127,18 @@ def _compiler(build_dir: Path) -> str:
         version = name
     # CMakeLists.txt makes Release (-O3) the default when the cache leaves the type empty
     return f"{version}, {bt.group(1).strip() if bt else 'Release'} build"
+
+
+def commit() -> str:
+    """The checkout's commit (short hash), "+ changes" when the working tree differs from it."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=_checkout(), capture_output=True,
+                              text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=_checkout(),
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head or "unknown") + (" + changes" if dirty else "")
 
 
 def loadavg() -> tuple[float, float, float]:
@@ -282,18 +302,65 @@ def bench_contact(rep: Report, exe: Path, repeats: int, min_time: float, say) ->
     return d["maxrss_mb"]
 
 
-def _terrain_target(scenario: str, rtf: float) -> tuple[str, bool | None]:
-    """The real-time target (terrain runs only) and whether ``rtf`` meets it."""
-    if scenario != "terrain":
-        return "", None
-    return ">= 5000x", bool(rtf >= TARGETS["rtf_c_terrain"])
+def _rtf_target(rtf: float) -> tuple[str, bool]:
+    """The real-time target of the FMU from C and whether ``rtf`` meets it."""
+    return ">= 5000x", bool(rtf >= TARGETS["rtf_c"])
+
+
+def _us_per_step(run: dict[str, Any]) -> float:
+    """CPU microseconds per internal step of one bench_fmu run (its stepping only)."""
+    return run["stepping_cpu_s"] / run["steps"] * 1e6 if run.get("steps") else float("nan")
+
+
+#: The step settings timed and traced: key suffix, label, bench_fmu arguments (none: the default).
+STEP_SETTINGS = (
+    ("1ms", "solver.step 1 ms (default)", []),
+    ("10ms", "solver.step 10 ms", ["--solver-step", "0.01"]),
+    ("20ms", "solver.step 20 ms", ["--solver-step", "0.02", "--comm-step", "0.02"]),
+    ("auto", "automatic step, solver.tolerance 7e-7 m/s", ["--solver-step", "0.02", "--solver-tolerance", "7e-7"]),
+)
+#: bench_fmu's trace columns: the time, then the FMU's Outputs in the order of fmu_src/model.h.
+TRACE_COLUMNS = (["time", "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",
+                  "torqueLeftApplied", "torqueRightApplied", "rocker"]
+                 + [f"{w}.{q}" for w in ("FL", "RL", "FR", "RR")
+                    for q in ("sinkage", "slip", "Fn", "Ft", "Fx", "Fy", "Fz")])
+ACCURACY_SIGNALS = ([f"{w}.slip" for w in ("FL", "RL", "FR", "RR")] + [f"{w}.sinkage" for w in ("FL", "RL", "FR", "RR")]
+                    + ["torqueLeftApplied", "torqueRightApplied"])
+REFERENCE_STEP = 6.25e-5      # s, the converged reference (tests/python/test_fmu_accuracy.py)
+SETTLE = 5.0                  # s, the start from the static equilibrium, left out of the metric
+
+
+def accuracy_metric(trace: np.ndarray, reference: np.ndarray) -> tuple[float, str]:
+    """The largest relative RMS difference from the reference over ACCURACY_SIGNALS after SETTLE
+    (the metric of tests/python/test_fmu_accuracy.py), and the signal it is on."""
+    part = reference[:, 0] >= SETTLE
+    worst, name = -1.0, ""
+    for sig in ACCURACY_SIGNALS:
+        c = TRACE_COLUMNS.index(sig)
+        e = float(np.sqrt(np.mean((trace[part, c] - reference[part, c]) ** 2) / np.mean(reference[part, c] ** 2)))
+        if not e <= worst:
+            worst, name = e, sig
+    return worst, name
+
+
+def _traces(exe: Path, fmu_dir: Path, grid: Path, args: list[str], prefix: Path, say) -> dict[str, np.ndarray]:
+    """bench_fmu's trace of each scenario (communication step 20 ms) with the given settings."""
+    settings = [a for i, a in enumerate(args) if a != "--comm-step" and (i == 0 or args[i - 1] != "--comm-step")]
+    cmd = [str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--only", "direct", "--repeats", "0",
+           "--comm-step", "0.02", *settings, "--trace", str(prefix)]
+    say("tracing " + " ".join(cmd[1:]))
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0 or "FAILED" in proc.stdout:
+        raise RuntimeError(f"bench_fmu trace failed: {proc.stdout[-2000:]}{proc.stderr[-2000:]}")
+    return {name: np.loadtxt(f"{prefix}_{name}.txt") for name in ("drawbar", "terrain")}
 
 
 def bench_fmu_c(rep: Report, exe: Path, fmu_dir: Path, grid: Path, repeats: int, say) -> float:
     rep.section("FMU from C (bench_fmu): real-time factor = simulated / wall time")
     d = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(repeats)], say)
-    rep.line(f"solver.step {d['solver_step']:g} s, communication step {d['comm_step']:g} s; "
+    rep.line(f"the default: solver.step {d['solver_step']:g} s (fixed), communication step {d['comm_step']:g} s; "
              f"median of {repeats} runs; whole run = instantiate + initialise (terrain, equilibrium) + steps")
+    base: dict[str, dict[str, Any]] = {}
     for r in d["runs"]:
         label = f"{r['scenario']} {r['duration']:.0f} s, {'model_do_step' if r['path'] == 'direct' else 'FMI functions'}"
         key = f"rtf_c_{r['scenario']}_{r['path']}"
@@ -301,27 +368,62 @@ def bench_fmu_c(rep: Report, exe: Path, fmu_dir: Path, grid: Path, repeats: int,
             rep.figure(key, label, float("nan"), "x", note="FAILED: " + r.get("error", ""))
             continue
         rtf = r["duration"] / r["total_s"]
-        target, met = _terrain_target(r["scenario"], rtf)
-        steps = r["duration"] / d["solver_step"]
+        target, met = _rtf_target(rtf)
+        if r["path"] == "direct":
+            base[r["scenario"]] = r
         rep.figure(key, label, rtf, "x RT", target=target, met=met,
                    note=f"{r['total_s']:.3f} s; stepping only {r['duration'] / r['stepping_s']:.0f}x, "
-                        f"{r['stepping_s'] / steps * 1e6:.1f} us/substep; CPU {r['cpu_share']:.0%}; "
+                        f"{_us_per_step(r):.2f} us CPU per internal step; CPU {r['cpu_share']:.0%}; "
                         f"end x {r['final_x']:.1f} m", wall_s=r["total_s"], stepping_s=r["stepping_s"])
-    # The same runs at solver.step 20 ms (communication step 20 ms): the normal stiffness acts
-    # along the sinkage gradient, so 20 ms is within 0.22 % of a 0.25 ms reference on
-    # these runs in slip, torque and sinkage, so the real-time target is judged here too.
-    coarse = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(repeats),
-                     "--solver-step", "0.02", "--comm-step", "0.02", "--only", "direct"], say)
-    for r in coarse["runs"]:
-        if r["ok"]:
-            rtf = r["duration"] / r["total_s"]
-            target, met = _terrain_target(r["scenario"], rtf)
-            rep.figure(f"rtf_c_{r['scenario']}_direct_20ms", f"{r['scenario']} {r['duration']:.0f} s, model_do_step, "
-                       "solver.step 20 ms", rtf, "x RT", target=target, met=met,
-                       note=f"stepping only {r['duration'] / r['stepping_s']:.0f}x, "
-                            f"{r['stepping_s'] / (r['duration'] / 0.02) * 1e6:.1f} us/substep; "
-                            f"CPU {r['cpu_share']:.0%}", wall_s=r["total_s"])
-    return max(d["maxrss_mb"], coarse["maxrss_mb"])
+    for name, r in base.items():
+        us = _us_per_step(r)
+        rep.figure(f"us_per_step_{name}", f"{name}: CPU per internal step (1 ms, model_do_step)", us, "us",
+                   target="<= 1.0 us", met=bool(us <= TARGETS["us_per_step"]), note=f"{r['steps']:.0f} steps")
+
+    # The other step settings against the default measured above: real-time factor and accuracy.
+    rep.line("the same runs at other step settings (model_do_step), against the default fixed step above; "
+             f"accuracy: the largest RMS difference of slip, torque and sinkage from a {REFERENCE_STEP * 1e3:g} ms "
+             f"reference after the first {SETTLE:g} s, relative to the signal's RMS (target <= 0.2 %)")
+    rss = d["maxrss_mb"]
+    with tempfile.TemporaryDirectory(prefix="juno-bench-traces-") as tmp:
+        ref = _traces(exe, fmu_dir, grid, ["--solver-step", str(REFERENCE_STEP)], Path(tmp) / "ref", say)
+        for suffix, label, args in STEP_SETTINGS:
+            trace = _traces(exe, fmu_dir, grid, args, Path(tmp) / suffix, say)
+            timed_run = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(repeats),
+                                "--only", "direct", *args], say) if args else d
+            rss = max(rss, timed_run["maxrss_mb"])
+            for r in timed_run["runs"]:
+                if r["path"] != "direct":
+                    continue
+                key = f"rtf_c_{r['scenario']}_direct_{suffix}"
+                err, sig = accuracy_metric(trace[r["scenario"]], ref[r["scenario"]])
+                acc_met = bool(err <= TARGETS["accuracy"])
+                if not r["ok"]:
+                    rep.figure(key, f"{r['scenario']}, {label}", float("nan"), "x", note="FAILED: " + r.get("error", ""))
+                    continue
+                rtf = r["duration"] / r["total_s"]
+                target, met = _rtf_target(rtf)
+                b = base.get(r["scenario"])
+                ratio = rtf / (b["duration"] / b["total_s"]) if b else float("nan")
+                rep.figure(key, f"{r['scenario']}, {label}", rtf, "x RT", target=target, met=met and acc_met,
+                           note=f"{ratio:.2f} x the 1 ms step; accuracy {err:.3%} ({sig}, "
+                                f"{'within' if acc_met else 'NOT within'} 0.2 %); {r['steps'] / r['duration']:.0f} "
+                                f"steps/s, {_us_per_step(r):.2f} us CPU each; CPU {r['cpu_share']:.0%}",
+                           wall_s=r["total_s"], accuracy=err, ratio_to_default=ratio)
+
+    # The contact laws over whole runs: Wong-Reece against the volumetric law, per internal step.
+    wr = _run_c([str(exe), "--fmu-dir", str(fmu_dir), "--terrain", str(grid), "--repeats", str(max(1, repeats // 2)),
+                 "--only", "direct", "--contact-model", "1"], say)
+    rss = max(rss, wr["maxrss_mb"])
+    for r in wr["runs"]:
+        b = base.get(r["scenario"])
+        if not r["ok"] or b is None:
+            continue
+        ratio = _us_per_step(r) / _us_per_step(b)
+        rep.figure(f"wr_ratio_{r['scenario']}", f"{r['scenario']}: Wong-Reece / volumetric, CPU per internal step",
+                   ratio, "x", target=">= 30x", met=bool(ratio >= TARGETS["wr_ratio"]),
+                   note=f"{_us_per_step(r):.1f} us against {_us_per_step(b):.2f} us (whole runs, 1 ms)")
+    return rss
 
 
 def terrain_run(grid: Path) -> tuple[dict[str, object], Any]:
@@ -554,7 +656,8 @@ def run_benchmarks(*, quick: bool = False, repeats: int | None = None, long_repe
     info["compiler"] = _compiler(build_dir)
     start_load = loadavg()
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    print(f"juno bench, {stamp}{' (--quick)' if quick else ''}")
+    info["commit"] = commit()
+    print(f"juno bench, {stamp}, commit {info['commit']}{' (--quick)' if quick else ''}")
     cores = f"{info.get('logical_cores')} logical cores"
     if "physical_cores" in info:
         cores += f" ({info['physical_cores']} physical)"
