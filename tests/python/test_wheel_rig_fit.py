@@ -195,3 +195,44 @@ def test_juno_identify_fits_a_rig_campaign(tmp_path):
     assert set(fit["params"]) == set(law_parameters("volumetric", True))
     assert "paper" not in data and "joint" not in data
     assert before == {p: p.read_bytes() for p in EXAMPLE.rglob("*") if p.is_file()}
+
+
+def test_the_report_draws_measured_against_fitted(rig_fmu, tmp_path):
+    """write_report with rig results: the figure (one row per wheel), the law's parameter table and
+    the summary's fitted parameters; every measured point of the table is drawn."""
+    from juno.report import write_report
+    from juno.wheel_rig_report import CURVE_POINTS, rig_results
+
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "syn", TRUTH)
+    results = rig_results(rig_fmu, campaign, laws=("volumetric",))
+    assert [c.slip.shape for c in results.curves] == [(CURVE_POINTS,)] * 2
+    path = write_report(tmp_path / "report", campaign, [], None, [], rig=results)
+    text = path.read_text()
+    assert "## Single-wheel testbed fit" in text and "| soil.Kvx |" in text
+    assert (path.parent / "rig_fit.png").stat().st_size > 10_000
+    summary = json.loads((path.parent / "summary.json").read_text())
+    assert set(summary["rig"]["volumetric"]["params"]) == set(TRUTH)
+
+
+def test_slip_angles_and_lateral_force_enter_the_fit(rig_fmu, tmp_path):
+    """A table at slip angles of -0.2 to 0.2 rad with its lateral force: the lateral force turns
+    with the angle's sign, and the traction modulus and friction angle come back from it within
+    3 sigma."""
+    truth = {"soil.Kvx": 0.4, "soil.phi": 0.6}
+    angles = np.array([-0.2, -0.1, 0.0, 0.1, 0.2])
+    points = RigPoints.of(80.0, np.full(len(angles), 0.1), angles)
+    sim = simulate_points(rig_fmu, WHEEL, points, truth)
+    assert np.all(np.sign(sim["lateral_force"]) == np.sign(angles))
+    rng = np.random.default_rng(SEED)
+    table = {"vertical_load": points.load, "slip": points.slip, "slip_angle": angles,
+             "drawbar_pull": sim["drawbar_pull"] + rng.normal(0.0, 0.5, len(angles)),
+             "drawbar_pull_std": np.full(len(angles), 0.5),
+             "lateral_force": sim["lateral_force"] + rng.normal(0.0, 0.5, len(angles)),
+             "lateral_force_std": np.full(len(angles), 0.5)}
+    manifest = {"name": "angles", "runs": [{"id": "a", "kind": "wheel_rig",
+                                            "wheel": {"radius": WHEEL.radius, "width": WHEEL.width}}]}
+    campaign = write_campaign(tmp_path / "angles", manifest, {"a": table})
+    fit = fit_rig(rig_fmu, campaign, "volumetric", parameters=("soil.Kvx", "soil.phi"))
+    assert set(fit.rms) == {"drawbar_pull", "lateral_force"}
+    for name, true in truth.items():
+        assert abs(fit.params[name] - true) < 3.0 * fit.std[name], (name, fit.params[name], fit.std[name])
