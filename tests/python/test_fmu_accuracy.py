@@ -29,7 +29,7 @@ import math
 import numpy as np
 import pytest
 
-from fmu_helpers import WHEELS, FMICallException, LogCapture, run, slope_grid, write_asc
+from fmu_helpers import WHEELS, FMICallException, LogCapture, Rover, run, slope_grid, write_asc
 from test_fmu_ranges import _values, _walked_variables
 
 ACCURACY = 2e-3            # relative RMS difference from the converged reference
@@ -148,3 +148,20 @@ def test_the_automatic_step_runs_wherever_the_fixed_default_runs(fmu_unzipped, t
     print(f"\n{ran} of {len(cases)} cases run at the fixed step")
     assert ran > len(cases) // 2
     assert not problems, "\n".join(problems)
+
+
+def test_a_restored_state_continues_the_automatic_step_exactly(fmu_unzipped):
+    """The automatic step's next step size is part of the FMU state: a state taken mid-run and
+    restored (also after the run went on with other steps) continues bit for bit."""
+    names = SIGNALS + ["x", "vx"]
+    with Rover(fmu_unzipped) as r:
+        r.setup(AUTOMATIC)
+        r.advance(150, 0.01, names=names)                 # through the start, steps growing
+        state = r.fmu.getFMUstate()
+        t = r.time
+        first = r.advance(50, 0.01, names=names)
+        r.fmu.setFMUstate(state)
+        r.time = t
+        again = r.advance(50, 0.01, names=names)
+        r.fmu.freeFMUstate(state)
+    assert np.array_equal(first, again)
