@@ -23,7 +23,8 @@ JUDGED_KEYS = ["name", "cause", "gain", "z", "gain_by_kind", "z_by_kind", "acts"
                "held_out_mse_before", "held_out_mse_after", "significant", "test_mse", "train_mse", "n_params", "soil",
                "extension", "evaluations", "failed_evaluations", "status", "wall_time"]
 RESULT_KEYS = ["cause", "causes", "explanation", "equally_good", "telling_apart", "head_to_head", "candidates",
-               "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time"]
+               "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time",
+               "unexplained", "structure"]
 
 
 def _problem() -> tuple[Problem, np.ndarray]:

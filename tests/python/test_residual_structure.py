@@ -16,7 +16,7 @@ import pytest
 
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
-from juno.residual_structure import MATERIAL_FRACTION, column_noise, residual_structure
+from juno.diagnose.structure import MATERIAL_FRACTION, column_noise, residual_structure
 from juno.rover_model import SOIL_PARAMETERS
 
 pytest_plugins = ["harness_fixtures"]

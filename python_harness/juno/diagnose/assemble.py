@@ -13,8 +13,10 @@ from .candidates import CANDIDATES
 from .fitting import FitResult
 from .judging import capped_square
 from .problem import Problem
+from .structure import ResidualStructure
 from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
                       NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
+from .verdict import Verdict, explanation
 
 if TYPE_CHECKING:
     from .search import Outcome
@@ -94,21 +96,25 @@ def no_cause_gain(base: FitResult, candidates: list[JudgedCandidate]) -> NoCause
 
 
 def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, duels: list[Duel], outcome: Outcome,
-                     criteria: Criteria, t_start: float) -> DiagnosisResult:
+                     criteria: Criteria, t_start: float, judged: Verdict,
+                     structures: tuple[ResidualStructure, ResidualStructure | None]) -> DiagnosisResult:
     """The whole diagnosis from the search's ``outcome`` (the first round's comparisons ``duels``,
-    judged on ``problem`` against the reference ``base``); wall time since ``t_start``
-    (time.perf_counter, s)."""
+    judged on ``problem`` against the reference ``base``) and the ``judged`` verdict on what the
+    models leave (``structures``: the base model's and the named causes' residual structure);
+    wall time since ``t_start`` (time.perf_counter, s).  The extended model and its gain are the
+    search's catalog model even when the verdict does not name it (``unexplained.absorbed_by``)."""
     causes = [r.name for r in outcome.chosen]
     if outcome.chosen:
         extended = extended_model(problem, run_kind, causes, outcome.chosen[-1])
         gain: CauseGain | NoCauseGain = cause_gain(problem, run_kind, base, outcome)
     else:
         extended, gain = ExtendedModel(None, []), no_cause_gain(base, outcome.candidates)
-    explanation = ("; then ".join(CANDIDATES[c].cause for c in causes) if causes
-                   else "no extension explains the held-out data significantly better")
+    catalog = "; then ".join(CANDIDATES[c].cause for c in causes)
     plot_data = PlotData(problem.meta, problem.train, base.residuals,
                          outcome.chosen[-1].residuals if outcome.chosen else None)
-    return DiagnosisResult(causes[0] if causes else "none", causes, explanation, outcome.equally_good,
+    structure = {"base": structures[0].to_json(),
+                 "extended": structures[1].to_json() if structures[1] is not None else None}
+    return DiagnosisResult(judged.cause, judged.causes, explanation(judged, catalog), outcome.equally_good,
                            outcome.apart, duels + outcome.branch_duels, outcome.candidates, outcome.second_round,
                            baseline(problem, base), criteria, residual_analysis(problem, base.residuals), extended,
-                           gain, time.perf_counter() - t_start, plot_data)
+                           gain, time.perf_counter() - t_start, plot_data, judged.unexplained, structure)

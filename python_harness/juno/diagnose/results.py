@@ -10,6 +10,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .verdict import Unexplained
+
 
 def _plain(value: Any) -> Any:
     """``value`` with every record in it (anything with a ``to_json``) as its JSON object."""
@@ -335,6 +337,8 @@ class DiagnosisResult:
     gain: CauseGain | NoCauseGain
     wall_time: float
     plot_data: PlotData | None = None
+    unexplained: Unexplained | None = None        # structure the named causes (or none) leave
+    structure: dict[str, Any] | None = None       # residual structure tests: "base", "extended"
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``juno diagnose --json`` (everything but the figures' data)."""

@@ -28,7 +28,9 @@ from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .starts import patch_grid, patch_start, registration_evidence, registration_start
+from .structure import ResidualStructure, residual_structure
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
+from .verdict import verdict
 
 #: The fits of a first cause on a longer budget than a candidate's (search.second_round): a
 #: soil patch's search alone makes several short fits and a long one, about three candidate
@@ -133,9 +135,26 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         search = Search(campaign, setting.problem, searched, registration, workers, scheduler, say)
         first = first_round(search, setting)
         outcome = further_causes(search, first)
+        structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
-    return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start)
+    judged = verdict([r.name for r in outcome.chosen], *structures)
+    return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
+                            judged, structures)
+
+
+def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, base: FitResult, outcome: Outcome,
+                          say: Callable[[str], None]) -> tuple[ResidualStructure, ResidualStructure | None]:
+    """The residual structure test (structure.py) of the base model and of the model with every
+    named cause (None when none was named), on the held-out blocks of the drawbar runs."""
+    models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
+    with JunoFMU(fmu_path) as fmu:
+        tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
+                                    m.params) for m in models]
+    for m, t in zip(models, tests):
+        found = ", ".join(f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()) or "none"
+        say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
+    return tests[0], (tests[1] if len(tests) > 1 else None)
 
 
 def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terrain_segment: float | None,

@@ -1,0 +1,107 @@
+"""The verdict: a catalog cause, ``none``, or ``unexplained``.
+
+The search (search.py) names catalog causes by their held-out gain.  The verdict then asks the
+residual structure test (structure.py) what the models leave:
+
+- no cause named, and the base model leaves no structure: ``none``; the residuals are
+  consistent with sensor noise;
+- no cause named, but the base model leaves structure: ``unexplained``, with the signals and
+  what they follow;
+- causes named, and their model leaves no structure: the causes;
+- causes named, and their model leaves structure: if it removes at least EXPLAINED_SHARE of
+  the base model's structure, the causes, with the remainder reported as ``unexplained``
+  beside them; otherwise ``unexplained``, with the catalog causes reported as only absorbing
+  part of it.  Why: a cause is named for explaining a discrepancy; one that removes less than
+  half of it is fitting its free parameters to part of a discrepancy it does not describe (a
+  soil patch bent around a dragging brake), and naming it would send the engineer after the
+  wrong physics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .structure import ResidualStructure, SignalStructure
+
+#: The least share of the base model's residual structure a catalog model must remove to be
+#: named for it (see the module docstring).
+EXPLAINED_SHARE = 0.5
+
+
+@dataclass
+class Unexplained:
+    """Structure beyond sensor noise that the catalog does not explain: in the model ``model``
+    ("base", or the named causes joined by "+"), the signals that hold it (largest relative to
+    their noise first); ``absorbed_by``: catalog causes whose model removes only ``share_removed``
+    of the base model's structure (so they are not named)."""
+
+    model: str
+    signals: list[SignalStructure]
+    absorbed_by: list[str] = field(default_factory=list)
+    share_removed: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"model": self.model, "signals": [s.to_json() for s in self.signals],
+                "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
+                "summary": self.summary()}
+
+    def summary(self, most: int = 3) -> str:
+        """One sentence: the ``most`` largest signals' structure and the covariate each follows
+        best (the JSON has every signal and covariate)."""
+        more = len(self.signals) - most
+        return "; ".join(_signal_sentence(s) for s in self.signals[:most]) + \
+            (f"; and {more} more signal{'s' if more > 1 else ''}" if more > 0 else "")
+
+
+def _signal_sentence(s: SignalStructure) -> str:
+    text = f"{s.signal} {s.structure_rms:.3g} {s.unit} RMS ({s.ratio:.2g} x its sensor noise)"
+    if not s.follows:
+        return text
+    c = s.follows[0]
+    slope = f" {c.slope:+.3g} {c.unit}" if c.name != "run" else ""
+    return f"{text}, following {c.name}{slope} ({c.share:.0%} of it)"
+
+
+@dataclass
+class Verdict:
+    """What the diagnosis reports: ``cause`` (a catalog cause, "none" or "unexplained"), the
+    catalog ``causes`` named (strongest first), and what is left unexplained (or None)."""
+
+    cause: str
+    causes: list[str]
+    unexplained: Unexplained | None
+
+
+def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None) -> Verdict:
+    """The verdict (module docstring) from the catalog ``causes`` the search named and the structure
+    tests of the base model and of the model with those causes (None when none was named)."""
+    if not causes:
+        if base.significant:
+            return Verdict("unexplained", [], Unexplained("base", base.structured()))
+        return Verdict("none", [], None)
+    assert extended is not None
+    if not extended.significant:
+        return Verdict(causes[0], causes, None)
+    removed = 1.0 - extended.excess / base.excess if base.excess > 0 else 0.0
+    left = Unexplained("+".join(causes), extended.structured(), share_removed=removed)
+    if removed >= EXPLAINED_SHARE:
+        return Verdict(causes[0], causes, left)
+    left.absorbed_by = list(causes)
+    return Verdict("unexplained", [], left)
+
+
+def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
+    """The verdict in words, from the named causes' physical explanation."""
+    u = verdict_.unexplained
+    if verdict_.cause == "none":
+        return "no extension explains the held-out data significantly better, and the residuals are consistent " \
+               "with sensor noise"
+    if verdict_.cause == "unexplained":
+        absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
+                    if u.absorbed_by else "")
+        return ("the drawbar runs' held-out residuals hold structure beyond sensor noise that no extension in the "
+                f"catalog explains: {u.summary()}{absorbed}")
+    if u is not None:
+        return f"{catalog_explanation}; structure beyond sensor noise remains: {u.summary()}"
+    return catalog_explanation
