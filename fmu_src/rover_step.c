@@ -6,6 +6,8 @@
  *   (M + h D + h^2 K) du = h (Q - h K u),   u += du,   q += h u.
  * The contact memory (max sinkage, distance rolled), the multi-pass rut
  * and the PID integral are advanced explicitly once per internal step.
+ * With solver.tolerance > 0, the automatic step instead: halved steps
+ * extrapolated to second order, the step size chosen by their difference.
  * Also: the reuse of the end-of-step evaluation, and the checks that name
  * the likely cause of a diverging state.
  */
@@ -39,7 +41,6 @@ static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], c
     for (int r = c + 1; r < NU; ++r) {
         double *rr = row[r];
         const double f = rr[c] / pivot;
-        rr[c] = f;                            /* the multiplier, kept for lu_resolve */
         if (f == 0) continue;
         for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
         b[idx[r]] -= f * bc;
@@ -47,50 +48,28 @@ static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], c
     return 0;
 }
 
-/* Back substitution: x from the factored rows (row c of U is A[idx[c]]),
- * the right-hand side b already eliminated; x overwrites b. */
-static void back_substitute(double A[NU][NU], const int idx[NU], double b[NU])
-{
-    double x[NU];
-    for (int c = NU - 1; c >= 0; --c) {
-        const double *pr = A[idx[c]];
-        double s = b[idx[c]];
-        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
-        x[c] = s / pr[c];
-    }
-    memcpy(b, x, sizeof x);
-}
-
 /* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
- * b is overwritten by x, and A by its factors: the multipliers below the
- * diagonal, U on and above it, row c of U being A[idx[c]] (lu_resolve
- * solves for another right-hand side with them).  Returns -1 if singular.
- * The rows are swapped through pointers: the arithmetic is that of the
- * textbook loop, operation for operation. */
-static int solve(double A[NU][NU], double b[NU], int idx[NU])
+ * A and b are overwritten.  Returns -1 if singular.  The rows are swapped
+ * through pointers: the arithmetic is that of the textbook loop,
+ * operation for operation. */
+static int solve(double A[NU][NU], double b[NU])
 {
     _Static_assert(NU == 9, "solve() unrolls its columns for NU = 9");
-    double *row[NU];
+    double *row[NU], x[NU];
+    int idx[NU];
     for (int i = 0; i < NU; ++i) row[i] = A[i], idx[i] = i;
     if (eliminate_column(row, idx, b, 0) || eliminate_column(row, idx, b, 1) || eliminate_column(row, idx, b, 2) ||
         eliminate_column(row, idx, b, 3) || eliminate_column(row, idx, b, 4) || eliminate_column(row, idx, b, 5) ||
         eliminate_column(row, idx, b, 6) || eliminate_column(row, idx, b, 7) || eliminate_column(row, idx, b, 8))
         return -1;
-    back_substitute(A, idx, b);
-    return 0;
-}
-
-/* Solves A x = b with the factors solve() left in A and idx. */
-static void lu_resolve(double A[NU][NU], const int idx[NU], double b[NU])
-{
-    for (int c = 0; c < NU - 1; ++c) {
-        const double bc = b[idx[c]];
-        for (int r = c + 1; r < NU; ++r) {
-            const double f = A[idx[r]][c];
-            if (f != 0) b[idx[r]] -= f * bc;
-        }
+    for (int c = NU - 1; c >= 0; --c) {
+        const double *pr = row[c];
+        double s = b[idx[c]];
+        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
+        x[c] = s / pr[c];
     }
-    back_substitute(A, idx, b);
+    memcpy(b, x, sizeof x);
+    return 0;
 }
 
 /* ------------------------------------------------- diverging states */
@@ -235,14 +214,13 @@ void rover_evaluate_end_of_step(Model *m)
 
 /* One internal step of length h from m->eval, the evaluation of the
  * current state with its input terms (rover_evaluate_passive and
- * rover_evaluate_inputs, with matrices).  The velocity update's matrix is
- * left factored in A and idx (solve). */
-static int advance(Model *m, double h, double A[NU][NU], int idx[NU], char *err, size_t errlen)
+ * rover_evaluate_inputs, with matrices); m->eval is only read. */
+static int advance(Model *m, double h, char *err, size_t errlen)
 {
     State *s = &m->s;
-    Eval *ev = &m->eval;
-    double (*K)[NU] = ev->K;
-    double b[NU];
+    const Eval *ev = &m->eval;
+    const double (*K)[NU] = (const double (*)[NU])ev->K;
+    double A[NU][NU], b[NU];
     for (int i = 0; i < NU; ++i) {
         double Ku = 0;
         for (int j = 0; j < NU; ++j) {
@@ -257,7 +235,7 @@ static int advance(Model *m, double h, double A[NU][NU], int idx[NU], char *err,
                 const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
                 b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
             }
-    if (solve(A, b, idx) != 0)
+    if (solve(A, b) != 0)
         return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
 
     for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
@@ -305,37 +283,34 @@ static int advance(Model *m, double h, double A[NU][NU], int idx[NU], char *err,
  * the passive evaluation of the current state (model_do_step checked it). */
 static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 {
-    double A[NU][NU];
-    int idx[NU];
     if (!reuse) rover_evaluate_passive(m, &m->eval, 1);
     m->eval_valid = 0;                        /* it gets the input terms, and the state moves on */
     rover_evaluate_inputs(m, &m->eval, 1);
-    return advance(m, h, A, idx, err, errlen);
+    return advance(m, h, err, errlen);
 }
 
 /* ------------------------------------------------- the automatic step */
 
-/* solver.tolerance > 0: each internal step is chosen by an estimate of the
- * local error of the velocity update.  Linearly implicit Euler takes the
- * acceleration at the step's end, the trapezoidal rule the mean of both
- * ends; the difference, (h/2)(a1 - a0), is the leading term of the local
- * error.  It is filtered through the step's own matrix W = M + h D + h^2 K
- * (Shampine's filter, applied twice as Hairer and Wanner do after a
- * rejection), so that the stiff modes the step damps correctly (soil
- * contact, shear) do not count as error while the slow motion does:
- *   est = W^-1 M W^-1 (h/2) (Q1 - Q0),
- * Q0 and Q1 the generalised forces at the step's start and end (the end's
- * evaluation is the next step's start, so the estimate costs two solves
- * with W's factors and no evaluation).  Its components are velocities; the
- * angular ones count as the speed they give at a lever of wheel.radius
- * (wheel spins) or half rover.wheelbase (chassis and rocker rates).  A step
- * is accepted when the largest is at most solver.tolerance (m/s).  The next
- * step is 0.9 h sqrt(tol / est) (the local error of a first-order method
- * grows as h^2), within 0.2..2 times the last and at most solver.step.  A
- * rejected step is taken again from the saved state, shorter; so is a step
- * whose state fails the checks of a diverging state, down to STEP_MIN,
- * below which that failure is reported.  Not estimated: the explicit
- * updates of the contact memory and of the PID integral. */
+/* solver.tolerance > 0: steps of two halves, extrapolated, the step size
+ * chosen by their difference.  From the state at t, one internal step of h
+ * gives A, two of h/2 give B; both are first order, with errors of about
+ * c h^2 and c h^2 / 2 per step, so 2 B - A (Richardson extrapolation) is
+ * second order and |B - A| estimates B's local error.  Linearly implicit
+ * Euler extrapolated so stays L-stable: a stiff soil mode that one long
+ * step damps to nothing, the two halves damp too, and it neither counts as
+ * error nor rings.  The step is accepted when the largest component of
+ * B - A in the velocities (angular rates as the speed they give at a lever
+ * of wheel.radius for the spins, half rover.wheelbase for the chassis and
+ * rocker rates) is within solver.tolerance (m/s); the next step is
+ * 0.9 h sqrt(tol / est) (B's error grows as h^2), within 0.2..2 times this
+ * one and at most solver.step.  The velocities, positions, attitude,
+ * rocker angle and PID integral are extrapolated; the soil memory, the
+ * rut and the applied torque are B's (the memory's maximum and clamps are
+ * not smooth in time).  A step costs two evaluations (the half-way point
+ * and the end, which the next step starts from) and three solves.  A
+ * rejected step, or one whose state fails the checks of a diverging state,
+ * is taken again from the saved state, shorter, down to STEP_MIN, below
+ * which that failure is reported. */
 #define STEP_FIRST 1e-3     /* s, the first step after initialisation */
 #define STEP_MIN 1e-6       /* s */
 
@@ -352,29 +327,34 @@ static void state_copy(State *to, const State *from, int with_rut)
     memcpy((char *)to + b, (const char *)from + b, sizeof *from - b);
 }
 
-/* The estimate above, relative to solver.tolerance: the step is accepted at
- * <= 1.  A, idx: the step's factored matrix; Q0: the forces at its start;
- * e1: the evaluation at its end (with input terms and matrices). */
-static double error_ratio(const Model *m, double A[NU][NU], const int idx[NU], const double Q0[NU],
-                          const Eval *e1, double h)
+/* The largest difference of B's velocities from A's (levers above),
+ * relative to solver.tolerance: the step is accepted at <= 1. */
+static double error_ratio(const Model *m, const State *a, const State *b)
 {
-    double r[NU], r2[NU];
-    for (int i = 0; i < NU; ++i) r[i] = 0.5 * h * (e1->Q[i] - Q0[i]);
-    lu_resolve(A, idx, r);
-    for (int i = 0; i < NU; ++i) {
-        double v = 0;
-        for (int j = 0; j < NU; ++j) v += e1->M[i][j] * r[j];
-        r2[i] = v;
-    }
-    lu_resolve(A, idx, r2);
     const double half_base = 0.5 * m->p.rover_wheelbase, R = m->p.wheel_radius;
     const double lever[NU] = {1, 1, 1, half_base, half_base, half_base, half_base, R, R};
     double worst = 0;
     for (int i = 0; i < NU; ++i) {
-        const double v = fabs(r2[i]) * lever[i];
+        const double v = fabs(b->u[i] - a->u[i]) * lever[i];
         if (!(v <= worst)) worst = v;                  /* NaN counts as the worst */
     }
     return worst / m->p.solver_tolerance;
+}
+
+/* s = 2 s - a where the state is smooth in time (above); the rest stays s's. */
+static void extrapolate(State *s, const State *a)
+{
+    for (int i = 0; i < NU; ++i) s->u[i] = 2.0 * s->u[i] - a->u[i];
+    for (int i = 0; i < 3; ++i) s->pos[i] = 2.0 * s->pos[i] - a->pos[i];
+    double n = 0;
+    for (int i = 0; i < 4; ++i) {
+        s->quat[i] = 2.0 * s->quat[i] - a->quat[i];
+        n += s->quat[i] * s->quat[i];
+    }
+    n = 1.0 / sqrt(n);
+    for (int i = 0; i < 4; ++i) s->quat[i] *= n;
+    s->beta = 2.0 * s->beta - a->beta;
+    for (int k = 0; k < 2; ++k) s->pid_integral[k] = 2.0 * s->pid_integral[k] - a->pid_integral[k];
 }
 
 static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
@@ -388,48 +368,50 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
     double remaining = h_comm;
-    State saved;
+    State saved, single;
     while (remaining > 0) {
         const double n = ceil(remaining / h - 1e-9);     /* steps of at most h to the communication point */
         const int last = n <= 1;
         const double hs = last ? remaining : remaining / n;
-        double A[NU][NU], Q0[NU];
-        int idx[NU];
         char why[512];
         state_copy(&saved, s, with_rut);
-        memcpy(Q0, ev->Q, sizeof Q0);
         double ratio = HUGE_VAL;
-        const int ok = advance(m, hs, A, idx, why, sizeof why) == 0;
+        int ok = advance(m, hs, why, sizeof why) == 0;                 /* A */
+        if (ok) {
+            state_copy(&single, s, with_rut);
+            state_copy(s, &saved, with_rut);
+            ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, first half */
+        }
         if (ok) {
             rover_evaluate_passive(m, ev, 1);
-            if (last) {                  /* kept input-free for the next step's reuse */
-                eval_key_store(m);
-                Eval full = *ev;
-                rover_evaluate_inputs(m, &full, 1);
-                ratio = error_ratio(m, A, idx, Q0, &full, hs);
-            } else {
-                rover_evaluate_inputs(m, ev, 1);
-                ratio = error_ratio(m, A, idx, Q0, ev, hs);
-            }
+            rover_evaluate_inputs(m, ev, 1);
+            ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, second half */
         }
-        if (ok && (ratio <= 1.0 || hs <= STEP_MIN)) {
-            const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
-            h = fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow)));
-            s->step_next = h;
-            m->steps_taken++;
-            remaining = last ? 0.0 : remaining - hs;
-            continue;
+        if (ok) {
+            ratio = error_ratio(m, &single, s);
+            if (ratio <= 1.0 || hs <= STEP_MIN) {
+                extrapolate(s, &single);
+                s->time = saved.time + hs;
+                const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
+                h = fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow)));
+                s->step_next = h;
+                m->steps_taken++;
+                remaining = last ? 0.0 : remaining - hs;
+                rover_evaluate_passive(m, ev, 1);
+                if (!last) rover_evaluate_inputs(m, ev, 1);
+                continue;
+            }
         }
         /* rejected: back to the step's start, shorter */
         if (hs <= STEP_MIN) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
         m->steps_rejected++;
         state_copy(s, &saved, with_rut);
-        m->eval_valid = 0;
         rover_evaluate_passive(m, ev, 1);
         rover_evaluate_inputs(m, ev, 1);
         h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
     }
     s->time = t_end;
+    eval_key_store(m);                               /* the end's passive evaluation, for the next step */
     m->eval_valid = 1;
     rover_evaluate_inputs(m, ev, 0);                 /* the torques only: Q, D, K stay input-free */
     rover_outputs_from(m, ev);

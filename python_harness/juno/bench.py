@@ -317,7 +317,7 @@ STEP_SETTINGS = (
     ("1ms", "solver.step 1 ms (default)", []),
     ("10ms", "solver.step 10 ms", ["--solver-step", "0.01"]),
     ("20ms", "solver.step 20 ms", ["--solver-step", "0.02", "--comm-step", "0.02"]),
-    ("auto", "automatic step, solver.tolerance 7e-7 m/s", ["--solver-step", "0.02", "--solver-tolerance", "7e-7"]),
+    ("auto", "automatic step, solver.tolerance 1e-4 m/s", ["--solver-step", "0.02", "--solver-tolerance", "1e-4"]),
 )
 #: bench_fmu's trace columns: the time, then the FMU's Outputs in the order of fmu_src/model.h.
 TRACE_COLUMNS = (["time", "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",

@@ -2,8 +2,8 @@
 with solver.tolerance = AUTOMATIC's stay within ACCURACY of a converged reference, and it runs
 wherever the fixed default step runs.
 
-solver.tolerance > 0 chooses each internal step by an estimate of the velocity update's local
-error, up to solver.step.  The runs are those the benchmarks time and a PID run that the
+solver.tolerance > 0 takes each internal step as two halves extrapolated to second order, the
+step chosen by their difference, up to solver.step.  The runs are those the benchmarks time and a PID run that the
 importer drives with stepped references:
 
 * drawbar - 30 s on flat ground at the start values (motor drive at 45 % throttle, 400 N);
@@ -33,7 +33,7 @@ from fmu_helpers import WHEELS, FMICallException, LogCapture, Rover, run, slope_
 from test_fmu_ranges import _values, _walked_variables
 
 ACCURACY = 2e-3            # relative RMS difference from the converged reference
-AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 7e-7}   # the setting docs/fmu.md recommends
+AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 1e-4}   # the setting docs/fmu.md recommends
 REFERENCE_STEP = 6.25e-5   # s
 COMM_STEP = 0.02           # s
 SETTLE = 5.0               # s
@@ -110,7 +110,7 @@ def test_the_metric_sees_a_step_that_is_too_large(fmu_unzipped, tmp_path):
 # ---------------------------------------------------------------------------------------------
 
 STABILITY_TIME = 3.0     # s of driving after initialisation
-LOOSE = {"solver.step": 0.02, "solver.tolerance": 1e-3}   # mostly 20 ms steps
+LOOSE = {"solver.step": 0.02, "solver.tolerance": 1e-2}   # mostly 20 ms steps
 
 
 def _outcome(fmu_unzipped, params) -> str:
