@@ -154,13 +154,21 @@ class RigPoints:
 class RigSimulation:
     """Steady outputs of each point: column name -> array (``drawbar_pull`` N, ``torque`` N m,
     ``sinkage`` m, ``lateral_force`` N, ``vertical_force`` N), and ``unsteady`` (the largest
-    relative change of the averaged outputs between the two halves of the averaging window)."""
+    change of an averaged output between the two halves of the averaging window, relative to
+    the output or, near zero, to 5 % of the load (forces; times the radius for the torque) and
+    0.1 mm (sinkage))."""
 
     values: dict[str, FloatArray]
     unsteady: float = 0.0
 
     def __getitem__(self, name: str) -> FloatArray:
         return self.values[name]
+
+
+#: The scales RigSimulation.unsteady compares an output's drift with near zero: a fraction of the
+#: load (forces; times the radius for the torque) and a sinkage (m).
+UNSTEADY_LOAD_FRACTION = 0.05
+UNSTEADY_SINKAGE = 1e-4
 
 
 def wheel_parameters(setup: RigSetup) -> dict[str, float]:
@@ -217,9 +225,9 @@ def simulate_points(fmu: JunoFMU, setup: RigSetup, points: RigPoints,
             last = sim[o][-tail:]
             values[n][i] = float(np.mean(last))
             half = len(last) // 2
-            scale = max(abs(values[n][i]), 1e-9)
-            if n in ("drawbar_pull", "torque"):
-                scale = max(scale, 0.05 * float(points.load[i]) * (setup.radius if n == "torque" else 1.0))
+            floor = UNSTEADY_SINKAGE if n == "sinkage" else \
+                UNSTEADY_LOAD_FRACTION * float(points.load[i]) * (setup.radius if n == "torque" else 1.0)
+            scale = max(abs(values[n][i]), floor)
             unsteady = max(unsteady, abs(float(np.mean(last[half:]) - np.mean(last[:half]))) / scale)
     return RigSimulation(values, unsteady)
 
@@ -613,6 +621,8 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
     for i, n in enumerate(names):
         if min(u[i], 1 - u[i]) < 1e-3:
             identifiability[n] = "at the bound of its search range"
+            std[i] = np.inf
+            rel[n] = float("inf")
     sv = np.linalg.svd(J, compute_uv=False) if J.size else np.zeros(0)
     sims = fun.simulate(x)
     raw = fun.raw(sims)

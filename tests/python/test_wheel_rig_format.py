@@ -201,3 +201,12 @@ def test_a_mixed_campaign_keeps_rig_tables_out_of_the_replays(tmp_path):
     assert [r.kind for r in campaign.runs] == ["drawbar", "terrain", "wheel_rig"]
     assert [f for f in check_campaign(campaign) if f.severity == "error"] == []
     assert [p.run_id for p in _prepared_runs(campaign, None, None, "spin")] == ["dbp1"]
+
+
+def test_a_missing_rig_fmu_says_how_to_build_and_give_it(tmp_path):
+    from juno.wheel_rig import RigFMU
+
+    with pytest.raises(FileNotFoundError) as info:
+        RigFMU(tmp_path / "WheelRig.fmu")
+    assert "cmake --build build" in str(info.value) and "--rig-fmu" in str(info.value)
+    assert "JUNO_RIG_FMU" in str(info.value)
