@@ -365,6 +365,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     Eval *ev = &m->eval;
     const int with_rut = m->p.multipass_rutFraction > 0;
     const double t_end = s->time + h_comm;
+    if (!(h_comm > 0)) return snprintf(err, errlen, "communication step %g s must be positive", h_comm), -1;
     double h = fmin(s->step_next > 0 ? s->step_next : STEP_FIRST, m->p.solver_step);
     if (!(m->eval_valid && eval_key_matches(m))) rover_evaluate_passive(m, ev, 1);
     m->eval_valid = 0;
