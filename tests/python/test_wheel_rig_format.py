@@ -210,3 +210,25 @@ def test_a_missing_rig_fmu_says_how_to_build_and_give_it(tmp_path):
         RigFMU(tmp_path / "WheelRig.fmu")
     assert "cmake --build build" in str(info.value) and "--rig-fmu" in str(info.value)
     assert "JUNO_RIG_FMU" in str(info.value)
+
+
+def test_juno_refuses_a_bad_table_before_any_fit(capsys, tmp_path):
+    """`juno identify` and `juno report` on a rig campaign whose table breaks the format: exit 2,
+    one line naming the file, line and column, nothing written."""
+    from hostile_cases import refused
+
+    make_campaign(tmp_path / "c", table="vertical_load,slip,drawbar_pull\n80,0.1,abc\n")
+    needles = ["runs/rig.csv, line 2, column 'drawbar_pull'", "not a number"]
+    refused(capsys, tmp_path, ["identify", "{w}/c", "--rig-fmu", "{w}/none.fmu"], needles)
+    refused(capsys, tmp_path, ["report", "{w}/c", "--out", "{w}/report", "--rig-fmu", "{w}/none.fmu"], needles)
+
+
+def test_juno_stops_on_a_slip_in_percent_before_any_fit(capsys, tmp_path):
+    """A plausibility error stops `juno identify` (exit 2) with the file, column and evidence,
+    before the rig FMU is even looked for."""
+    from juno.cli import main
+
+    make_campaign(tmp_path / "c", table="vertical_load,slip,drawbar_pull\n80,20,3\n")
+    assert main(["identify", str(tmp_path / "c"), "--rig-fmu", str(tmp_path / "none.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "runs/rig.csv, column 'slip'" in err and "looks like percent" in err and "none.fmu" not in err
