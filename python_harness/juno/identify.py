@@ -159,6 +159,17 @@ def to_search(params: dict[str, float]) -> np.ndarray:
                      np.log(g / (1 - g)), np.log(params["soil.Kvx"])])
 
 
+#: Bounds of the soil's search vector (ln k_h, ln eta, logit gamma, ln K_vx): k_h 1e3-1e8,
+#: eta 0.05-2, gamma 0.01-0.99, K_vx 0.01-100, within the FMU's declared ranges and wide of any
+#: soil the paper or the terramechanics literature reports.  Unbounded, a fit that pushed gamma
+#: towards 0 (to absorb an unmodelled torque loss) reached logit -33, where gamma has no
+#: gradient left and can never come back; and a fit of data the model cannot describe leaves
+#: the declared ranges, where the FMU refuses to simulate.  A fit that ends at a bound is
+#: reported as doubtful (fit_doubts).
+SOIL_SEARCH_BOUNDS = (np.array([np.log(1e3), np.log(0.05), -4.6, np.log(0.01)]),
+                      np.array([np.log(1e8), np.log(2.0), 4.6, np.log(100.0)]))
+
+
 def from_search(x: Sequence[float]) -> dict[str, float]:
     """Inverse of :func:`to_search`."""
     return {"soil.kh": float(np.exp(x[0])), "soil.eta": float(np.exp(x[1])),
@@ -678,6 +689,11 @@ class JointResult:
     inflation: float = 1.0           # variance inflation for correlated residuals
     status: str = "ok"
     failed_evaluations: int = 0
+    #: Why the estimates should not be trusted as they stand (empty: no reason found): a
+    #: parameter at the limit of the FMU's declared range, structure beyond sensor noise left in
+    #: the residuals (fit_doubts).
+    doubts: list[str] = field(default_factory=list)
+    structure: dict | None = None    # the residual structure test of the fit (juno.residual_structure)
 
 
 def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int]) -> float:
@@ -857,7 +873,63 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     # during the fit, serial or parallel alike.
     with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
         fun = JointResiduals(fmu, prepared, extra, pool)
-        return _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
+        result = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
+    result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra)
+    result.wall_time = time.perf_counter() - start
+    return result
+
+
+#: A fitted parameter closer than this to a bound of the search (SOIL_SEARCH_BOUNDS), in the
+#: search space (log or logit: about 1 % of the value), sits at the bound: the data pushed it as
+#: far as the search allows, which a model that describes the data does not need.
+AT_LIMIT = 0.01
+
+
+def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun], result: JointResult,
+               extra: dict[str, object] | None = None) -> tuple[list[str], dict | None]:
+    """Why a joint fit's estimates are doubtful, in words, and the structure test behind it:
+    each parameter at a bound of the search (AT_LIMIT); and structure beyond sensor noise in the
+    fitted model's residuals on the drawbar runs (juno.residual_structure, every 4 s block
+    tested): a model that does not describe the data bends its parameters to absorb what it
+    cannot describe, so their uncertainty understates how wrong they are."""
+    from .residual_structure import residual_structure
+    doubts = []
+    x = to_search(result.params)
+    for i, name in enumerate(SOIL_PARAMETERS):
+        for bound, word in ((SOIL_SEARCH_BOUNDS[0][i], "lower"), (SOIL_SEARCH_BOUNDS[1][i], "upper")):
+            if abs(x[i] - bound) < AT_LIMIT:
+                value = from_search(np.where(np.arange(4) == i, bound, x))[name]
+                doubts.append(f"{name} = {result.params[name]:.4g} is at the {word} bound of the search "
+                              f"({value:.3g}): the data push it as far as the fit allows")
+    runs, signals, times = [], [], []
+    for p in prepared:
+        for column, (ts, *_rest) in p.targets.items():
+            runs += [p.run_id] * len(ts)
+            signals += [column] * len(ts)
+            times.append(ts)
+    t = np.concatenate(times)
+    meta = {"run": np.array(runs), "signal": np.array(signals), "time": t,
+            "block": np.floor(t / STRUCTURE_BLOCK).astype(int)}
+    try:
+        r = np.concatenate([run_residuals(fmu, p, result.params, extra) for p in prepared])
+        test = residual_structure(campaign, fmu, prepared, meta, np.zeros(len(t), bool), r,
+                                  {**result.params, **(extra or {})})
+    except SimulationError as exc:
+        # The fit stands (its own simulations succeeded); what cannot be said is whether it
+        # leaves structure, and that is said.
+        doubts.append(f"the residuals could not be tested for structure beyond sensor noise: {exc}")
+        return doubts, None
+    if test.significant:
+        doubts.append("the fitted model leaves structure beyond sensor noise in its residuals ("
+                      + "; ".join(f"{s.signal}: {s.ratio:.2g} x its noise" + (f", following {s.follows[0].name}"
+                                                                                 if s.follows else "")
+                                  for s in test.structured())
+                      + "): the model does not describe these data, and its parameters absorb what it misses")
+    return doubts, (test.to_json() if test.signals else None)
+
+
+#: Blocks (s) of the fit-quality structure test: the diagnosis's.
+STRUCTURE_BLOCK = 4.0
 
 
 def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[PreparedRun],
@@ -880,7 +952,9 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
         f0 = np.inf
     # Trust-region Gauss-Newton on the scaled residuals (from the Nelder-Mead point if any);
     # the Jacobian by forward differences, its four points evaluated through fun.map.
-    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=1e-4, max_nfev=80,
+    lo, hi = SOIL_SEARCH_BOUNDS
+    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=1e-4, max_nfev=80, bounds=(lo, hi),
                        xtol=1e-8, ftol=1e-10, workers=fun.map)
     x_best = ls.x if np.mean(ls.fun**2) <= f0 else x0
     params = from_search(x_best)

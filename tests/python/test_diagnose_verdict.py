@@ -3,7 +3,7 @@ structure its models leave (juno/diagnose/verdict.py)."""
 
 from __future__ import annotations
 
-from juno.diagnose.structure import Covariate, ResidualStructure, SignalStructure
+from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 
 

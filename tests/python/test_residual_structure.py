@@ -16,7 +16,7 @@ import pytest
 
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
-from juno.diagnose.structure import MATERIAL_FRACTION, column_noise, residual_structure
+from juno.residual_structure import MATERIAL_FRACTION, column_noise, residual_structure
 from juno.rover_model import SOIL_PARAMETERS
 
 pytest_plugins = ["harness_fixtures"]
@@ -119,3 +119,33 @@ def test_the_soil_enters_only_through_the_given_parameters(noisy_campaign, harne
     assert set(SOIL_PARAMETERS) <= set(wrong)
     assert result.significant
     assert {"torque_left", "torque_right"} & {s.signal for s in result.structured()}
+
+
+# ------------------------------------------------------------ the joint identification's doubts
+
+def test_a_joint_fit_of_the_models_own_data_has_no_doubts(noisy_campaign, harness_fmu):
+    from juno.identify import identify_joint
+    fit = identify_joint(harness_fmu, noisy_campaign.campaign, workers=1)
+    assert fit.doubts == [], fit.doubts
+    assert fit.structure is not None and not fit.structure["significant"]
+
+
+def test_a_joint_fit_of_data_with_a_pitch_bias_is_doubtful(noisy_campaign, harness_fmu, tmp_path):
+    """The fit bends the soil to absorb a sensor bias and its uncertainty says 'pinned'; the
+    structure its residuals keep says the estimates are not to be trusted."""
+    from juno.identify import identify_joint
+    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": float(np.radians(1.5))})
+    fit = identify_joint(harness_fmu, load_campaign(root), workers=1)
+    assert any("structure beyond sensor noise" in d for d in fit.doubts), fit.doubts
+    assert fit.structure["significant"]
+
+
+def test_a_parameter_at_a_bound_of_the_search_is_a_doubt(noisy_campaign, harness_fmu):
+    from juno.identify import JointResult, fit_doubts
+    campaign = noisy_campaign.campaign
+    prepared = [prepare_run(campaign, run) for run in campaign.runs_of_kind("drawbar")]
+    soil = {**noisy_campaign.soil, "soil.Kvx": 100.0}      # the search's upper bound of K_vx
+    result = JointResult(soil, {}, {}, np.eye(4), {}, 1.0, 1, 0.0)
+    doubts, _structure = fit_doubts(harness_fmu, campaign, prepared, result)
+    assert any(d.startswith("soil.Kvx") and "upper bound" in d for d in doubts), doubts
+    assert not any(d.startswith(("soil.kh", "soil.eta", "soil.gamma")) for d in doubts)

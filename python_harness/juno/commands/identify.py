@@ -88,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
             for k, v in joint.params.items():
                 print(f"joint: {k} = {v:.5g} +- {joint.std[k]:.2g} ({joint.identifiability[k]})")
             print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
+            for doubt in joint.doubts:
+                print(f"joint: doubtful: {doubt}")
     write_json(args.json, out)
     return 0
 

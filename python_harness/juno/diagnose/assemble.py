@@ -13,7 +13,7 @@ from .candidates import CANDIDATES
 from .fitting import FitResult
 from .judging import capped_square
 from .problem import Problem
-from .structure import ResidualStructure
+from ..residual_structure import ResidualStructure
 from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
                       NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
 from .verdict import Verdict, explanation

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from ..identify import EvaluationLog, from_search, to_search
+from ..identify import SOIL_SEARCH_BOUNDS, EvaluationLog, from_search, to_search
 from ..parallel import map_tasks
 from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
@@ -26,12 +26,6 @@ CANDIDATE_ITERATIONS = 15
 #: rover there (better_of_two_fits): two equally good fits of the same campaign differ by about 1.1
 #: in mean square, a fit that lost the rover on the terrain by several times.
 LOST_RATIO = 2.0
-#: Bounds of the soil's search vector (ln k_h, ln eta, logit gamma, ln K_vx): k_h 1e3-1e8,
-#: eta 0.05-2, gamma 0.01-0.99, K_vx 0.01-100.  Unbounded, a fit that pushed gamma towards 0
-#: (to absorb an unmodelled torque loss) reached logit -33, where gamma has no gradient left and
-#: can never come back when the loss is modelled.
-SOIL_SEARCH_BOUNDS = (np.array([np.log(1e3), np.log(0.05), -4.6, np.log(0.01)]),
-                      np.array([np.log(1e8), np.log(2.0), 4.6, np.log(100.0)]))
 #: The scaled residual every training sample gets when a trial's simulation fails during a
 #: least-squares fit: a constant (no gradient to follow) far beyond FIT_LOSS_SCALE, so the trust
 #: region steps back from the failing trial.

@@ -28,7 +28,7 @@ from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .starts import patch_grid, patch_start, registration_evidence, registration_start
-from .structure import ResidualStructure, residual_structure
+from ..residual_structure import ResidualStructure, residual_structure
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
 

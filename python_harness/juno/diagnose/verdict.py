@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from .structure import ResidualStructure, SignalStructure
+from ..residual_structure import ResidualStructure, SignalStructure
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).

@@ -51,10 +51,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..campaign import Campaign, RunData, read_run
-from ..identify import PreparedRun, run_residuals
-from ..rover_model import SOIL_PARAMETERS
-from ..simulator import JunoFMU
+from .campaign import Campaign, RunData, read_run
+from .identify import PreparedRun, run_residuals
+from .rover_model import SOIL_PARAMETERS
+from .simulator import JunoFMU
 
 #: At most this many false "structure" reports per campaign (Bonferroni over the signals).
 FALSE_ALARM = 0.01
@@ -226,7 +226,7 @@ def _covariate_values(campaign: Campaign, units: _Units, data: Mapping[str, RunD
     """Per held-out unit, the covariates an engineer looks at: time in the run, measured
     position x and y, drive torque (mean of both sides), wheel spin (mean of both sides) and
     slip (1 - speed / (spin R)), each averaged over the unit's block."""
-    from ..campaign import forward_speed
+    from .campaign import forward_speed
     cov: dict[str, list[float]] = {k: [] for k in ("time", "x", "y", "torque", "spin", "slip")}
     for run, t_mid in zip(units.unit_run, units.unit_time):
         d = data[str(run)]
@@ -353,7 +353,7 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
 
 
 def _wheel_radius(campaign: Campaign, fmu: JunoFMU) -> float:
-    from ..rover_model import rover
+    from .rover_model import rover
     return rover(campaign.rover, fmu.fmu_path).wheel_radius
 
 
