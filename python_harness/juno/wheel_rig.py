@@ -48,21 +48,21 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Optional, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from .campaign import RIG_MEASURED, Campaign, RigSetup, RigTable, RunSpec, read_rig
+from .campaign import RIG_MEASURED, Campaign, RigSetup, RigTable, read_rig
 from .errors import InputError
-from .identify import FAILED_RESIDUAL, MAX_FAILED_FRACTION, EvaluationLog, FitError, classify
+from .identify import FAILED_RESIDUAL, EvaluationLog, classify
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 FloatArray = NDArray[np.float64]
 
 __all__ = [
-    "RigFMU", "default_rig_fmu_path", "RigPoints", "RigSimulation", "simulate_points", "simulate_table",
+    "RigFMU", "default_rig_fmu_path", "RigPoints", "RigSimulation", "simulate_points",
     "LAWS", "law_parameters", "RigRun", "rig_runs", "RigFitResult", "fit_rig", "predict", "rig_base_parameters",
 ]
 
@@ -230,16 +230,6 @@ def simulate_points(fmu: JunoFMU, setup: RigSetup, points: RigPoints,
             scale = max(abs(values[n][i]), floor)
             unsteady = max(unsteady, abs(float(np.mean(last[half:]) - np.mean(last[:half]))) / scale)
     return RigSimulation(values, unsteady)
-
-
-def simulate_table(fmu: JunoFMU, campaign: Campaign, spec: RunSpec | str,
-                   parameters: Mapping[str, object] | None = None) -> RigSimulation:
-    """:func:`simulate_points` at the points of a wheel_rig run of a campaign."""
-    spec = campaign.run(spec) if isinstance(spec, str) else spec
-    table = read_rig(campaign, spec)
-    assert spec.rig is not None
-    return simulate_points(fmu, spec.rig, RigPoints.of_table(table),
-                           {**rig_base_parameters(campaign), **(parameters or {})})
 
 
 # --------------------------------------------------------------------------------------------
@@ -418,7 +408,8 @@ class RigFitResult:
     parameter (juno.identify.classify, or "at the bound of its search range");
     ``singular_values``: of the scaled residuals' Jacobian in the search space; ``correlation``: of the parameters; ``cost``: mean
     squared scaled residual; ``chi2`` and ``dof``; ``noise``: per measured column, how its
-    sigma was set ("per-point std", or the estimated scale in its unit); ``rms``: per column, the
+    sigma was set ("per-point std", or the estimated scale in its unit); ``noise_scale``: that
+    estimated scale (its unit), None where the table gives standard deviations; ``rms``: per column, the
     root-mean-square error of the fit in its unit; ``status``: "ok", or "not identified" when a
     parameter is not seen or the fit did not move; ``evaluations``, ``failed_evaluations``."""
 
@@ -433,6 +424,7 @@ class RigFitResult:
     chi2: float
     dof: int
     noise: dict[str, str]
+    noise_scale: dict[str, float | None]
     rms: dict[str, float]
     runs: list[str]
     evaluations: int
@@ -527,23 +519,22 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
 
     Raises:
         InputError: no wheel_rig run, or no measured value.
-        FitError: the model cannot be simulated at the optimum, or more than
-            MAX_FAILED_FRACTION of the evaluations failed.
+        juno.identify.FitError: the model cannot be simulated at the optimum, or more than
+            juno.identify.MAX_FAILED_FRACTION of a pass's evaluations failed.
     """
     start = time.perf_counter()
     if law not in LAWS:
         raise ValueError(f"unknown contact law {law!r} (one of {', '.join(LAWS)})")
+    unknown = [n for n in (parameters or ()) if SEARCH_ALIAS.get(n, n) not in PARAMETER_SPACE]
+    if unknown:
+        fittable = [n for n in PARAMETER_SPACE if n not in SEARCH_ALIAS.values()] + list(SEARCH_ALIAS)
+        raise ValueError(f"cannot fit {unknown[0]!r}: the rig fit searches {', '.join(fittable)}")
     if runs is None:
         if campaign is None:
             raise ValueError("fit_rig needs a campaign or runs")
         runs = rig_runs(campaign)
     runs = list(runs)
     lugged = {r.setup.lugged for r in runs}
-    unknown = [n for n in (parameters or ()) if SEARCH_ALIAS.get(n, n) not in PARAMETER_SPACE]
-    if unknown:
-        raise ValueError(f"cannot fit {unknown[0]!r}: the rig fit searches "
-                         + ", ".join(SEARCH_ALIAS.get(n, n) if n not in SEARCH_ALIAS.values() else "wongReece.kphi"
-                                     for n in PARAMETER_SPACE))
     names = list(parameters) if parameters is not None else \
         list(law_parameters(law, lugged == {True, False}, slip_sinkage))
     held: dict[str, object] = {**(rig_base_parameters(campaign) if campaign is not None else {}), **(fixed or {}),
@@ -588,9 +579,6 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
                 d = np.concatenate([v for (rid, cc), v in raw.items() if cc == c and c not in _run(runs, rid).std])
                 rms = float(np.sqrt(np.mean(d * d) / dof_share)) if d.size else scale[c]
                 scale[c] = max(rms, 1e-6 * max(scale[c], 1e-12))
-    if failed > MAX_FAILED_FRACTION * max(evaluations, 1):
-        raise FitError(label, failed, evaluations, fun.log.first_failure or "no failure message recorded",
-                       f"{failed} of {evaluations} simulations failed")
     r = np.asarray(ls.fun, float)
     J = np.asarray(ls.jac, float)
     physical = _physical(names, x)
@@ -628,13 +616,14 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
     raw = fun.raw(sims)
     rms = {c: float(np.sqrt(np.mean(np.concatenate([v for (_rid, cc), v in raw.items() if cc == c]) ** 2)))
            for c in columns}
-    noise = {}
+    noise, noise_scale = {}, {}
     for c in columns:
         given = all(c in rr.std for rr in runs if c in rr.measured)
         noise[c] = "per-point std" if given else f"estimated {scale[c]:.3g}"
+        noise_scale[c] = None if given else scale[c]
     return RigFitResult(law=law, params=params, fixed=held, std=dict(zip(names, std.tolist())), relative_std=rel,
                         identifiability=identifiability, correlation=corr, singular_values=sv.tolist(),
-                        cost=float(np.mean(r * r)), chi2=chi2, dof=dof, noise=noise, rms=rms,
+                        cost=float(np.mean(r * r)), chi2=chi2, dof=dof, noise=noise, noise_scale=noise_scale, rms=rms,
                         runs=[rr.run_id for rr in runs], evaluations=evaluations, failed_evaluations=failed,
                         wall_time=time.perf_counter() - start, status=_status(seen, identifiability),
                         unsteady=fun.unsteady)

@@ -65,11 +65,6 @@ def rig_results(fmu, campaign: Campaign, laws: Sequence[str] = tuple(LAWS),
     return RigResults(fits, runs, curves)
 
 
-def _noise_scale(fit: RigFitResult, column: str) -> float | None:
-    text = fit.noise.get(column, "")
-    return float(text.split()[-1]) if text.startswith("estimated") else None
-
-
 def figure_rig(results: RigResults, out: Path) -> str:
     """One row per run, one column per measured quantity: the measurements with their error bars
     (the table's std, else the noise scale the fits estimated: the larger of the laws') and each
@@ -84,7 +79,7 @@ def figure_rig(results: RigResults, out: Path) -> str:
                 if column in run.std:
                     err = run.std[column]
                 else:
-                    scales = [s for s in (_noise_scale(f, column) for f in results.fits.values()) if s is not None]
+                    scales = [s for s in (f.noise_scale.get(column) for f in results.fits.values()) if s is not None]
                     err = np.full(len(m), max(scales)) if scales else None
                 ax.errorbar(run.points.slip, m, yerr=err, fmt="ko", ms=4, capsize=2, label="measured")
             for law, values in curve.values.items():
