@@ -167,6 +167,24 @@ def _g(v: float | None, digits: int = 3) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.{digits}g}"
 
 
+def summary(data: dict[str, Any]) -> list[str]:
+    """One table of the held-out rms errors of every study and quantity, the lowest in bold."""
+    variants = list(VARIANTS)
+    lines = ["## Held-out prediction, every study", "",
+             "RMS error of the slips left out of the fit; the lowest of each row in bold.", "",
+             "| study | quantity | " + " | ".join(variants) + " |", "|---|---|" + "---|" * len(variants)]
+    for study, res in data["studies"].items():
+        for q, unit in (("drawbar_pull", "N"), ("torque", "N m"), ("sinkage", "m")):
+            values = [res["laws"].get(v, {}).get("held_out", {}).get("rms", {}).get(q) for v in variants]
+            if all(v is None for v in values):
+                continue
+            best = min((v for v in values if v is not None), default=None)
+            cells = [("failed" if "held_out_error" in res["laws"].get(v, {}) else "-") if x is None else
+                     (f"**{_g(x)}**" if x == best else _g(x)) for v, x in zip(variants, values)]
+            lines.append(f"| {study} | {q} [{unit}] | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def page(data: dict[str, Any]) -> str:
     """docs/results/wheel-rig-published.md from the results."""
     prov = data["provenance"]
@@ -179,6 +197,7 @@ def page(data: dict[str, Any]) -> str:
              "fitted with each contact law of the WheelRig FMU (see [wheel-rig.md](../wheel-rig.md)). "
              "The figures give no standard deviations: each quantity's noise scale is estimated from the fit's "
              "residuals. Held-out: fitted on alternate slips of each wheel, the other slips predicted.", ""]
+    lines += summary(data)
     for study, res in data["studies"].items():
         lines += [f"## {study}", "", f"Source: {res['source']}.", ""]
         wheels = ", ".join(f"{rid} (radius {w['wheel']['radius']:.4g} m, width {w['wheel']['width']:.3g} m, lugs "
