@@ -51,8 +51,10 @@ from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: The paper's initial guess (Tables 1-3).
 PAPER_INITIAL = {"soil.kh": 2.5e5, "soil.eta": 0.5, "soil.gamma": 0.15, "soil.Kvx": 0.5}
-#: Integration step used while identifying (s): 2 ms keeps the steady slip within 0.1 % of 1 ms
-#: (5 ms: 0.5 %, which biased K_vx by 2 sigma in noisy synthetic tests).
+#: Integration step used while identifying (s), fixed (``solver.tolerance`` 0: the residuals of
+#: neighbouring parameter values then share one discretisation, which the finite-difference
+#: Jacobian of the fit needs): 2 ms keeps the steady slip within 0.1 % of 1 ms (5 ms: 0.5 %,
+#: which biased K_vx by 2 sigma in noisy synthetic tests).
 IDENTIFY_STEP = 2e-3
 #: What a failed simulation costs a Nelder-Mead fit (far above any real cost, so the simplex
 #: moves away from it), and the scaled residual every sample gets in a least-squares fit.
@@ -254,7 +256,8 @@ def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
     gives a non-finite cost) costs FAILED_COST and is recorded in ``log`` (naming the run and
     its data file ``file``).
     """
-    params = {**(base or {}), **soil, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP}
+    params = {**(base or {}), **soil, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP,
+              "solver.tolerance": 0.0}
     inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
                                    torqueRight=avg.torque_right)
     duration = avg.window[1] - avg.window[0]
@@ -343,7 +346,8 @@ def _paper_rank(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages, base:
     """Numerical rank of d(steady objectives)/d(log a): how many directions the data sees;
     None if a simulation failed (recorded in ``log``)."""
     def objectives(s):
-        params = {**base, **s, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP}
+        params = {**base, **s, "drive.mode": 0, "init.vx": avg.speed, "solver.step": IDENTIFY_STEP,
+                  "solver.tolerance": 0.0}
         inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
                                        torqueRight=avg.torque_right)
         try:
@@ -576,7 +580,7 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     if data.has("yaw"):
         start_pose["init.yaw"] = float(data.samples("yaw")[1][0])
     params: dict[str, object] = {**base_parameters(campaign), **start_pose, "solver.step": IDENTIFY_STEP,
-                                 "drive.mode": 1, **SPIN_TRACKER}
+                                 "solver.tolerance": 0.0, "drive.mode": 1, **SPIN_TRACKER}
     drawbar = (_column_signal(data, "drawbar_force", grid) if run.kind == "drawbar" and data.has("drawbar_force")
                else np.zeros(len(grid)))
     omega_left, omega_right = _column_signal(data, "omega_left", grid), _column_signal(data, "omega_right", grid)

@@ -78,6 +78,10 @@ HELD_LOADS = DESIGNS["default"].held_loads
 HEAVY_DESIGN_LOADS = (320.0, 620.0)
 HEAVY_SLIP = 0.7
 HEAVY_THROTTLE = 0.8
+#: Fixed integration step of the truth's runs and of steady_slip (s; ``solver.tolerance`` 0):
+#: pinned, not the FMU's default, so that a campaign and a predicted steady slip are the same
+#: whatever default an FMU build has.
+TRUTH_STEP = {"solver.step": 1e-3, "solver.tolerance": 0.0}
 
 
 @dataclass
@@ -117,7 +121,9 @@ def steady_slip(fmu: JunoFMU, params: dict[str, object], load: float, throttle: 
     ``throttle`` (0-1), with a drawbar ``load`` (N) ramped in over the first 4 s; 1 if the load
     stops the rover or drags it backwards, or the wheels dig in until the run fails while
     stepping.  A run that fails before its first step (parameters refused, no initial
-    equilibrium) is not a stall: its SimulationError is raised."""
+    equilibrium) is not a stall: its SimulationError is raised.  At TRUTH_STEP unless ``params``
+    sets the step."""
+    params = {**TRUTH_STEP, **params}
     t = np.arange(0.0, 16.0 + 1e-9, 0.05)     # inputs are held between samples: a fine staircase
     inputs = InputSignals(t, {"drawbarForce": load * np.clip(t / 4.0, 0.0, 1.0),
                               "throttleLeft": np.full(len(t), throttle), "throttleRight": np.full(len(t), throttle)})
@@ -301,7 +307,7 @@ def synthesize(out: str | Path, effect: str | Sequence[str] = "none", strength: 
     own_fmu = fmu is None
     fmu = fmu or JunoFMU()
     try:
-        base = {**truth.soil, **truth.sim, "drive.mode": 2, "solver.step": 1e-3}
+        base = {**truth.soil, **truth.sim, "drive.mode": 2, **TRUTH_STEP}
         runs, manifest_runs = {}, []
         if heavy_run:
             heavy = load_for_slip(fmu, base, HEAVY_SLIP, HEAVY_THROTTLE)

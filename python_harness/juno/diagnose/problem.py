@@ -50,6 +50,7 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, 
             times.append(ts)
     for p in prepared:
         p.params["solver.step"] = DIAGNOSE_STEP
+        p.params["solver.tolerance"] = 0.0
     t = np.concatenate(times) if times else np.zeros(0)
     block = np.floor(t / BLOCK).astype(int)
     problem = Problem(str(campaign.root), grid_file, fmu_path, prepared)
