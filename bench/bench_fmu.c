@@ -20,8 +20,9 @@
  * equilibrium, every step) and its stepping alone; the figure is the median
  * over --repeats runs, next to the fastest run's (the least disturbed by
  * other jobs on a shared machine).  --solver-step, --solver-tolerance and
- * --contact-model set those parameters (solver.tolerance > 0: the automatic step; the internal
- * steps per run are then counted by the model, in an extra direct run).
+ * --contact-model set those parameters, otherwise the FMU's defaults (solver.tolerance > 0: the
+ * automatic step, whose internal steps per run are counted by the model in an extra direct run;
+ * 0: fixed steps of solver.step).
  * Printed, never asserted.  Not a test.
  *
  * --trace PREFIX writes, for the first direct run of each scenario, the
@@ -94,7 +95,7 @@ typedef struct {
 } RunResult;
 
 static double solver_step = 0.0;      /* 0: the FMU's default */
-static double solver_tolerance = 0.0; /* 0: the FMU's default */
+static double solver_tolerance = -1.0; /* < 0: the FMU's default; 0: fixed steps */
 static int contact_model = -1;        /* < 0: the FMU's default */
 static double comm_step = 0.01;       /* s, the default experiment's */
 static const char *trace_prefix = NULL;
@@ -190,7 +191,7 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
     model_set_defaults(m);
     terrain_init_flat(&m->terrain);
     if (solver_step > 0) m->p.solver_step = solver_step;
-    if (solver_tolerance > 0) m->p.solver_tolerance = solver_tolerance;
+    if (solver_tolerance >= 0) m->p.solver_tolerance = solver_tolerance;
     if (contact_model >= 0) m->p.contact_model = contact_model;
     m->p.init_x = sc->init_x;
     m->in.drawbarForce = sc->drawbar;
@@ -276,7 +277,7 @@ static RunResult run_fmi(const Scenario *sc)
              fmi->EnterInitializationMode(c) == fmi2OK && fmi->SetReal(c, &vr_init_x, 1, &sc->init_x) == fmi2OK &&
              fmi->SetReal(c, in_vrs, 3, in) == fmi2OK;
     if (ok && solver_step > 0) ok = fmi->SetReal(c, &vr_solver_step, 1, &solver_step) == fmi2OK;
-    if (ok && solver_tolerance > 0) ok = fmi->SetReal(c, &vr_solver_tolerance, 1, &solver_tolerance) == fmi2OK;
+    if (ok && solver_tolerance >= 0) ok = fmi->SetReal(c, &vr_solver_tolerance, 1, &solver_tolerance) == fmi2OK;
     if (ok && contact_model >= 0) ok = fmi->SetInteger(c, &vr_contact_model, 1, &contact_model) == fmi2OK;
     if (ok && sc->terrain) {
         const fmi2String file = sc->terrain;
@@ -436,7 +437,7 @@ int main(int argc, char **argv)
     memset(&probe, 0, sizeof probe);
     model_set_defaults(&probe);
     const double h_solver = solver_step > 0 ? solver_step : probe.p.solver_step;
-    const double tol = solver_tolerance > 0 ? solver_tolerance : probe.p.solver_tolerance;
+    const double tol = solver_tolerance >= 0 ? solver_tolerance : probe.p.solver_tolerance;
     const Scenario scenarios[2] = {
         {"drawbar", 30.0, NULL, probe.p.init_x, probe.in.drawbarForce, probe.in.throttleLeft},
         {"terrain", 60.0, terrain, 0.8, 0.0, 0.45},
