@@ -27,14 +27,16 @@ def draws_for(key: str) -> random.Random:
     return random.Random(f"juno blind draw: {key}")
 
 
-def hide_and_diagnose(tmp: Path, effect: str | list[tuple[str, float]], strength: float, seed: int
-                      ) -> tuple[dict, dict]:
-    """Synthesizes, moves truth.json out of the campaign, diagnoses; returns (diagnosis, truth).
-    ``effect`` may be a list of (effect, strength) pairs, hidden together."""
+def hide_and_diagnose(tmp: Path, effect: str | list[tuple[str, float]], strength: float, seed: int,
+                      synthesize_args: tuple[str, ...] = ()) -> tuple[dict, dict]:
+    """Synthesizes (with ``synthesize_args`` added), moves truth.json out of the campaign,
+    diagnoses; returns (diagnosis, truth).  ``effect`` may be a list of (effect, strength)
+    pairs, hidden together."""
     campaign = tmp / "campaign"
     pairs = [(effect, strength)] if isinstance(effect, str) else effect
     hide = [a for e, st in pairs for a in ("--effect", e, "--strength", f"{st:.4f}")]
-    subprocess.run(JUNO + ["synthesize", str(campaign), *hide, "--seed", str(seed), "--quiet"], check=True, cwd=tmp)
+    subprocess.run(JUNO + ["synthesize", str(campaign), *hide, "--seed", str(seed), "--quiet", *synthesize_args],
+                   check=True, cwd=tmp)
     truth_path = tmp / "truth.json"
     shutil.move(str(campaign / "truth.json"), truth_path)
     assert not (campaign / "truth.json").exists()
@@ -118,3 +120,33 @@ def draw_and_diagnose(tmp: Path, effect: str) -> tuple[dict, dict, str, str]:
 def candidates_summary(diagnosis: dict, key: str = "candidates") -> str:
     """One line: each candidate of ``diagnosis[key]`` with its held-out gain and z."""
     return ", ".join(f"{c['name']} {c['gain']:+.1%} z {c['z']:.1f}" for c in diagnosis[key])
+
+
+def assert_gain_beats_no_effect(diagnosis: dict, none_diagnosis: dict, effect: str, replay: str) -> None:
+    """The held-out gain is positive and larger than the same candidate's with nothing hidden.
+    For the registration, the gain it is judged on: the held-out pose's (its replayed gain is
+    reported, and must not be significantly negative, which the judging checks)."""
+    if effect == "terrain_offset":
+        gain = diagnosis["gain"]["registration"]["gain"]
+        none_gain = max((c["kinematic"]["gain"] for c in none_diagnosis["candidates"]
+                         if c["name"] == effect and c.get("kinematic")), default=0.0)
+    else:
+        gain = diagnosis["gain"]["relative"]
+        none_gain = max((c["gain"] for c in none_diagnosis["candidates"] if c["name"] == effect), default=0.0)
+    assert gain > 0 and gain > none_gain, f"[{replay}] held-out gain {gain:.1%} vs {none_gain:.1%} with no effect"
+
+
+def assert_found_blind(tmp: Path, effect: str, none_diagnosis: dict) -> None:
+    """``effect``, hidden at a drawn strength and seed, is named as the cause, with a held-out
+    gain beyond the same candidate's with nothing hidden (``none_diagnosis``), an extension
+    fitted near the truth and no signal made worse than nothing."""
+    diagnosis, truth, replay, summary = draw_and_diagnose(tmp, effect)
+    assert diagnosis["cause"] == effect, f"[{replay}] named {diagnosis['cause']}: {summary}"
+    # Only the first cause is asserted: a second cause is named falsely in 2 of 99 cases of the
+    # detection study (a small multi-pass on top of slip-sinkage; docs/diagnosis.md), printed here.
+    print(f"[diagnose] causes {diagnosis['causes']}; second round: {candidates_summary(diagnosis, 'second_round')}")
+    assert_gain_beats_no_effect(diagnosis, none_diagnosis, effect, replay)
+    far = extension_close(effect, diagnosis["extended"]["extension"], truth["extension"])
+    assert not far, f"[{replay}] fitted extension far from the truth: {far}"
+    for signal, g in diagnosis["gain"]["per_signal"].items():
+        assert g["before"] > 0 and g["after"] >= 0, signal

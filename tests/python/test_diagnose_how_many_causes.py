@@ -1,28 +1,43 @@
-"""How many causes the blind diagnosis names: none where nothing is hidden (a second seed beside
+"""How many causes the blind diagnosis names: none where nothing is hidden (a second draw beside
 test_diagnose.py's), both of two effects hidden together, the stronger first, and no second
-cause from a parameter that only frees the first cause's fit.
+cause from a parameter that only frees the first cause's fit; and two of the catalog's effects
+found blind, judged against this file's no-effect draw as test_diagnose.py's are against its own.
 
 These diagnoses are in a file of their own so that pytest-xdist (``--dist loadfile``, one file
 per worker) runs them beside test_diagnose.py's, not after them.  Draws as in test_diagnose.py
-(blind_draws.py): random strength and seed, printed so that a failure can be replayed.
+(blind_draws.py): a strength and seed drawn for each test by its name, printed so that a failure
+can be replayed.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from blind_draws import candidates_summary, draws_for, extension_close, hide_and_diagnose
+from blind_draws import assert_found_blind, candidates_summary, draws_for, extension_close, hide_and_diagnose
+
+#: The catalog effects found blind here (test_diagnose.py has the others).
+MORE_EFFECT_IDS = ("slip_sinkage", "drivetrain_loss")
 
 
-@pytest.mark.parametrize("draw", [1])
-def test_no_effect_names_no_cause_on_more_seeds(draw, tmp_path):
+@pytest.fixture(scope="module")
+def second_none_case(tmp_path_factory):
+    seed = draws_for("none, draw 1").randrange(10_000, 20_000)
+    print(f"\n[diagnose] effect none, seed {seed}")
+    diagnosis, _ = hide_and_diagnose(tmp_path_factory.mktemp("none"), "none", 1.0, seed)
+    return diagnosis, seed
+
+
+def test_no_effect_names_no_cause_on_a_second_draw(second_none_case):
     """With nothing hidden, no cause is named, on a further seed (the false-cause rate over many
     seeds is measured by scripts/detection_rates.py; docs/diagnosis.md)."""
-    seed = draws_for(f"none, draw {draw}").randrange(10_000, 20_000)
-    print(f"\n[diagnose] effect none, seed {seed}")
-    diagnosis, _ = hide_and_diagnose(tmp_path, "none", 1.0, seed)
+    diagnosis, seed = second_none_case
     assert diagnosis["cause"] == "none" and diagnosis["causes"] == [], \
         f"seed {seed}: a false cause was named: {candidates_summary(diagnosis)}"
+
+
+@pytest.mark.parametrize("effect", MORE_EFFECT_IDS)
+def test_hidden_effect_is_found_blind(effect, tmp_path, second_none_case):
+    assert_found_blind(tmp_path, effect, second_none_case[0])
 
 
 def test_two_hidden_effects_are_named_stronger_first(tmp_path):
