@@ -236,3 +236,29 @@ def test_slip_angles_and_lateral_force_enter_the_fit(rig_fmu, tmp_path):
     assert set(fit.rms) == {"drawbar_pull", "lateral_force"}
     for name, true in truth.items():
         assert abs(fit.params[name] - true) < 3.0 * fit.std[name], (name, fit.params[name], fit.std[name])
+
+
+def test_without_standard_deviations_the_noise_is_estimated_from_the_data(rig_fmu, tmp_path):
+    """The same table without its _std columns: each quantity's estimated noise scale matches the
+    noise actually added (within the central 99.9 % of its chi-square spread for the values of
+    that quantity, less their share of the fitted parameters), the fit says it estimated them,
+    and the parameters still come back within 3 sigma."""
+    import csv
+
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "syn", TRUTH)
+    for spec in campaign.runs:
+        path = campaign.run_path(spec)
+        rows = list(csv.reader(path.read_text().splitlines()))
+        keep = [j for j, name in enumerate(rows[0]) if not name.endswith("_std")]
+        path.write_text("".join(",".join(row[j] for j in keep) + "\n" for row in rows))
+    fit = fit_rig(rig_fmu, load_campaign(campaign.root), "volumetric")
+    true_sigma = {"drawbar_pull": (0.6, 1.2), "torque": (0.6 * 0.03, 1.2 * 0.03), "sinkage": (2e-4, 2e-4)}
+    n_values = 2 * len(SLIPS)
+    share = (3 * n_values - len(TRUTH)) / (3 * n_values)
+    low, high = chi2_distribution.ppf([0.0005, 0.9995], n_values * share) / (n_values * share)
+    for column, (sigma_60, sigma_120) in true_sigma.items():
+        assert fit.noise[column].startswith("estimated")
+        sigma = np.sqrt(0.5 * (sigma_60 ** 2 + sigma_120 ** 2))      # the two loads' values pooled
+        assert np.sqrt(low) < fit.noise_scale[column] / sigma < np.sqrt(high), column
+    for name, true in TRUTH.items():
+        assert abs(fit.params[name] - true) < 3.0 * fit.std[name], (name, fit.params[name], fit.std[name])
