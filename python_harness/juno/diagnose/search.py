@@ -27,7 +27,7 @@ from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, j
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
-from .starts import patch_grid, patch_start, registration_evidence, registration_start
+from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
 from ..residual_structure import ResidualStructure, residual_structure
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
@@ -131,7 +131,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         if registration is not None:
             say(f"registration fitted on the terrain run's training blocks: held-out pose "
                 f"{registration.ratio:.3g} times better than the scan as it is")
-        searched = {"soil_patch": replace(CANDIDATES["soil_patch"], grid=patch_grid(campaign))}
+        searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
         search = Search(campaign, setting.problem, searched, registration, workers, scheduler, say)
         first = first_round(search, setting)
         outcome = further_causes(search, first)
@@ -341,7 +341,7 @@ def second_round(search: Search, first_res: FitResult, more: list[str]
     both restart) and judged against it with the same criteria.  Returns the judged second round
     (ranked) and the chosen fits: ``[first_res]``, or
     ``[first_res, model with both causes]`` when the best of the round is significant."""
-    first = CANDIDATES[first_res.name]
+    first = search.searched.get(first_res.name, CANDIDATES[first_res.name])
     if not more:
         return [], [first_res]
     search.say(f"first cause: {first.name}; looking for a second cause among {', '.join(more)}")
@@ -375,7 +375,7 @@ def _second_fits(search: Search, first_res: FitResult, more: list[str]) -> tuple
     as well, and a joint fit started in that basin can stay in it and judge the right second
     cause too weak.  The better fit of each pair is chosen by training_objective, not the
     drawbar-only fit_objective (why: its docstring)."""
-    first = CANDIDATES[first_res.name]
+    first = search.searched.get(first_res.name, CANDIDATES[first_res.name])
     problem = search.problem
     start_soil = {k: first_res.params[k] for k in SOIL_PARAMETERS}
     start_ext = {k: v for k, v in first_res.params.items() if k not in SOIL_PARAMETERS}
@@ -406,7 +406,7 @@ def _survives_first_cause_refit(search: Search, first_res: FitResult, reference:
     better.  Why: the extra parameter can merely carry the fit out of a local optimum of the
     first cause, and its gain is then the first cause's own, not a second cause's.  Returns the
     judged round and the adopted first-cause refit (None if none was better)."""
-    first = CANDIDATES[first_res.name]
+    first = search.searched.get(first_res.name, CANDIDATES[first_res.name])
     problem, run_kind = search.problem, search.run_kind
     own = {e.name for e in first.params}
     refitted: set[str] = set()

@@ -1,14 +1,17 @@
 """Where a candidate's search starts: the soil patch at the base model's worst place
-(patch_start) and along the ground the drawbar runs covered (patch_grid), and the registration
+(patch_start) and along the ground the drawbar runs covered (patch_grid), its centre kept on
+the ground the wheels touched (patch_on_the_ground), and the registration
 fitted kinematically on the measured pose (registration_evidence, registration_start)."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
 from ..campaign import Campaign, read_run
 from ..registration import HeldOutEvidence
-from .candidates import CANDIDATES
+from .candidates import CANDIDATES, Candidate
 from .problem import BLOCK, Problem
 
 #: Bins along x (m) over which patch_start averages the squared residuals: the distance from which
@@ -82,6 +85,34 @@ def patch_grid(campaign: Campaign, spacing: float = 0.5) -> tuple[tuple[tuple[st
     return tuple((("soilPatch.x", float(cx)), ("soilPatch.y", y_mid), ("soilPatch.radius", 0.7),
                   ("soilPatch.khFactor", 0.8), ("soilPatch.strengthFactor", 0.8))
                  for cx in np.arange(np.min(x) + 0.5, np.max(x) - 0.5 + 1e-9, spacing))
+
+
+def patch_on_the_ground(campaign: Campaign, fmu_path: str) -> Candidate:
+    """The soil-patch candidate with its centre bounded to the ground the wheels touched: the
+    measured path of every run, widened by half the rover's track and half a wheel's width.
+    Why: a patch is a property of ground the rover drove over; centred off that ground, the data
+    sees only the tail of its Gaussian, a smooth one-sided gradient across the track, and such a
+    fit stands for no patch (it can mimic, for instance, a drag on one side of the rover)."""
+    from ..rover_model import rover
+    xs, ys = [], []
+    for run in campaign.runs:
+        if run.kind not in ("drawbar", "terrain"):
+            continue
+        data = read_run(campaign, run)
+        if data.has("pos_x") and data.has("pos_y"):
+            xs.append(data.samples("pos_x")[1])
+            ys.append(data.samples("pos_y")[1])
+    patch = CANDIDATES["soil_patch"]
+    if not xs:
+        return patch
+    shape = rover(campaign.rover, fmu_path)
+    margin = 0.5 * shape.track + 0.5 * shape.wheel_width
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    bounds = {"soilPatch.x": (float(np.min(x)) - margin, float(np.max(x)) + margin),
+              "soilPatch.y": (float(np.min(y)) - margin, float(np.max(y)) + margin)}
+    params = tuple(replace(e, start=float(np.clip(e.start, *bounds[e.name])), lower=bounds[e.name][0],
+                           upper=bounds[e.name][1]) if e.name in bounds else e for e in patch.params)
+    return replace(patch, params=params)
 
 
 def registration_evidence(campaign: Campaign, grid) -> HeldOutEvidence | None:

@@ -1,0 +1,49 @@
+"""Where the diagnosis's soil-patch search may look: along the ground the runs covered, with the
+patch's centre kept on the ground the wheels touched (juno/diagnose/starts.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from juno.campaign import read_run
+from juno.diagnose.candidates import CANDIDATES
+from juno.diagnose.starts import patch_grid, patch_on_the_ground
+from juno.rover_model import rover
+
+pytest_plugins = ["harness_fixtures"]
+
+
+def _path(campaign):
+    xs, ys = [], []
+    for run in campaign.runs:
+        data = read_run(campaign, run)
+        xs.append(data.samples("pos_x")[1])
+        ys.append(data.samples("pos_y")[1])
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def test_the_patch_centre_is_bounded_to_the_wheels_footprint(noisy_campaign, fmu_path):
+    campaign = noisy_campaign.campaign
+    patch = patch_on_the_ground(campaign, fmu_path)
+    bounds = {e.name: (e.lower, e.upper) for e in patch.params}
+    x, y = _path(campaign)
+    shape = rover(campaign.rover, fmu_path)
+    margin = 0.5 * shape.track + 0.5 * shape.wheel_width
+    assert bounds["soilPatch.x"] == (np.min(x) - margin, np.max(x) + margin)
+    assert bounds["soilPatch.y"] == (np.min(y) - margin, np.max(y) + margin)
+    for e in patch.params:                      # every start inside its bounds
+        assert e.lower <= e.start <= e.upper, e
+    unchanged = {e.name: e for e in CANDIDATES["soil_patch"].params}
+    for name in ("soilPatch.radius", "soilPatch.khFactor", "soilPatch.strengthFactor"):
+        assert bounds[name] == (unchanged[name].lower, unchanged[name].upper)
+
+
+def test_the_patch_grid_starts_lie_inside_the_bounds(noisy_campaign, fmu_path):
+    campaign = noisy_campaign.campaign
+    bounds = {e.name: (e.lower, e.upper) for e in patch_on_the_ground(campaign, fmu_path).params}
+    grid = patch_grid(campaign)
+    assert grid
+    for point in grid:
+        values = dict(point)
+        for name in ("soilPatch.x", "soilPatch.y"):
+            assert bounds[name][0] <= values[name] <= bounds[name][1]
