@@ -467,8 +467,9 @@ def _parse_rig(manifest: Path, entry: dict[str, Any], label: str, line: Optional
     """The ``wheel`` object and the optional ``carriage_speed`` of a wheel_rig run entry."""
     wheel = entry.get("wheel")
     if not isinstance(wheel, dict):
+        got = "it has none" if "wheel" not in entry else f"got {json.dumps(wheel)}"
         raise InputError(f"{label}: a wheel_rig run needs a 'wheel' object {{\"radius\": m, \"width\": m, "
-                         f"\"lug_height\": m, \"lug_count\": n}}, got {wheel!r}", manifest, line)
+                         f"\"lug_height\": m, \"lug_count\": n}}; {got}", manifest, line)
     unknown = [k for k in wheel if k not in RIG_WHEEL_KEYS]
     if unknown:
         raise InputError(f"{label}: 'wheel' has no key {unknown[0]!r} (its keys: {', '.join(RIG_WHEEL_KEYS)}; "
