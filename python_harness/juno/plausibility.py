@@ -581,7 +581,7 @@ def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
             i = int(np.nanargmax(ratio))
             what = f"|{name}| / (radius x vertical_load)" if name == "torque" else f"|{name}| / vertical_load"
             severity = "error" if ratio[i] > RIG_FORCE_ERROR else "warning"
-            hint = ": is the load in kg? (N = 9.81 kg)" if severity == "error" else ""
+            hint = ": is the load in kg? (1 kg weighs 9.81 N)" if severity == "error" else ""
             out.append(Finding(severity, file, name, f"{what} reaches {_g(ratio[i])} at {_rig_at(table, i)}; the "
                                f"soil's friction limits it to below about 1 (more than {RIG_FORCE_ERROR:g} is an "
                                f"error){hint}"))
