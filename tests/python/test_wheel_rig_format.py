@@ -232,3 +232,18 @@ def test_juno_stops_on_a_slip_in_percent_before_any_fit(capsys, tmp_path):
     assert main(["identify", str(tmp_path / "c"), "--rig-fmu", str(tmp_path / "none.fmu")]) == 2
     err = capsys.readouterr().err
     assert "runs/rig.csv, column 'slip'" in err and "looks like percent" in err and "none.fmu" not in err
+
+
+def test_the_rig_fmu_is_found_as_the_rover_fmu_is(tmp_path, monkeypatch):
+    """$JUNO_RIG_FMU first; else WheelRig.fmu beside $JUNO_FMU; else the checkout's build (or the
+    copy the installed package carries)."""
+    from juno.wheel_rig import PACKAGED_RIG_FMU, default_rig_fmu_path
+
+    monkeypatch.setenv("JUNO_RIG_FMU", str(tmp_path / "mine.fmu"))
+    assert default_rig_fmu_path() == tmp_path / "mine.fmu"
+    monkeypatch.delenv("JUNO_RIG_FMU")
+    (tmp_path / "WheelRig.fmu").write_bytes(b"")
+    monkeypatch.setenv("JUNO_FMU", str(tmp_path / "JunoRover.fmu"))
+    assert default_rig_fmu_path() == tmp_path / "WheelRig.fmu"
+    monkeypatch.delenv("JUNO_FMU")
+    assert default_rig_fmu_path() in (REPO / "build" / "WheelRig.fmu", PACKAGED_RIG_FMU)
