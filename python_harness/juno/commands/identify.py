@@ -11,7 +11,7 @@ from typing import Any
 from ..core import progress_printer, write_json
 from .options import add_batch_options, nonnegative_int, positive_int
 
-HELP = "Nelder-Mead identification of the soil parameters"
+HELP = "identification of the soil parameters (drawbar runs; single-wheel testbed tables)"
 OUTPUTS: dict[str, str] = {}
 
 
