@@ -24,7 +24,7 @@ from .campaign import Campaign, forward_speed, read_run  # noqa: E402
 from .identify import JointResult, PaperResult  # noqa: E402
 from . import rover_model  # noqa: E402
 from .rover_model import SOIL_PARAMETERS, Rover  # noqa: E402
-from .validate import ValidationResult  # noqa: E402
+from .validate import SETTLING, ValidationResult  # noqa: E402
 
 LABELS = {"soil.kh": "Foundation stiffness k_h [N/m^(2+eta)]", "soil.eta": "Nonlinearity exponent eta",
           "soil.gamma": "Foundation rebound gamma [-]", "soil.Kvx": "Traction modulus K_vx"}
@@ -128,7 +128,7 @@ def figure_validation(v: ValidationResult, out: Path) -> str:
         ax.grid(alpha=0.3)
     axes[0, 0].legend()
     for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
+        ax.set_xlabel("time since the run's start [s]")   # the run's own clock may start anywhere
     fig.suptitle(f"3-D terrain run {v.run_id}: measured against simulated")
     return _save(fig, out / f"validation_{v.run_id}.png")
 
@@ -214,20 +214,36 @@ def _validation_section(campaign: Campaign, validations: Sequence[tuple[str, Val
                   "none.", ""]
     if validations:
         lines += ["## 4. Validation on the 3-D terrain (Figures 12-14)", "",
-                  "The LIDAR scan is gridded and the rover simulated on it, a PID on torque following the "
-                  "measured wheel spins.", "",
-                  "| Parameters | grid | x [m] | y [m] | z [m] | speed [m/s] | spin L/R [rad/s] | torque L/R [N m] |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "Each terrain run's LIDAR scan is gridded and the rover simulated on it, a PID on torque "
+                  "following the measured wheel spins.", "",
+                  "| Run | Parameters | grid | x [m] | y [m] | z [m] | speed [m/s] | spin L/R [rad/s] | "
+                  "torque L/R [N m] |", "|---|---|---|---|---|---|---|---|---|"]
         for label, v in validations:
             r = v.rms
-            lines.append(f"| {label} | {v.grid_cell * 100:.0f} cm | {r['pos_x']:.3f} | {r['pos_y']:.3f} | "
+            lines.append(f"| {v.run_id} | {label} | {v.grid_cell * 100:.0f} cm | {r['pos_x']:.3f} | {r['pos_y']:.3f} | "
                          f"{r['pos_z']:.3f} | {r['speed']:.3f} | {r['omega_left']:.3f}/{r['omega_right']:.3f} | "
                          f"{r['torque_left']:.1f}/{r['torque_right']:.1f} |")
         lines.append("")
-        label, v = validations[0]
-        lines += [f"RMS errors over the run. Figures for: {label}.", "",
-                  f"![validation]({figure_validation(v, out)})", "", f"![path]({figure_path(v, out)})", ""]
+        # A campaign may have several terrain runs, each on its own scan: every run gets its
+        # figures, drawn for the first parameter set it was validated with.
+        first_of_run: dict[str, tuple[str, ValidationResult]] = {}
+        for label, v in validations:
+            first_of_run.setdefault(v.run_id, (label, v))
+        lines += [f"RMS errors over each run after its first {SETTLING:g} s (the PID catching the measured "
+                  "spins).", ""]
+        for run_id, (label, v) in first_of_run.items():
+            lines += [f"Run {run_id}, {label}:", "",
+                      f"![validation {run_id}]({figure_validation(v, out)})", "",
+                      f"![path {run_id}]({figure_path(v, out)})", ""]
     return lines
+
+
+def _validation_summary(validations: Sequence[tuple[str, ValidationResult]]) -> dict[str, dict[str, dict]]:
+    """The RMS errors of every validation, by terrain run, then by parameter set (its label)."""
+    out: dict[str, dict[str, dict]] = {}
+    for label, v in validations:
+        out.setdefault(v.run_id, {})[label] = v.rms
+    return out
 
 
 def _truth_section(truth: dict[str, Any], joint: JointResult | None) -> list[str]:
@@ -293,7 +309,8 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         summary = {"campaign": campaign.name,
                    "paper": [{"run": p.run_id, "final": p.final, "cost": p.cost} for p in paper],
                    "joint": None if joint is None else {"params": joint.params, "std": joint.std},
-                   "validation": {label: v.rms for label, v in validations}}
+                   # run id -> parameter set -> RMS errors: one entry per terrain run
+                   "validation": _validation_summary(validations)}
         if rig is not None:
             summary["rig"] = {law: {"params": f.params, "std": f.std, "rms": f.rms} for law, f in rig.fits.items()}
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")

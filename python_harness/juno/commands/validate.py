@@ -20,7 +20,10 @@ OUTPUTS: dict[str, str] = {}
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("campaign", metavar="CAMPAIGN")
     p.add_argument("--params", metavar="JSON", help="identified parameters (the --json of identify)")
-    p.add_argument("--cell", type=positive_float, default=0.05, help="terrain grid resolution in m (default 0.05)")
+    # No default here: the library's (validate.GRID_CELL, 10 cm), so that juno validate, juno
+    # report and juno diagnose grid a scan alike (the library is imported only when a command runs).
+    p.add_argument("--cell", type=positive_float, default=None,
+                   help="terrain grid resolution in m (default 0.1, the grid juno report and juno diagnose use)")
 
 
 def load_identified_soil(path: str | Path) -> dict[str, float]:
@@ -62,8 +65,9 @@ def run(args: argparse.Namespace) -> int:
     from ..identify import identify_joint, require_runs
     from ..plausibility import enforce_plausibility
     from ..simulator import JunoFMU
-    from ..validate import validate_run
+    from ..validate import GRID_CELL, validate_run
     say = progress_printer(args.quiet)
+    cell = GRID_CELL if args.cell is None else args.cell
     soil = load_identified_soil(args.params) if args.params else None
     campaign = load_campaign(args.campaign)
     enforce_plausibility(campaign, force=args.force)
@@ -76,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             for run_spec in campaign.runs_of_kind("terrain"):
                 say(f"validating on terrain run {run_spec.id}")
-                v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=args.cell)
+                v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=cell)
                 results[run_spec.id] = v.rms
                 print(f"{run_spec.id}: RMS " + ", ".join(f"{k} {x:.4g}" for k, x in v.rms.items()))
     write_json(args.json, {"soil": soil, "rms": results})
