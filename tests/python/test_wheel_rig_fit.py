@@ -184,19 +184,22 @@ def test_the_lugged_wheel_pulls_harder_than_the_smooth_one(rig_fmu, published_fi
     assert np.all(runs["lug10"].measured["drawbar_pull"][driving] > runs["smooth"].measured["drawbar_pull"][driving])
 
 
-def test_juno_identify_fits_a_rig_campaign(tmp_path):
+def test_juno_identify_fits_a_rig_campaign(rig_fmu, tmp_path):
     """`juno identify` on a campaign of wheel_rig runs fits them (one law here), prints each
     parameter with its uncertainty and writes them to --json; the campaign is left as it was."""
-    before = {p: p.read_bytes() for p in EXAMPLE.rglob("*") if p.is_file()}
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "syn", TRUTH, loads=(80.0,), slips=[0.05, 0.2, 0.4, 0.6])
+    before = {p: p.read_bytes() for p in campaign.root.rglob("*") if p.is_file()}
     out = tmp_path / "fit.json"
-    proc = run_juno("identify", EXAMPLE, "--law", "volumetric", "--json", out, "--quiet", timeout=300)
+    proc = run_juno("identify", campaign.root, "--law", "volumetric", "--rig-fmu", RIG_FMU, "--json", out,
+                    "--quiet", timeout=300)
     assert proc.returncode == 0, proc.stderr
-    assert "rig volumetric: soil.Kvx = " in proc.stdout
+    assert "rig volumetric: soil.Kvx = " in proc.stdout and "noise drawbar_pull: per-point std" in proc.stdout
     data = json.loads(out.read_text())
     fit = data["rig"]["volumetric"]
-    assert set(fit["params"]) == set(law_parameters("volumetric", True))
+    assert list(fit["params"]) == list(law_parameters("volumetric", False))
+    assert set(fit["std"]) == set(fit["params"]) and fit["status"] in ("ok", "not identified")
     assert "paper" not in data and "joint" not in data
-    assert before == {p: p.read_bytes() for p in EXAMPLE.rglob("*") if p.is_file()}
+    assert before == {p: p.read_bytes() for p in campaign.root.rglob("*") if p.is_file()}
 
 
 def test_the_report_draws_measured_against_fitted(rig_fmu, tmp_path):
