@@ -10,10 +10,11 @@
 #      (data races) of the parallel driver;
 #   3. short time-bounded libFuzzer runs of the terrain reader and the FMU
 #      state deserializer from their committed corpora;
-#   4. the win64 binary cross-compiled with mingw-w64 into
-#      build-win64/dist/JunoRover.fmu (linux64 + win64), its export table
-#      checked against the FMI functions of fmu_src/fmi2.h, and the
-#      conformance and parallel drivers run under wine;
+#   4. both FMUs' win64 binaries cross-compiled with mingw-w64 into
+#      build-win64/dist/JunoRover.fmu and build-win64/dist/WheelRig.fmu
+#      (linux64 + win64), each DLL's export table checked against the FMI
+#      functions of fmu_src/fmi2.h, and under wine the rover's conformance
+#      and parallel drivers and the rig's tests (its model, its FMI layer);
 #   5. libcosimpy installed into .venv for tests/python/test_importers.py.
 # Debian packages are installed only if missing.  Environment:
 #   JUNO_FUZZ_SECONDS (default 20) per fuzz target,
@@ -112,28 +113,31 @@ note "fuzzing: no crash, leak or timeout ($((SECONDS - t0)) s)"
 t0=$SECONDS
 echo "== checks: win64 cross build with mingw-w64 (build-win64)"
 cmake -S . -B build-win64 -G Ninja -DCMAKE_TOOLCHAIN_FILE=cmake/mingw-w64-x86_64.cmake \
-  -DCMAKE_BUILD_TYPE=Release -DJUNO_WERROR=ON -DJUNO_HOST_FMU_DIR="$PWD/build/fmu" >/dev/null
-cmake --build build-win64 --target JunoRover conformance parallel fmu_win64
+  -DCMAKE_BUILD_TYPE=Release -DJUNO_WERROR=ON -DJUNO_HOST_FMU_DIR="$PWD/build/fmu" \
+  -DJUNO_HOST_RIG_FMU_DIR="$PWD/build/fmu-rig" >/dev/null
+cmake --build build-win64 --target JunoRover WheelRig conformance parallel test_wheel_rig test_wheel_rig_fmi fmu_win64
 expected=$(sed -n 's/^FMI2_EXPORT [^(]*[ *]\(fmi2[A-Za-z]*\)(.*/\1/p' fmu_src/fmi2.h | sort)
-exported=$(x86_64-w64-mingw32-objdump -p build-win64/JunoRover.dll |
-  sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/s/^\s*\[ *[0-9]*\] \(.*\)$/\1/p' | sort)
-if [ "$expected" != "$exported" ]; then
-  echo "checks: JunoRover.dll exports differ from fmu_src/fmi2.h:" >&2
-  diff <(echo "$expected") <(echo "$exported") >&2 || true
-  exit 1
-fi
-imports=$(x86_64-w64-mingw32-objdump -p build-win64/JunoRover.dll | sed -n 's/^\s*DLL Name: //p' | tr '\n' ' ')
-note "win64: JunoRover.dll exports exactly the $(echo "$expected" | wc -l) fmi2 functions of fmi2.h; imports: $imports"
+for fmu in JunoRover WheelRig; do
+  exported=$(x86_64-w64-mingw32-objdump -p "build-win64/$fmu.dll" |
+    sed -n '/\[Ordinal\/Name Pointer\] Table/,/^$/s/^\s*\[ *[0-9]*\] \(.*\)$/\1/p' | sort)
+  if [ "$expected" != "$exported" ]; then
+    echo "checks: $fmu.dll exports differ from fmu_src/fmi2.h:" >&2
+    diff <(echo "$expected") <(echo "$exported") >&2 || true
+    exit 1
+  fi
+  imports=$(x86_64-w64-mingw32-objdump -p "build-win64/$fmu.dll" | sed -n 's/^\s*DLL Name: //p' | tr '\n' ' ')
+  note "win64: $fmu.dll exports exactly the $(echo "$expected" | wc -l) fmi2 functions of fmi2.h; imports: $imports"
+done
 .venv/bin/python - <<'EOF'
 from fmpy.validation import validate_fmu
-from fmpy import read_model_description
 import zipfile
-fmu = "build-win64/dist/JunoRover.fmu"
-problems = validate_fmu(fmu)
-assert not problems, problems
-names = zipfile.ZipFile(fmu).namelist()
-assert "binaries/win64/JunoRover.dll" in names and "binaries/linux64/JunoRover.so" in names, names
-print("checks: fmpy validate", fmu, "(linux64 + win64): no problems")
+for model in ("JunoRover", "WheelRig"):
+    fmu = f"build-win64/dist/{model}.fmu"
+    problems = validate_fmu(fmu)
+    assert not problems, (fmu, problems)
+    names = zipfile.ZipFile(fmu).namelist()
+    assert f"binaries/win64/{model}.dll" in names and f"binaries/linux64/{model}.so" in names, (fmu, names)
+    print("checks: fmpy validate", fmu, "(linux64 + win64): no problems")
 EOF
 if [ -n "$wine" ]; then
   export WINEPREFIX="$PWD/build-win64/wineprefix" WINEDEBUG=-all
@@ -141,10 +145,11 @@ if [ -n "$wine" ]; then
   # itself did not run the program (seen once in CI: no output at all, exit 1, and never again in
   # 4 fresh-prefix runs under load); that, and only that, is retried once on a restarted
   # wineserver.  On a failure the whole log is shown.
+  # run_under_wine PROGRAM [ARGUMENTS...]
   run_under_wine() {
     local log="build-win64/$(basename "$1" .exe).log" attempt
     for attempt in 1 2; do
-      if "$wine" "$@" build-win64/fmu-all build-win64 >"$log" 2>&1; then tail -1 "$log"; return 0; fi
+      if "$wine" "$@" >"$log" 2>&1; then tail -1 "$log"; return 0; fi
       if grep -q '^[0-9]* passed, [0-9]* failed$' "$log"; then cat "$log" >&2; return 1; fi
       echo "checks: wine gave no summary for $1 (attempt $attempt); its output:" >&2
       cat "$log" >&2
@@ -152,9 +157,13 @@ if [ -n "$wine" ]; then
     done
     return 1
   }
-  run_under_wine build-win64/conformance.exe
-  run_under_wine build-win64/parallel.exe
-  note "win64 under wine: conformance and parallel drivers passed ($((SECONDS - t0)) s)"
+  run_under_wine build-win64/conformance.exe build-win64/fmu-all build-win64
+  run_under_wine build-win64/parallel.exe build-win64/fmu-all build-win64
+  # the rig's tests, built for win64 from the sources of WheelRig.dll: its model, and its FMI
+  # layer as a host calls it
+  run_under_wine build-win64/test_wheel_rig.exe
+  run_under_wine build-win64/test_wheel_rig_fmi.exe
+  note "win64 under wine: the rover's conformance and parallel drivers and the rig's tests passed ($((SECONDS - t0)) s)"
 else
   note "win64: wine skipped (JUNO_CHECKS_WINE=0) ($((SECONDS - t0)) s)"
 fi
