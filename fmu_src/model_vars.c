@@ -306,6 +306,16 @@ const char *model_state_invalid(const ModelState *st, int stepping, char *why, s
 #undef INT
 #undef STR
     if (stepping) {
+        /* The contact laws' counts are those their parameters gave at initialisation: a state
+         * whose Simpson interval count was crafted (2e9 intervals) would make every step last
+         * for hours.  (Before initialisation they are not yet made, and not used.) */
+        const WongReeceModel *wr = &st->d.wong_reece;
+        if (wr->points != st->p.wr_points || wr->intervals != 2 * ((wr->points - 2) / 2) ||
+            st->d.contact.method != st->p.contact_method) {
+            snprintf(why, n, "the contact laws' derived counts (%d Wong-Reece points, %d intervals, method %d) are "
+                     "not those of the parameters", wr->points, wr->intervals, st->d.contact.method);
+            return why;
+        }
         /* State is plain data made of doubles (model.h); none may be NaN, infinite or absurd */
         const unsigned char *bytes = (const unsigned char *)&st->s;
         for (size_t i = 0; i + sizeof(double) <= sizeof st->s; i += sizeof(double)) {

@@ -8,8 +8,8 @@
 #      driver and of the parallel driver over the Release FMU and of the
 #      single-wheel rig's tests (its model and its FMI layer), and helgrind
 #      (data races) of the parallel driver;
-#   3. short time-bounded libFuzzer runs of the terrain reader and the FMU
-#      state deserializer from their committed corpora;
+#   3. short time-bounded libFuzzer runs of the terrain reader and of both
+#      FMUs' state deserializers from their committed corpora, two at a time;
 #   4. both FMUs' win64 binaries cross-compiled with mingw-w64 into
 #      build-win64/dist/JunoRover.fmu and build-win64/dist/WheelRig.fmu
 #      (linux64 + win64), each DLL's export table checked against the FMI
@@ -17,7 +17,8 @@
 #      and parallel drivers and the rig's tests (its model, its FMI layer);
 #   5. libcosimpy installed into .venv for tests/python/test_importers.py.
 # Debian packages are installed only if missing.  Environment:
-#   JUNO_FUZZ_SECONDS (default 20) per fuzz target,
+#   JUNO_FUZZ_SECONDS (default 20) per fuzz target (three targets, two at a
+#   time: twice that in all),
 #   JUNO_CHECKS_WINE=0 to skip wine (the cross build and export check stay).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -82,27 +83,49 @@ valgrind -q --tool=helgrind --error-exitcode=98 --suppressions=tests/conformance
 note "valgrind: memcheck of conformance, parallel and the rig's tests, helgrind of parallel: no errors, no leaks ($((SECONDS - t0)) s)"
 
 # ------------------------------------------------------------ 3. fuzzing
+# Three targets, each for fuzz_seconds, at most fuzz_jobs at a time: the terrain reader and both
+# FMUs' state deserializers (fuzz_state: JunoRover, fuzz_rig_state: WheelRig).  A state target
+# starts from the committed corpus and from this build's own seeds (a valid state of the current
+# layout, which a committed one may no longer match).
 t0=$SECONDS
-echo "== checks: libFuzzer, ${fuzz_seconds} s per target"
+fuzz_targets=(terrain state rig_state)
+fuzz_jobs=2
+echo "== checks: libFuzzer, ${fuzz_seconds} s per target, ${fuzz_jobs} at a time"
 fuzz_dir=$(mktemp -d)
 trap 'rm -rf "$fuzz_dir"' EXIT
-pids=()
-for target in terrain state; do
+: >"$fuzz_dir/empty"
+run_fuzz() {
+  local target=$1 fuzzer="$PWD/build-asan/fuzz_$1"
   mkdir -p "$fuzz_dir/$target"
-  (cd "$fuzz_dir" && "$OLDPWD/build-asan/fuzz_$target" "$fuzz_dir/$target" "$OLDPWD/tests/fuzz/corpus_$target" \
+  if [ "$target" != terrain ]; then
+    JUNO_FUZZ_SEEDS="$fuzz_dir/$target" "$fuzzer" "$fuzz_dir/empty" >"$fuzz_dir/$target.seeds.log" 2>&1 ||
+      { cat "$fuzz_dir/$target.seeds.log"; return 1; }
+  fi
+  (cd "$fuzz_dir" && "$fuzzer" "$fuzz_dir/$target" "$OLDPWD/tests/fuzz/corpus_$target" \
       -max_total_time="$fuzz_seconds" -timeout=30 -rss_limit_mb=4096 -seed=1 -print_final_stats=1 \
-      >"$fuzz_dir/$target.log" 2>&1) &
-  pids+=($!)
-done
+      >"$fuzz_dir/$target.log" 2>&1)
+}
 fuzz_failed=0
-for i in 0 1; do wait "${pids[$i]}" || fuzz_failed=1; done
-for target in terrain state; do
-  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$fuzz_dir/$target.log")
+running=0
+for target in "${fuzz_targets[@]}"; do
+  if [ "$running" -ge "$fuzz_jobs" ]; then
+    wait -n || fuzz_failed=1
+    running=$((running - 1))
+  fi
+  run_fuzz "$target" &
+  running=$((running + 1))
+done
+while [ "$running" -gt 0 ]; do
+  wait -n || fuzz_failed=1
+  running=$((running - 1))
+done
+for target in "${fuzz_targets[@]}"; do
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$fuzz_dir/$target.log" 2>/dev/null)
   echo "fuzz_$target: ${runs:-?} executions"
   summary+=("fuzz_$target: ${runs:-?} executions in ${fuzz_seconds} s")
 done
 if [ "$fuzz_failed" != 0 ]; then
-  for target in terrain state; do tail -40 "$fuzz_dir/$target.log"; done
+  for target in "${fuzz_targets[@]}"; do tail -40 "$fuzz_dir/$target.log" 2>/dev/null || true; done
   ls "$fuzz_dir"/crash-* "$fuzz_dir"/timeout-* "$fuzz_dir"/leak-* 2>/dev/null || true
   echo "checks: a fuzz target failed: reproduce with build-asan/fuzz_TARGET FILE" >&2
   exit 1
