@@ -118,3 +118,20 @@ def test_a_branch_contender_ranks_like_a_judged_candidate():
     from juno.diagnose import ranked
     assert [c.name for c in ranked([Contender("a", 0.50, 3), Contender("b", 0.45, 1)])] == ["b", "a"]
     assert ranked([Contender("a", 0.50, 3)])[0].gain == pytest.approx(0.50)
+
+
+def test_the_report_of_an_unexplained_discrepancy_tables_what_is_left(tmp_path):
+    from dataclasses import replace
+
+    from juno.diagnose import report_section
+    from juno.residual_structure import Covariate, SignalStructure
+    from juno.diagnose.verdict import Unexplained
+    left = SignalStructure("torque_right", "N m", 10, 2.8, 5.1, 1.8, 1e-20, True,
+                           [Covariate("side", 0.99, 10.2, "N m, left minus right")])
+    result = replace(_no_cause_result(), cause="unexplained", plot_data=None,
+                     unexplained=Unexplained("soil_patch", [left], ["soil_patch"], 0.2))
+    text = "\n".join(report_section(result, tmp_path))
+    assert "**Cause: unexplained.**" in text
+    assert "soil_patch would remove only 20% of it, so it is not named" in text
+    assert "| torque_right | 5.1 N m | 1.8 | side (99%, +10.2 N m, left minus right) |" in text
+    json.dumps(to_jsonable(public_json(result)))

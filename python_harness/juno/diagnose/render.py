@@ -9,6 +9,7 @@ import numpy as np
 
 from .candidates import CANDIDATES
 from .results import DiagnosisResult, Duel, JudgedCandidate, TiedPair
+from .verdict import Unexplained
 
 
 def summary_lines(result: DiagnosisResult) -> list[str]:
@@ -137,9 +138,40 @@ def report_section(result: DiagnosisResult, out: Path) -> list[str]:
     lines += _candidates_table(result)
     if result.cause == "none":
         lines += ["**Cause: none.** No extension explains the held-out data significantly better than the "
-                  "paper's model.", ""]
+                  "paper's model, and its residuals are consistent with sensor noise.", ""]
+    elif result.cause == "unexplained":
+        lines += _unexplained_lines(result)
     else:
         lines += _cause_lines(result)
+        if result.unexplained is not None:
+            lines += ["Structure beyond sensor noise remains in the model with the named causes:", ""]
+            lines += _structure_table(result.unexplained)
+    return lines
+
+
+def _unexplained_lines(result: DiagnosisResult) -> list[str]:
+    """The verdict 'unexplained': what the residuals hold, and the catalog causes that absorb only
+    part of it."""
+    u = result.unexplained
+    lines = ["**Cause: unexplained.** The drawbar runs' held-out residuals hold structure beyond sensor noise "
+             "that no extension in the catalog explains (a sensor error, or physics the model does not have)."]
+    if u is not None and u.absorbed_by:
+        lines[0] += (f" {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is "
+                     "not named.")
+    lines.append("")
+    if u is not None:
+        lines += _structure_table(u)
+    return lines
+
+
+def _structure_table(u: Unexplained) -> list[str]:
+    """One row per signal with structure: its size, against its sensor noise, and what it follows."""
+    lines = ["| signal | structure (RMS) | x sensor noise | follows |", "|---|---|---|---|"]
+    for s in u.signals:
+        follows = "; ".join(f"{c.name} ({c.share:.0%}" + (f", {c.slope:+.3g} {c.unit}" if c.name != "run" else "")
+                            + ")" for c in s.follows) or "-"
+        lines.append(f"| {s.signal} | {s.structure_rms:.3g} {s.unit} | {s.ratio:.2g} | {follows} |")
+    lines.append("")
     return lines
 
 
