@@ -5,6 +5,7 @@ diagnose() runs it all and returns a DiagnosisResult."""
 
 from __future__ import annotations
 
+import shutil
 import tempfile
 import time
 from dataclasses import dataclass, field, replace
@@ -126,6 +127,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     names = list(candidates or CANDIDATES)
     require_runs(campaign, "diagnose")
     with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp:
+        fmu_path = fmu_snapshot(fmu_path, tmp, scheduler)
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say)
         registration = registration_evidence(campaign, setting.grid) if setting.grid is not None else None
         if registration is not None:
@@ -141,6 +143,20 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     judged = verdict([r.name for r in outcome.chosen], *structures)
     return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                             judged, structures)
+
+
+def fmu_snapshot(fmu_path: str, tmp: str, scheduler: str | None) -> str:
+    """The FMU every fit of one diagnosis opens: a copy in ``tmp`` taken once, at the start.
+    Each fit opens the FMU file anew (a worker process cannot share an open instance), so an FMU
+    rebuilt or replaced while a diagnosis runs would otherwise have some fits made with one model
+    and some with another, compared as if they were one.  On a Dask cluster (``scheduler``) the
+    workers need the FMU at the path given, so that path is used as it is."""
+    if scheduler is not None:
+        return fmu_path
+    copy = Path(tmp) / "fmu" / Path(fmu_path).name
+    copy.parent.mkdir()
+    shutil.copyfile(fmu_path, copy)
+    return str(copy)
 
 
 def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, base: FitResult, outcome: Outcome,

@@ -1,0 +1,370 @@
+"""The harness on any reasonable campaign, not only the layout it was developed on.
+
+Specification: a campaign laid out otherwise than the paper's (three drawbar runs at 45 %
+throttle, one mound, one sensor set, clocks at zero) loads, is identified, validated, reported
+and diagnosed as well:
+
+* the ``alt`` design (four drawbar runs at 50-60 % throttle, a ridge, other sensor rates and
+  noise, clocks starting at 100-5000 s, the columns in another order with an unused
+  ``battery_voltage``): the joint fit recovers the truth within its uncertainty, and
+  ``juno identify`` and ``juno validate`` exit 0, the latter naming the terrain run;
+* a clock offset on every run (time column and steady windows shifted alike) changes nothing:
+  the same steady averages, the same replay inputs and comparison targets, the same residuals;
+* the columns in any order, with extra numeric and text columns: read identically, the extra
+  ones kept aside;
+* sensors at other rates (every column decimated): the fit still recovers the truth within its
+  uncertainty;
+* only drawbar runs: ``juno identify`` exits 0; ``juno validate`` refuses with a message naming
+  the manifest and what is missing; the diagnosis leaves out the candidates that need a terrain
+  run;
+* five drawbar runs and two terrain runs, each on its own scan: every run is replayed, each
+  terrain run on its own gridded scan, and validated and reported under its own id;
+* a diagnose of an ``alt`` campaign with a drivetrain loss hidden, restricted to two candidates,
+  names the loss.
+
+Campaigns are short (``time_scale`` 0.25-0.3: runs of 5.5-10 s), so each test takes seconds.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+
+from harness_fixtures import run_juno, say
+from juno.campaign import load_campaign, read_run
+from juno.identify import gridded_scans, identify_joint, prepare_run, run_residuals, steady_averages
+from juno.plausibility import check_campaign
+from juno.rover_model import SOIL_PARAMETERS
+from juno.synthesize import synthesize
+
+pytest_plugins = ["harness_fixtures"]
+
+#: The alt design's runs at 0.3 of their length: 7-9 s drawbar runs, a 6.6 s terrain run.
+ALT_TIME_SCALE = 0.3
+ALT_SEED = 31
+#: The default design shortened as the other harness tests shorten it (runs of 5.5-8.8 s).
+SHORT_TIME_SCALE = 0.25
+SHORT_SEED = 3107
+#: A fitted parameter recovers the truth when it is within this many of its 1-sigma
+#: uncertainties (four parameters: a normal deviate exceeds 3 in 1 % of fits).
+Z_MAX = 3.0
+#: A clock offset a data logger might have (s), not a multiple of any sample period.
+CLOCK_OFFSET = 1234.5
+
+
+# ------------------------------------------------------------------ campaigns
+
+@pytest.fixture(scope="module")
+def alt_campaign(tmp_path_factory, harness_fmu) -> Path:
+    """A short alt-design campaign, nothing hidden."""
+    return synthesize(tmp_path_factory.mktemp("alt") / "campaign", seed=ALT_SEED, design="alt",
+                      time_scale=ALT_TIME_SCALE, fmu=harness_fmu)
+
+
+@pytest.fixture(scope="module")
+def short_campaign(tmp_path_factory, harness_fmu) -> Path:
+    """A short default-design campaign, nothing hidden: the source of the hand-made variants."""
+    return synthesize(tmp_path_factory.mktemp("short") / "campaign", seed=SHORT_SEED,
+                      time_scale=SHORT_TIME_SCALE, fmu=harness_fmu)
+
+
+def truth_soil(root: Path) -> dict[str, float]:
+    """The soil of a synthetic campaign's truth.json (read by the tests only)."""
+    return json.loads((root / "truth.json").read_text())["soil"]
+
+
+def copy_campaign(src: Path, dst: Path) -> tuple[Path, dict]:
+    """A copy of campaign ``src`` at ``dst`` without its truth, and its manifest (a dict)."""
+    shutil.copytree(src, dst)
+    (dst / "truth.json").unlink()
+    return dst, json.loads((dst / "campaign.json").read_text())
+
+
+def save_manifest(root: Path, manifest: dict) -> None:
+    (root / "campaign.json").write_text(json.dumps(manifest, indent=2))
+
+
+Table = tuple[list[str], list[list[str]]]
+
+
+def rewrite_csv(path: Path, change: Callable[[list[str], list[list[str]]], Table]) -> None:
+    """Rewrites a run CSV through ``change(header, rows) -> (header, rows)``."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header, body = change(rows[0], rows[1:])
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        writer.writerows(body)
+
+
+def shifted_clock(header: list[str], rows: list[list[str]]) -> Table:
+    """Every time stamp CLOCK_OFFSET s later."""
+    i = header.index("time")
+    for row in rows:
+        row[i] = repr(float(row[i]) + CLOCK_OFFSET)
+    return header, rows
+
+
+def decimated(every: dict[tuple[str, ...], int]) -> Callable[[list[str], list[list[str]]], Table]:
+    """Keeps every n-th sample of each group of columns (sampled together), dropping rows left empty."""
+    def change(header: list[str], rows: list[list[str]]) -> Table:
+        for columns, n in every.items():
+            idx = [header.index(c) for c in columns if c in header]
+            if not idx:
+                continue
+            count = 0
+            for row in rows:
+                if row[idx[0]]:
+                    if count % n:
+                        for i in idx:
+                            row[i] = ""
+                    count += 1
+        return header, [row for row in rows if any(cell for j, cell in enumerate(row) if header[j] != "time")]
+    return change
+
+
+def reordered_with_extras(header: list[str], rows: list[list[str]]) -> Table:
+    """The columns in reverse order (time last), then a text and a numeric column juno does not use."""
+    order = list(reversed(range(len(header))))
+    return ([header[i] for i in order] + ["operator_note", "air_temperature"],
+            [[row[i] for i in order] + ["dusty", "21.5"] for row in rows])
+
+
+def variant(src: Path, dst: Path, change=None, manifest_change=None) -> Path:
+    """A hand-made variant of campaign ``src``: every run CSV through ``change``, the manifest
+    through ``manifest_change(root, manifest)``."""
+    root, manifest = copy_campaign(src, dst)
+    if change is not None:
+        for run in manifest["runs"]:
+            rewrite_csv(root / run["file"], change)
+    if manifest_change is not None:
+        manifest_change(root, manifest)
+    save_manifest(root, manifest)
+    return root
+
+
+def fit_recovers_truth(root: Path, truth: dict[str, float], fmu) -> dict[str, float]:
+    """Joint fit of campaign ``root``; asserts each parameter within Z_MAX sigma of the ``truth``
+    and returns the z-scores."""
+    result = identify_joint(fmu, load_campaign(root), workers=1)
+    z = {k: (result.params[k] - truth[k]) / result.std[k] for k in SOIL_PARAMETERS}
+    say(f"{root}: joint fit z-scores " + ", ".join(f"{k} {v:+.2f}" for k, v in z.items()))
+    assert result.status == "ok"
+    far = {k: round(v, 2) for k, v in z.items() if not abs(v) <= Z_MAX}
+    assert not far, f"{root}: estimates more than {Z_MAX} sigma off the truth: {far}"
+    return z
+
+
+# ------------------------------------------------------------------ the alt design
+
+def test_an_alt_design_campaign_is_plausible_as_it_is(alt_campaign):
+    assert [str(f) for f in check_campaign(load_campaign(alt_campaign))] == []
+
+
+def test_the_joint_fit_recovers_the_truth_of_an_alt_design_campaign(alt_campaign, harness_fmu):
+    fit_recovers_truth(alt_campaign, truth_soil(alt_campaign), harness_fmu)
+
+
+def test_identify_and_validate_run_on_an_alt_design_campaign(alt_campaign, tmp_path):
+    identified = tmp_path / "identify.json"
+    proc = run_juno("identify", alt_campaign, "--method", "joint", "--workers", "1", "--quiet",
+                    "--json", identified)
+    assert proc.returncode == 0, proc.stderr
+    assert set(json.loads(identified.read_text())["joint"]["params"]) == set(SOIL_PARAMETERS)
+    validated = tmp_path / "validate.json"
+    proc = run_juno("validate", alt_campaign, "--params", identified, "--quiet", "--json", validated)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("t3d: RMS pos_x"), proc.stdout
+    rms = json.loads(validated.read_text())["rms"]
+    assert list(rms) == ["t3d"] and all(np.isfinite(v) for v in rms["t3d"].values())
+
+
+# ------------------------------------------------------------------ clocks, columns, rates
+
+def test_a_clock_offset_on_every_run_changes_nothing(short_campaign, tmp_path, harness_fmu):
+    """Steady averages, replay inputs, comparison targets and residuals are those of the same
+    campaign with its clocks at zero: every time is taken from the run's first sample."""
+    def later_windows(root: Path, manifest: dict) -> None:
+        for run in manifest["runs"]:
+            if "steady_window" in run:
+                run["steady_window"] = [t + CLOCK_OFFSET for t in run["steady_window"]]
+    shifted = variant(short_campaign, tmp_path / "shifted", shifted_clock, later_windows)
+    original, moved = load_campaign(short_campaign), load_campaign(shifted)
+    soil = truth_soil(short_campaign)
+    for spec in original.runs:
+        a, b = read_run(original, spec), read_run(moved, moved.run(spec.id))
+        assert b.time[0] == pytest.approx(a.time[0] + CLOCK_OFFSET)
+        if spec.steady_window:
+            sa, sb = steady_averages(original, spec), steady_averages(moved, moved.run(spec.id))
+            for name in ("drawbar", "torque_left", "speed", "omega_right"):
+                assert getattr(sb, name) == pytest.approx(getattr(sa, name), rel=1e-6), f"{spec.id}: {name}"
+        if spec.kind != "drawbar":
+            continue
+        pa, pb = prepare_run(original, spec), prepare_run(moved, moved.run(spec.id))
+        assert pb.duration == pytest.approx(pa.duration, abs=1e-9)
+        for name, values in pa.inputs.values.items():
+            assert np.allclose(pb.inputs.values[name], values, atol=1e-9), f"{spec.id}: input {name}"
+        for column, target in pa.targets.items():
+            assert np.allclose(pb.targets[column][0], target[0], atol=1e-9), f"{spec.id}: {column} times"
+        ra, rb = run_residuals(harness_fmu, pa, soil), run_residuals(harness_fmu, pb, soil)
+        assert np.allclose(rb, ra, rtol=1e-6, atol=1e-6), f"{spec.id}: residuals differ"
+
+
+def test_columns_in_any_order_with_extra_ones_read_the_same(short_campaign, tmp_path):
+    shuffled = variant(short_campaign, tmp_path / "columns", reordered_with_extras)
+    original, other = load_campaign(short_campaign), load_campaign(shuffled)
+    assert [str(f) for f in check_campaign(other)] == []
+    for spec in original.runs:
+        a, b = read_run(original, spec), read_run(other, other.run(spec.id))
+        assert np.array_equal(a.time, b.time)
+        for column in ("torque_left", "omega_right", "pos_x", "pos_z", "yaw"):
+            ta, va = a.samples(column)
+            tb, vb = b.samples(column)
+            assert np.array_equal(ta, tb) and np.array_equal(va, vb), f"{spec.id}: column {column}"
+        assert np.nanmax(b.extra["air_temperature"]) == 21.5
+        assert "operator_note" in b.extra
+
+
+def test_sensors_at_other_rates_still_recover_the_truth(short_campaign, tmp_path, harness_fmu):
+    """Total station at 2.5 Hz, motor current and encoders at 25 Hz, IMU at 50 Hz, load cell at 50 Hz."""
+    slower = variant(short_campaign, tmp_path / "rates", decimated({
+        ("pos_x", "pos_y", "pos_z"): 2, ("torque_left", "torque_right"): 2, ("omega_left", "omega_right"): 2,
+        ("roll", "pitch", "yaw"): 2, ("drawbar_force",): 2}))
+    campaign = load_campaign(slower)
+    assert [str(f) for f in check_campaign(campaign)] == []
+    run = read_run(campaign, campaign.run("dbp1"))
+    assert np.median(np.diff(run.samples("pos_x")[0])) == pytest.approx(0.4, rel=0.01)
+    fit_recovers_truth(slower, truth_soil(short_campaign), harness_fmu)
+
+
+# ------------------------------------------------------------------ how many runs of each kind
+
+def _drawbar_only(root: Path, manifest: dict) -> None:
+    for run in manifest["runs"]:
+        if run["kind"] == "terrain":
+            (root / run["file"]).unlink()
+            shutil.rmtree(root / Path(run["terrain"]).parent)
+    manifest["runs"] = [r for r in manifest["runs"] if r["kind"] == "drawbar"]
+
+
+def test_a_campaign_of_drawbar_runs_only_is_identified_and_validate_says_what_it_lacks(short_campaign, tmp_path):
+    root = variant(short_campaign, tmp_path / "drawbar-only", manifest_change=_drawbar_only)
+    identified = tmp_path / "identify.json"
+    proc = run_juno("identify", root, "--method", "joint", "--workers", "1", "--quiet", "--json", identified)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(identified.read_text())["joint"]["runs"] == ["dbp1", "dbp2", "dbp3"]
+    proc = run_juno("validate", root, "--params", identified, "--quiet")
+    assert proc.returncode != 0
+    assert "campaign.json" in proc.stderr and "terrain run" in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_the_diagnosis_of_drawbar_runs_only_leaves_out_the_candidates_that_need_a_terrain_run(short_campaign,
+                                                                                               tmp_path, fmu_path):
+    from juno.diagnose.candidates import CANDIDATES
+    from juno.diagnose.search import prepare
+    root = variant(short_campaign, tmp_path / "drawbar-only", manifest_change=_drawbar_only)
+    names = ["drivetrain_loss", "terrain_offset"]
+    assert CANDIDATES["terrain_offset"].needs_terrain and not CANDIDATES["drivetrain_loss"].needs_terrain
+    work = tmp_path / "work"
+    work.mkdir()
+    setting = prepare(load_campaign(root), fmu_path, names, str(work), None, lambda m: None)
+    assert setting.names == ["drivetrain_loss"]
+    assert setting.grid is None and {p.kind for p in setting.problem.prepared} == {"drawbar"}
+    assert not setting.base.error
+
+
+def _five_drawbar_and_two_terrain_runs(root: Path, manifest: dict) -> None:
+    """Two more drawbar runs (copies of dbp1 and dbp2) and a second terrain run: the first one
+    and its scan moved 10 m along x, so that it lies on its own scan only."""
+    drawbar = [r for r in manifest["runs"] if r["kind"] == "drawbar"]
+    for i, run in enumerate(drawbar[:2]):
+        new = dict(run, id=f"dbp{4 + i}", file=f"runs/dbp{4 + i}.csv")
+        shutil.copy(root / run["file"], root / new["file"])
+        manifest["runs"].insert(len(drawbar) + i, new)
+    terrain = next(r for r in manifest["runs"] if r["kind"] == "terrain")
+    second = dict(terrain, id="t3d_east", file="runs/t3d_east.csv", terrain="terrain/scan_east.xyz")
+    shutil.copy(root / terrain["file"], root / second["file"])
+
+    def east(header: list[str], rows: list[list[str]]) -> Table:
+        i = header.index("pos_x")
+        for row in rows:
+            if row[i]:
+                row[i] = repr(float(row[i]) + 10.0)
+        return header, rows
+    rewrite_csv(root / second["file"], east)
+    with open(root / terrain["terrain"]) as src, open(root / second["terrain"], "w") as dst:
+        for line in src:
+            if line.startswith("#") or not line.strip():
+                dst.write(line)
+            else:
+                x, y, z = line.split()
+                dst.write(f"{float(x) + 10.0!r} {y} {z}\n")
+    manifest["runs"].append(second)
+
+
+@pytest.fixture(scope="module")
+def many_runs(short_campaign, tmp_path_factory) -> Path:
+    return variant(short_campaign, tmp_path_factory.mktemp("many") / "campaign",
+                   manifest_change=_five_drawbar_and_two_terrain_runs)
+
+
+def test_five_drawbar_and_two_terrain_runs_are_each_replayed_on_their_own_ground(many_runs, tmp_path):
+    from juno.diagnose.problem import build_problem
+    campaign = load_campaign(many_runs)
+    assert [str(f) for f in check_campaign(campaign)] == []
+    scans = gridded_scans(campaign, tmp_path, "validate")   # the terrain runs' scans
+    assert set(scans) == {"t3d", "t3d_east"}
+    (path_a, grid_a), (path_b, grid_b) = scans["t3d"], scans["t3d_east"]
+    assert path_a != path_b and grid_b.x0 == pytest.approx(grid_a.x0 + 10.0, abs=grid_a.cell)
+    problem = build_problem(campaign, "unused.fmu", {k: v[0] for k, v in scans.items()})
+    assert [p.run_id for p in problem.prepared] == ["dbp1", "dbp2", "dbp3", "dbp4", "dbp5", "t3d", "t3d_east"]
+    on = {p.run_id: p.params.get("terrain.file") for p in problem.prepared}
+    assert on["t3d"] == path_a and on["t3d_east"] == path_b and on["dbp4"] is None
+    assert set(np.unique(problem.meta["run"])) == set(on)
+
+
+def test_every_terrain_run_is_validated_and_reported_under_its_own_id(many_runs, short_campaign, tmp_path,
+                                                                      harness_fmu):
+    from juno.report import write_report
+    from juno.validate import validate_run
+    campaign = load_campaign(many_runs)
+    soil = truth_soil(short_campaign)
+    validations = [("true soil", validate_run(harness_fmu, campaign, spec, soil, tmp_path))
+                   for spec in campaign.runs_of_kind("terrain")]
+    a, b = (v.rms for _, v in validations)
+    # The second run is the first one moved 10 m east with its scan: it validates alike.
+    for name in a:
+        assert b[name] == pytest.approx(a[name], rel=0.05, abs=1e-3), name
+    report = write_report(tmp_path / "report", campaign, [], None, validations)
+    text = report.read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| t3d")]
+    assert [r.split("|")[1].strip() for r in rows] == ["t3d", "t3d_east"]
+    assert "validation_t3d.png" in text and "validation_t3d_east.png" in text
+    summary = json.loads((report.parent / "summary.json").read_text())
+    assert set(summary["validation"]) == {"t3d", "t3d_east"}
+
+
+# ------------------------------------------------------------------ one model for the whole diagnosis
+
+def test_a_diagnosis_fits_every_candidate_with_one_snapshot_of_the_fmu(fmu_path, tmp_path):
+    """Each fit opens the FMU file anew; the file a diagnosis opens is a copy taken at its start,
+    so an FMU rebuilt while it runs cannot mix two models in one comparison.  On a Dask cluster
+    the workers need the path given, which is kept."""
+    from juno.diagnose.search import fmu_snapshot
+    copy = Path(fmu_snapshot(fmu_path, str(tmp_path), None))
+    assert copy.parent.parent == tmp_path and copy.read_bytes() == Path(fmu_path).read_bytes()
+    assert fmu_snapshot(fmu_path, str(tmp_path / "other"), "tcp://scheduler:8786") == fmu_path
+
+
+def test_juno_validate_grids_the_scan_as_report_and_diagnose_do(alt_campaign):
+    from juno.validate import GRID_CELL
+    proc = run_juno("validate", "--help")
+    assert proc.returncode == 0 and f"default {GRID_CELL:g}," in " ".join(proc.stdout.split())
