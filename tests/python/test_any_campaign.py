@@ -275,10 +275,23 @@ def test_the_diagnosis_of_drawbar_runs_only_leaves_out_the_candidates_that_need_
     assert CANDIDATES["terrain_offset"].needs_terrain and not CANDIDATES["drivetrain_loss"].needs_terrain
     work = tmp_path / "work"
     work.mkdir()
-    setting = prepare(load_campaign(root), fmu_path, names, str(work), None, lambda m: None)
+    said: list[str] = []
+    setting = prepare(load_campaign(root), fmu_path, names, str(work), None, said.append)
     assert setting.names == ["drivetrain_loss"]
     assert setting.grid is None and {p.kind for p in setting.problem.prepared} == {"drawbar"}
     assert not setting.base.error
+    assert any(m.startswith("left out terrain_offset: needs a terrain run") for m in said), said
+
+
+def test_a_diagnosis_left_without_a_candidate_is_refused_before_any_fit(short_campaign, tmp_path):
+    """Asked only for candidates that need a terrain run, of a campaign without one: an error
+    naming the manifest and why, not a "none" that tried nothing."""
+    root = variant(short_campaign, tmp_path / "drawbar-only", manifest_change=_drawbar_only)
+    proc = run_juno("diagnose", root, "--candidates", "terrain_offset", "--workers", "1", "--quiet", timeout=60)
+    assert proc.returncode != 0
+    assert "campaign.json" in proc.stderr and "terrain_offset" in proc.stderr and "terrain run" in proc.stderr, \
+        proc.stderr
+    assert "Traceback" not in proc.stderr
 
 
 def _five_drawbar_and_two_terrain_runs(root: Path, manifest: dict) -> None:

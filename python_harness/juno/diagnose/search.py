@@ -15,6 +15,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..campaign import Campaign, load_campaign
+from ..errors import InputError
 from ..identify import PAPER_INITIAL, gridded_scans, require_runs
 from ..registration import HELD_OUT_RATIO, HeldOutEvidence
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
@@ -185,7 +186,16 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
         grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
         grid = next(iter(scans.values()))[1]
     else:
+        # A candidate is never missing from the results unexplained, and a diagnosis left with no
+        # candidate would report "none" without having tried one: an error, before the base fit.
+        left_out = [n for n in names if CANDIDATES[n].needs_terrain]
         names = [n for n in names if not CANDIDATES[n].needs_terrain]
+        why = "needs a terrain run (a run with its LIDAR scan), and the campaign has none"
+        if not names:
+            raise InputError(f"'diagnose': every candidate asked for ({', '.join(left_out)}) {why}",
+                             campaign.manifest_path)
+        if left_out:
+            say(f"left out {', '.join(left_out)}: {why}")
     problem = build_problem(campaign, fmu_path, grid_file, terrain_segment)
     say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
     base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
