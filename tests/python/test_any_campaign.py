@@ -381,3 +381,9 @@ def test_juno_validate_grids_the_scan_as_report_and_diagnose_do(alt_campaign):
     from juno.validate import GRID_CELL
     proc = run_juno("validate", "--help")
     assert proc.returncode == 0 and f"default {GRID_CELL:g}," in " ".join(proc.stdout.split())
+
+
+def test_the_diagnosis_names_every_terrain_run_it_replays(many_runs, short_campaign):
+    from juno.diagnose.search import terrain_runs_named
+    assert terrain_runs_named(load_campaign(many_runs)) == "terrain runs t3d, t3d_east"
+    assert terrain_runs_named(load_campaign(short_campaign)) == "terrain run t3d"

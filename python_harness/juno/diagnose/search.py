@@ -132,7 +132,8 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say)
         registration = registration_evidence(campaign, setting.grid) if setting.grid is not None else None
         if registration is not None:
-            say(f"registration fitted on the terrain run's training blocks: held-out pose "
+            say(f"registration fitted on the training blocks of terrain run "
+                f"{campaign.runs_of_kind('terrain')[0].id}: held-out pose "
                 f"{registration.ratio:.3g} times better than the scan as it is")
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
         search = Search(campaign, setting.problem, searched, registration, workers, scheduler, say)
@@ -144,6 +145,12 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     judged = verdict([r.name for r in outcome.chosen], *structures)
     return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                             judged, structures)
+
+
+def terrain_runs_named(campaign: Campaign) -> str:
+    """"terrain run ID" or "terrain runs ID, ID, ..." (a campaign may have several)."""
+    ids = [r.id for r in campaign.runs_of_kind("terrain")]
+    return ("terrain run " if len(ids) == 1 else "terrain runs ") + ", ".join(ids)
 
 
 def fmu_snapshot(fmu_path: str, tmp: str, scheduler: str | None) -> str:
@@ -206,7 +213,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
         problems = drive_problems(campaign, problem, terrain_segment)
         problem, base, terrain_drive, drive_losses = choose_terrain_drive(campaign, problem, base,
                                                                           terrain_segment, problems)
-        say("terrain run replayed by " + terrain_drive + " (training fit loss at the base model: "
+        say(f"{terrain_runs_named(campaign)} replayed by {terrain_drive} (training fit loss at the base model: "
             + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
     say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
     return Setting(problem, problems, base, terrain_drive, drive_losses, grid, names)
@@ -228,7 +235,8 @@ def first_round(search: Search, setting: Setting) -> FirstRound:
         base, fitted = settled[0], settled[1:]
         search.problem = setting.problems[terrain_drive]
         search.run_kind = run_kinds(search.problem)
-        search.say(f"terrain run judged as replayed by {terrain_drive} (fitted with {fitted_drive}; lowest "
+        search.say(f"{terrain_runs_named(search.campaign)} judged as replayed by {terrain_drive} (fitted with "
+                   f"{fitted_drive}; lowest "
                    "training fit loss: " + ", ".join(f"{d} {v['loss']:.3g} ({v['model']})"
                                                      for d, v in settled_losses.items()) + ")")
     problem, run_kind = search.problem, search.run_kind
