@@ -397,6 +397,12 @@ def identify_paper_runs(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec
     Raises FitError for the first run (in that order) whose fit failed, InputError when the
     campaign has no drawbar run (require_runs)."""
     ids = [r if isinstance(r, str) else r.id for r in (runs or require_runs(campaign, "identify"))]
+    # The paper's averages are steady-state ones: a run without a steady window is averaged over
+    # its whole length, start-up included, and the user is told so.
+    unwindowed = [run_id for run_id in ids if not campaign.run(run_id).steady_window]
+    if progress and unwindowed:
+        progress(f"{', '.join(unwindowed)}: no steady_window in the manifest: the paper-style fit averages over "
+                 "the whole run, its start-up included")
     handle = FMUHandle(fmu)
     jobs = [(handle, campaign, run_id, initial, max_evaluations) for run_id in ids]
 

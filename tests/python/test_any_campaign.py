@@ -387,3 +387,19 @@ def test_the_diagnosis_names_every_terrain_run_it_replays(many_runs, short_campa
     from juno.diagnose.search import terrain_runs_named
     assert terrain_runs_named(load_campaign(many_runs)) == "terrain runs t3d, t3d_east"
     assert terrain_runs_named(load_campaign(short_campaign)) == "terrain run t3d"
+
+
+def test_a_drawbar_run_without_a_steady_window_is_said_to_be_averaged_whole(short_campaign, tmp_path,
+                                                                             harness_fmu):
+    from juno.identify import identify_paper_runs
+
+    def no_windows(root: Path, manifest: dict) -> None:
+        for run in manifest["runs"]:
+            run.pop("steady_window", None)
+    root = variant(short_campaign, tmp_path / "no-windows", manifest_change=no_windows)
+    said: list[str] = []
+    results = identify_paper_runs(harness_fmu, load_campaign(root), ["dbp1"], max_evaluations=5, workers=1,
+                                  progress=said.append)
+    assert said[0].startswith("dbp1: no steady_window in the manifest"), said
+    run = read_run(load_campaign(root), "dbp1")
+    assert results[0].averages.window == (run.time[0], run.time[-1])
