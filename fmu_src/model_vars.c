@@ -281,6 +281,82 @@ void model_set_state(Model *m, const ModelState *st)
     m->out = st->out;
 }
 
+/* a and b agree to 1e-9 of their size: the same preparation, with another C library's last bits */
+static int agrees(double a, double b)
+{
+    return a == b || fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b));
+}
+
+/* The contact laws of a stepping state (its Derived) must be those its parameters give, prepared
+ * as initialisation prepares them (both models map the parameters alike): a crafted Simpson
+ * interval count (2e9) or friction (tan phi = 1e9) would make every step last for hours. */
+static const char *contact_laws_invalid(const ModelState *st, char *why, size_t n)
+{
+    const Params *p = &st->p;
+    ContactModel c;
+    WongReeceModel w;
+    memset(&c, 0, sizeof c);
+    c.kh = p->soil_kh;
+    c.eta = p->soil_eta;
+    c.gamma = p->soil_gamma;
+    c.Kvx = p->soil_Kvx;
+    c.Kvy_ratio = p->soil_KvyRatio;
+    c.cohesion = p->soil_cohesion;
+    c.phi = p->soil_phi;
+    c.radius = p->wheel_radius;
+    c.width = p->wheel_width;
+    c.slip_v_eps = p->contact_slipVelocityEps;
+    c.method = p->contact_method;
+    memset(&w, 0, sizeof w);
+    w.n = p->wr_n;
+    w.kc = p->wr_kc;
+    w.kphi = p->wr_kphi;
+    w.cohesion = p->soil_cohesion;
+    w.phi = p->soil_phi;
+    w.K = p->wr_K;
+    w.a0 = p->wr_a0;
+    w.a1 = p->wr_a1;
+    w.lambda = p->soil_gamma;
+    w.radius = p->wheel_radius;
+    w.width = p->wheel_width;
+    w.points = p->wr_points;
+    char err[200];
+    if (contact_model_prepare(&c, err, sizeof err) != 0 || wong_reece_prepare(&w, err, sizeof err) != 0) {
+        snprintf(why, n, "its parameters make no contact law: %s", err);
+        return why;
+    }
+    const ContactModel *sc = &st->d.contact;
+    const WongReeceModel *sw = &st->d.wong_reece;
+    const double mine[] = {c.kh, c.eta, c.gamma, c.Kvx, c.Kvy_ratio, c.cohesion, c.phi, c.radius, c.width,
+                           c.slip_v_eps, c.A1, c.Vint, c.cx_eta, c.cz_eta, c.tan_phi, c.vh_exp, c.log_Vint,
+                           c.inv_Kvx, c.inv_Kvy, c.inv_R2, w.n, w.kc, w.kphi, w.cohesion, w.phi, w.K, w.a0,
+                           w.a1, w.lambda, w.radius, w.width, w.k_sigma, w.tan_phi, w.r_over_K};
+    const double theirs[] = {sc->kh, sc->eta, sc->gamma, sc->Kvx, sc->Kvy_ratio, sc->cohesion, sc->phi,
+                             sc->radius, sc->width, sc->slip_v_eps, sc->A1, sc->Vint, sc->cx_eta, sc->cz_eta,
+                             sc->tan_phi, sc->vh_exp, sc->log_Vint, sc->inv_Kvx, sc->inv_Kvy, sc->inv_R2, sw->n,
+                             sw->kc, sw->kphi, sw->cohesion, sw->phi, sw->K, sw->a0, sw->a1, sw->lambda,
+                             sw->radius, sw->width, sw->k_sigma, sw->tan_phi, sw->r_over_K};
+    static const char *const names[] = {
+        "kh", "eta", "gamma", "Kvx", "Kvy_ratio", "cohesion", "phi", "radius", "width", "slip_v_eps", "A1", "Vint",
+        "cx_eta", "cz_eta", "tan_phi", "vh_exp", "log_Vint", "inv_Kvx", "inv_Kvy", "inv_R2", "Wong-Reece n",
+        "Wong-Reece kc", "Wong-Reece kphi", "Wong-Reece cohesion", "Wong-Reece phi", "Wong-Reece K", "Wong-Reece a0",
+        "Wong-Reece a1", "Wong-Reece lambda", "Wong-Reece radius", "Wong-Reece width", "Wong-Reece k_sigma",
+        "Wong-Reece tan_phi", "Wong-Reece r_over_K"};
+    _Static_assert(sizeof mine == sizeof theirs && sizeof mine / sizeof mine[0] == sizeof names / sizeof names[0],
+                   "the same values on both sides, each named");
+    int bad = sc->method != c.method || sw->points != w.points || sw->intervals != w.intervals ? -2 : -1;
+    for (size_t i = 0; bad == -1 && i < sizeof mine / sizeof mine[0]; ++i)
+        if (!agrees(mine[i], theirs[i])) bad = (int)i;
+    if (bad == -1) return NULL;
+    if (bad == -2)
+        snprintf(why, n, "its contact laws' counts (method %d, %d Wong-Reece points, %d intervals) are not those "
+                 "of its parameters", sc->method, sw->points, sw->intervals);
+    else
+        snprintf(why, n, "its contact law's %s = %g is not that of its parameters (%g)", names[bad], theirs[bad],
+                 mine[bad]);
+    return why;
+}
+
 /* Parameters and inputs are checked against the variable table as
  * fmi2SetReal/fmi2SetInteger would check them. */
 const char *model_state_invalid(const ModelState *st, int stepping, char *why, size_t n)
@@ -306,16 +382,7 @@ const char *model_state_invalid(const ModelState *st, int stepping, char *why, s
 #undef INT
 #undef STR
     if (stepping) {
-        /* The contact laws' counts are those their parameters gave at initialisation: a state
-         * whose Simpson interval count was crafted (2e9 intervals) would make every step last
-         * for hours.  (Before initialisation they are not yet made, and not used.) */
-        const WongReeceModel *wr = &st->d.wong_reece;
-        if (wr->points != st->p.wr_points || wr->intervals != 2 * ((wr->points - 2) / 2) ||
-            st->d.contact.method != st->p.contact_method) {
-            snprintf(why, n, "the contact laws' derived counts (%d Wong-Reece points, %d intervals, method %d) are "
-                     "not those of the parameters", wr->points, wr->intervals, st->d.contact.method);
-            return why;
-        }
+        if (contact_laws_invalid(st, why, n)) return why;
         /* State is plain data made of doubles (model.h); none may be NaN, infinite or absurd */
         const unsigned char *bytes = (const unsigned char *)&st->s;
         for (size_t i = 0; i + sizeof(double) <= sizeof st->s; i += sizeof(double)) {

@@ -396,7 +396,9 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                 extrapolate(s, &single);
                 s->time = saved.time + hs;
                 const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
-                h = fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow)));
+                /* never below STEP_MIN: a step accepted there with a large error would otherwise
+                 * shrink the next towards 0, and the step would never reach its end */
+                h = fmax(STEP_MIN, fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow))));
                 s->step_next = h;
                 m->steps_taken++;
                 remaining = last ? 0.0 : remaining - hs;
