@@ -188,14 +188,16 @@ def test_identify_and_validate_run_on_an_alt_design_campaign(alt_campaign, tmp_p
 
 # ------------------------------------------------------------------ clocks, columns, rates
 
+def _later_windows(root: Path, manifest: dict) -> None:
+    for run in manifest["runs"]:
+        if "steady_window" in run:
+            run["steady_window"] = [t + CLOCK_OFFSET for t in run["steady_window"]]
+
+
 def test_a_clock_offset_on_every_run_changes_nothing(short_campaign, tmp_path, harness_fmu):
     """Steady averages, replay inputs, comparison targets and residuals are those of the same
     campaign with its clocks at zero: every time is taken from the run's first sample."""
-    def later_windows(root: Path, manifest: dict) -> None:
-        for run in manifest["runs"]:
-            if "steady_window" in run:
-                run["steady_window"] = [t + CLOCK_OFFSET for t in run["steady_window"]]
-    shifted = variant(short_campaign, tmp_path / "shifted", shifted_clock, later_windows)
+    shifted = variant(short_campaign, tmp_path / "shifted", shifted_clock, _later_windows)
     original, moved = load_campaign(short_campaign), load_campaign(shifted)
     soil = truth_soil(short_campaign)
     for spec in original.runs:
@@ -215,6 +217,24 @@ def test_a_clock_offset_on_every_run_changes_nothing(short_campaign, tmp_path, h
             assert np.allclose(pb.targets[column][0], target[0], atol=1e-9), f"{spec.id}: {column} times"
         ra, rb = run_residuals(harness_fmu, pa, soil), run_residuals(harness_fmu, pb, soil)
         assert np.allclose(rb, ra, rtol=1e-6, atol=1e-6), f"{spec.id}: residuals differ"
+
+
+def test_a_clock_offset_leaves_the_registration_evidence_as_it_is(short_campaign, tmp_path):
+    """The scan's registration is fitted on the terrain run's training blocks and judged on its
+    held-out ones, the blocks the replays are split into, counted from the run's first sample
+    (CLOCK_OFFSET is not a whole number of blocks)."""
+    from juno.diagnose.problem import BLOCK
+    from juno.diagnose.starts import registration_evidence
+    assert (CLOCK_OFFSET / BLOCK) % 1 != 0
+    shifted = variant(short_campaign, tmp_path / "shifted", shifted_clock, _later_windows)
+    evidence = []
+    for root in (short_campaign, shifted):
+        campaign = load_campaign(root)
+        grid = gridded_scans(campaign, tmp_path / root.name, "validate")["t3d"][1]
+        evidence.append(registration_evidence(campaign, grid))
+    at_zero, later = evidence
+    assert later.ratio == pytest.approx(at_zero.ratio, rel=1e-6)
+    assert later.held_out_ms_registered == pytest.approx(at_zero.held_out_ms_registered, rel=1e-6)
 
 
 def test_columns_in_any_order_with_extra_ones_read_the_same(short_campaign, tmp_path):

@@ -127,7 +127,11 @@ def registration_evidence(campaign: Campaign, grid) -> HeldOutEvidence | None:
     from ..registration import flat_height, held_out_evidence, traverse_of
     run = campaign.runs_of_kind("terrain")[0]
     traverse = traverse_of(campaign, run)
-    train = (np.floor(traverse.t / BLOCK).astype(int) % 2) == 0    # the blocks of build_problem
+    # The blocks of build_problem, which count from the run's first sample: the traverse's times
+    # are the run's own clock, which may start anywhere (a data logger's), and blocks counted on
+    # it would fit the registration on the blocks the replay is judged on.
+    since_start = traverse.t - read_run(campaign, run).time[0]
+    train = (np.floor(since_start / BLOCK).astype(int) % 2) == 0
     if train.all() or not train.any():
         return None
     return held_out_evidence(grid, traverse, flat_height(campaign), train)
