@@ -96,8 +96,8 @@
     INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
     REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 1e-6, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor (> 0): below this speed the shear law is viscous") \
     INT (183, "contact.model",     PARAM, 0, 0, 1, p.contact_model, "Contact law: 0 = volumetric (Petersen-McPhee, the paper); 1 = Wong-Reece/Ishigami integrated rim stresses (wongReece.*, soil.cohesion, soil.phi, rebound soil.gamma)") \
-    REAL(182, "solver.step",       PARAM, "s",   1e-3, 1e-6, 0.1, p.solver_step, "Internal integration step (fixed), or the largest one when solver.tolerance > 0") \
-    REAL(184, "solver.tolerance",  PARAM, "m/s", 0.0, 0, 1, p.solver_tolerance, "0 = fixed internal steps of solver.step; > 0: automatic steps of at most solver.step, each one step and two half steps extrapolated, its length chosen so that their velocities (angular rates as speeds at wheel.radius or half rover.wheelbase) differ by at most this") \
+    REAL(182, "solver.step",       PARAM, "s",   0.02, 1e-6, 0.1, p.solver_step, "Largest internal integration step of the automatic step (solver.tolerance > 0), or the fixed step when solver.tolerance = 0") \
+    REAL(184, "solver.tolerance",  PARAM, "m/s", 1e-4, 0, 1, p.solver_tolerance, "0 = fixed internal steps of solver.step; > 0: automatic steps of at most solver.step, each one step and two half steps extrapolated, its length chosen so that their velocities (angular rates as speeds at wheel.radius or half rover.wheelbase) differ by at most this") \
     /* ---- model extensions: effects real data shows and the paper's model leaves out; each is off at its default ---- */ \
     REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \
     REAL(191, "soilPatch.y",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_y,      "Soil patch centre, world y") \

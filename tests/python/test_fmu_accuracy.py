@@ -1,10 +1,10 @@
-"""The FMU's automatic step is accurate: on the benchmark runs, slip, drive torque and sinkage
-with solver.tolerance = AUTOMATIC's stay within ACCURACY of a converged reference, and it runs
-wherever the fixed default step runs.
+"""The FMU's default step, the automatic one, is accurate: on the benchmark runs, slip, drive
+torque and sinkage at the FMU's default solver settings (AUTOMATIC) stay within ACCURACY of a
+converged reference, and the automatic step runs wherever the fixed 1 ms step runs.
 
 solver.tolerance > 0 takes each internal step as two halves extrapolated to second order, the
-step chosen by their difference, up to solver.step.  The runs are those the benchmarks time and a PID run that the
-importer drives with stepped references:
+step chosen by their difference, up to solver.step.  The runs are those the benchmarks time and
+a PID run that the importer drives with stepped references:
 
 * drawbar - 30 s on flat ground at the start values (motor drive at 45 % throttle, 400 N);
 * terrain - 60 s over a 0.5 m mound with 4 mm undulations (bench/bench_fmu.c's grid), 45 %
@@ -27,14 +27,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
-from fmu_helpers import WHEELS, FMICallException, LogCapture, Rover, run, slope_grid, write_asc
+from fmu_helpers import WHEELS, FMICallException, LogCapture, Rover, model_description, run, slope_grid, write_asc
 from test_fmu_ranges import _values, _walked_variables
 
 ACCURACY = 2e-3            # relative RMS difference from the converged reference
-AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 1e-4}   # the setting docs/fmu.md recommends
-REFERENCE_STEP = 6.25e-5   # s
+AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 1e-4}   # the FMU's default
+FIXED_1MS = {"solver.step": 1e-3, "solver.tolerance": 0.0}    # the fixed step the harness pins
+REFERENCE_STEP = 6.25e-5   # s, fixed
 COMM_STEP = 0.02           # s
 SETTLE = 5.0               # s
 
@@ -76,37 +76,52 @@ def relative_rms_error(value: np.ndarray, reference: np.ndarray, time: np.ndarra
     return float(np.sqrt(np.mean((value[part] - reference[part]) ** 2) / np.mean(reference[part] ** 2)))
 
 
-def test_the_automatic_step_is_within_the_accuracy_bound_of_a_converged_reference(fmu_unzipped, tmp_path):
+def _worst_errors(fmu_unzipped, tmp_path, setting: dict) -> dict[str, tuple[str, float]]:
+    """Run name -> (signal, relative RMS difference) of the signal farthest from the reference,
+    at the solver ``setting`` (FMU parameters; {} for the FMU's default)."""
     worst = {}
     for name, (params, inputs, duration) in _runs(tmp_path).items():
-        default = run(fmu_unzipped, {**params, **AUTOMATIC}, inputs, stop_time=duration, step=COMM_STEP,
-                      outputs=SIGNALS)
-        ref = run(fmu_unzipped, {**params, "solver.step": REFERENCE_STEP}, inputs, stop_time=duration,
-                  step=COMM_STEP, outputs=SIGNALS)
-        errors = {s: relative_rms_error(default[s], ref[s], ref["time"]) for s in SIGNALS}
+        result = run(fmu_unzipped, {**params, **setting}, inputs, stop_time=duration, step=COMM_STEP,
+                     outputs=SIGNALS)
+        ref = run(fmu_unzipped, {**params, "solver.step": REFERENCE_STEP, "solver.tolerance": 0.0}, inputs,
+                  stop_time=duration, step=COMM_STEP, outputs=SIGNALS)
+        errors = {s: relative_rms_error(result[s], ref[s], ref["time"]) for s in SIGNALS}
         assert all(math.isfinite(e) for e in errors.values()), (name, errors)
         worst[name] = max(errors.items(), key=lambda kv: kv[1])
-    print("\nworst relative RMS difference from the reference: "
+    return worst
+
+
+def test_the_default_solver_setting_is_the_automatic_step(fmu_unzipped):
+    """The FMU declares AUTOMATIC as its solver parameters' start values: a tool that sets
+    nothing gets the setting the next test bounds."""
+    declared = {v.name: float(v.start) for v in model_description(fmu_unzipped).modelVariables
+                if v.name in AUTOMATIC}
+    assert declared == AUTOMATIC
+
+
+def test_the_default_step_is_within_the_accuracy_bound_of_a_converged_reference(fmu_unzipped, tmp_path):
+    """Nothing set: every run's every signal within ACCURACY of the reference."""
+    worst = _worst_errors(fmu_unzipped, tmp_path, {})
+    print("\nthe default: worst relative RMS difference from the reference: "
           + ", ".join(f"{n}: {s} {e:.3%}" for n, (s, e) in worst.items()))
     for name, (signal, error) in worst.items():
         assert error <= ACCURACY, f"{name} run: {signal} differs from the converged reference by {error:.3%} RMS"
 
 
 def test_the_metric_sees_a_step_that_is_too_large(fmu_unzipped, tmp_path):
-    """The bound is not vacuous: a fixed 10 ms step, ten times the default, exceeds it on the
-    terrain run."""
+    """The bound is not vacuous: a fixed 10 ms step exceeds it on the terrain run."""
     params, inputs, duration = _runs(tmp_path)["terrain"]
-    coarse = run(fmu_unzipped, {**params, "solver.step": 0.01}, inputs, stop_time=duration, step=COMM_STEP,
-                 outputs=SIGNALS)
-    ref = run(fmu_unzipped, {**params, "solver.step": 2.5e-4}, inputs, stop_time=duration, step=COMM_STEP,
-              outputs=SIGNALS)
+    coarse = run(fmu_unzipped, {**params, "solver.step": 0.01, "solver.tolerance": 0.0}, inputs,
+                 stop_time=duration, step=COMM_STEP, outputs=SIGNALS)
+    ref = run(fmu_unzipped, {**params, "solver.step": 2.5e-4, "solver.tolerance": 0.0}, inputs,
+              stop_time=duration, step=COMM_STEP, outputs=SIGNALS)
     worst = max(relative_rms_error(coarse[s], ref[s], ref["time"]) for s in SIGNALS)
     print(f"\nterrain run at a fixed 10 ms: worst relative RMS difference {worst:.3%}")
     assert worst > ACCURACY
 
 
 # ---------------------------------------------------------------------------------------------
-# Stability: the automatic step runs wherever the fixed default runs
+# Stability: the automatic step runs wherever the fixed 1 ms step runs
 # ---------------------------------------------------------------------------------------------
 
 STABILITY_TIME = 3.0     # s of driving after initialisation
@@ -125,7 +140,7 @@ def _outcome(fmu_unzipped, params) -> str:
         return log.text().strip().splitlines()[-1] if log.text().strip() else str(exc)
 
 
-def test_the_automatic_step_runs_wherever_the_fixed_default_runs(fmu_unzipped, tmp_path):
+def test_the_automatic_step_runs_wherever_the_fixed_1ms_step_runs(fmu_unzipped, tmp_path):
     """Every value of every declared range that tests/python/test_fmu_ranges.py walks (the
     heaviest rover, the softest soil, the stiffest PID, ...; not the solver's own, which the
     automatic setting replaces) and a 15 degree slope: driven for
@@ -138,7 +153,7 @@ def test_the_automatic_step_runs_wherever_the_fixed_default_runs(fmu_unzipped, t
     cases.append(("a 15 degree slope", {"terrain.file": slope_grid(15.0).write(tmp_path / "slope.asc")}))
     problems, ran = [], 0
     for what, params in cases:
-        fixed = _outcome(fmu_unzipped, params)
+        fixed = _outcome(fmu_unzipped, {**params, **FIXED_1MS})
         if fixed != "ran":
             continue
         ran += 1

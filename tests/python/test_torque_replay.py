@@ -68,7 +68,8 @@ def test_the_throttle_makes_the_motor_give_the_measured_torque_plus_a_spin_dampi
         assert delivered == pytest.approx(torque + REPLAY_SPIN_DAMPING * (omega - w), rel=1e-12)
     assert REPLAY_SPIN_DAMPING == pytest.approx(153.0, rel=0.01)
     # And the FMU's motor is that motor: at rest (spin 0) the first step's torque is T + K omega.
-    sim = harness_fmu.simulate({"drive.mode": 2, **REPLAY_MOTOR, "drive.torqueMax": 2000.0, "solver.step": 1e-3},
+    sim = harness_fmu.simulate({"drive.mode": 2, **REPLAY_MOTOR, "drive.torqueMax": 2000.0, "solver.step": 1e-3,
+                                "solver.tolerance": 0.0},
                                InputSignals.constant(throttleLeft=throttle, throttleRight=throttle, drawbarForce=0.0),
                                0.001, 0.001, outputs=["torqueLeftApplied", "omegaLeft"])
     w_end = sim["omegaLeft"][-1]
