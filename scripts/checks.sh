@@ -126,8 +126,11 @@ for target in "${fuzz_targets[@]}"; do
 done
 if [ "$fuzz_failed" != 0 ]; then
   for target in "${fuzz_targets[@]}"; do tail -40 "$fuzz_dir/$target.log" 2>/dev/null || true; done
-  ls "$fuzz_dir"/crash-* "$fuzz_dir"/timeout-* "$fuzz_dir"/leak-* 2>/dev/null || true
-  echo "checks: a fuzz target failed: reproduce with build-asan/fuzz_TARGET FILE" >&2
+  # kept out of the temporary folder, which goes on exit
+  mkdir -p build-asan/fuzz-artifacts
+  cp "$fuzz_dir"/crash-* "$fuzz_dir"/timeout-* "$fuzz_dir"/leak-* build-asan/fuzz-artifacts/ 2>/dev/null || true
+  ls build-asan/fuzz-artifacts
+  echo "checks: a fuzz target failed: reproduce with build-asan/fuzz_TARGET build-asan/fuzz-artifacts/FILE" >&2
   exit 1
 fi
 note "fuzzing: no crash, leak or timeout ($((SECONDS - t0)) s)"
