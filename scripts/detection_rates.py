@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
             case = one_case(effect, strength, seed, args.workers, args.heavy_run, args.design)
             cases.append(case)
             shown = "/".join(f"{x:.3f}" for x in strength) if isinstance(strength, tuple) else f"{strength:.3f}"
-            print(f"{name:16s} seed {seed} strength {shown}: named {'+'.join(case['causes']) or 'none':16s} "
+            print(f"{name:16s} seed {seed} strength {shown}: named {'+'.join(case['causes']) or case['cause']:16s} "
                   f"({'right' if case['correct'] else 'WRONG'}, {case['wall_time']:.0f} s)", flush=True)
             if partial:
                 atomic_write_text(partial, json.dumps(cases, indent=1))
