@@ -253,9 +253,12 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
         char cause[256];
         for (int w = 0; w < NUM_WHEELS; ++w) nominal_wheel_position(p, w, at[w]);
         if (!rover_slope_beyond_friction(m, (const double (*)[3])at, cause, sizeof cause))
+            /* the extensions that soften the soil where the rover stands are named too */
             snprintf(cause, sizeof cause,
                      "is the soil too soft for the load on these wheels (soil.kh, soil.eta, wheel.radius, "
-                     "wheel.width)?");
+                     "wheel.width%s%s%s)?", p->patch_khFactor < 1.0 ? ", soilPatch.khFactor" : "",
+                     p->strip_khFactor < 1.0 ? ", soilStrip.khFactor" : "",
+                     p->multipass_khFactor < 1.0 ? ", multipass.khFactor" : "");
         snprintf(err, errlen,
                  "no static equilibrium found for the rover at init.x = %g, init.y = %g (residual %.3g of the "
                  "weight): %s", p->init_x, p->init_y, res, cause);

@@ -376,6 +376,9 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         const double n = ceil(remaining / h - 1e-9);     /* steps of at most h to the communication point */
         const int last = n <= 1;
         const double hs = last ? remaining : remaining / n;
+        /* at the smallest step by intent (h), not by hs, which round-off can leave just above it:
+         * compared by hs, a step that must be accepted there would be rejected for ever */
+        const int smallest = h <= STEP_MIN;
         char why[512];
         state_copy(&saved, s, with_rut);
         double ratio = HUGE_VAL;
@@ -392,7 +395,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         }
         if (ok) {
             ratio = error_ratio(m, &single, s);
-            if (ratio <= 1.0 || hs <= STEP_MIN) {
+            if (ratio <= 1.0 || smallest) {
                 extrapolate(s, &single);
                 s->time = saved.time + hs;
                 const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
@@ -408,7 +411,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
             }
         }
         /* rejected: back to the step's start, shorter */
-        if (hs <= STEP_MIN) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
+        if (smallest) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
         m->steps_rejected++;
         state_copy(s, &saved, with_rut);
         rover_evaluate_passive(m, ev, 1);
