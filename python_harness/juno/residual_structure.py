@@ -61,7 +61,7 @@ FALSE_ALARM = 0.01
 #: null, over the per-sample sigma) is not attributed to any cause.  Calibrated by simulation
 #: (scripts/structure_calibration.py, docs/results/structure-calibration.md): on campaigns with
 #: nothing hidden, of both synthetic designs, the fitted right model leaves structure of up to
-#: about 0.6 of the noise in the positions (the replay's heading drifts a little from the
+#: about half the noise in the positions (the replay's heading drifts a little from the
 #: measured one) that the bootstrap's input noise does not reproduce; the floor, one sensor
 #: sigma, lies above that and below the smallest discrepancy of a sensor or drivetrain decoy
 #: measured (a 7-10 N m drag on one side: 1.6 of the torque's noise).
