@@ -132,7 +132,7 @@ def test_report_has_the_joint_fit_and_validation_tables(noisy_report, noisy_join
         assert float(row[1]) == pytest.approx(noisy_joint.params[row[0]], rel=1e-3)
     validation = markdown_table_after(text, "## 4. Validation on the 3-D terrain")
     best = min(noisy_paper, key=lambda p: p.result.cost).result.run_id
-    assert [r[0] for r in validation[2:]] == ["joint fit", f"paper-style {best}"]
+    assert [(r[0], r[1]) for r in validation[2:]] == [("t3d", "joint fit"), ("t3d", f"paper-style {best}")]
     assert all(len(r) == len(validation[0]) for r in validation)
     truth = markdown_table_after(text, "## Synthetic truth")
     assert [r[0] for r in truth[2:]] == list(SOIL_PARAMETERS)
