@@ -288,40 +288,15 @@ static int agrees(double a, double b)
 }
 
 /* The contact laws of a stepping state (its Derived) must be those its parameters give, prepared
- * as initialisation prepares them (both models map the parameters alike): a crafted Simpson
+ * by the function initialisation uses (wheel_soil_prepare_laws): a crafted Simpson
  * interval count (2e9) or friction (tan phi = 1e9) would make every step last for hours. */
 static const char *contact_laws_invalid(const ModelState *st, char *why, size_t n)
 {
-    const Params *p = &st->p;
+    const SoilLaws laws = SOIL_LAWS_OF(&st->p);
     ContactModel c;
     WongReeceModel w;
-    memset(&c, 0, sizeof c);
-    c.kh = p->soil_kh;
-    c.eta = p->soil_eta;
-    c.gamma = p->soil_gamma;
-    c.Kvx = p->soil_Kvx;
-    c.Kvy_ratio = p->soil_KvyRatio;
-    c.cohesion = p->soil_cohesion;
-    c.phi = p->soil_phi;
-    c.radius = p->wheel_radius;
-    c.width = p->wheel_width;
-    c.slip_v_eps = p->contact_slipVelocityEps;
-    c.method = p->contact_method;
-    memset(&w, 0, sizeof w);
-    w.n = p->wr_n;
-    w.kc = p->wr_kc;
-    w.kphi = p->wr_kphi;
-    w.cohesion = p->soil_cohesion;
-    w.phi = p->soil_phi;
-    w.K = p->wr_K;
-    w.a0 = p->wr_a0;
-    w.a1 = p->wr_a1;
-    w.lambda = p->soil_gamma;
-    w.radius = p->wheel_radius;
-    w.width = p->wheel_width;
-    w.points = p->wr_points;
     char err[200];
-    if (contact_model_prepare(&c, err, sizeof err) != 0 || wong_reece_prepare(&w, err, sizeof err) != 0) {
+    if (wheel_soil_prepare_laws(&laws, &c, &w, err, sizeof err) != 0) {
         snprintf(why, n, "its parameters make no contact law: %s", err);
         return why;
     }

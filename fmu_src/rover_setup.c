@@ -280,64 +280,14 @@ static int find_equilibrium(Model *m, char *err, size_t errlen)
 
 /* ------------------------------------------------------------- life cycle */
 
-/* The Wong-Reece/Ishigami law's constants (wong_reece.h), from wongReece.*,
- * the shared soil.cohesion, soil.phi, the rebound lambda = soil.gamma and
- * the wheel.  Checked whatever contact.model is, so a bad value is
- * reported when it is set, not when the law is switched on later; the
- * messages name the FMU variables (wong_reece_prepare uses the same names;
- * gamma, cohesion, phi and the wheel were checked by contact_model_prepare). */
-static int prepare_wong_reece(Model *m, char *err, size_t errlen)
-{
-    const Params *p = &m->p;
-    if (p->contact_model != CONTACT_LAW_VOLUMETRIC && p->contact_model != CONTACT_LAW_WONG_REECE)
-        return snprintf(err, errlen, "contact.model = %d must be 0 (volumetric) or 1 (Wong-Reece)",
-                        p->contact_model), -1;
-    WongReeceModel *wm = &m->d.wong_reece;
-    memset(wm, 0, sizeof *wm);
-    wm->n = p->wr_n;
-    wm->kc = p->wr_kc;
-    wm->kphi = p->wr_kphi;
-    wm->cohesion = p->soil_cohesion;
-    wm->phi = p->soil_phi;
-    wm->K = p->wr_K;
-    wm->a0 = p->wr_a0;
-    wm->a1 = p->wr_a1;
-    wm->lambda = p->soil_gamma;
-    wm->radius = p->wheel_radius;
-    wm->width = p->wheel_width;
-    wm->points = p->wr_points;
-    return wong_reece_prepare(wm, err, errlen);
-}
-
-/* The volumetric law's constants (contact.h) from soil.*, the wheel and
- * contact.*: checked, and the Eqn 3 fit made. */
-static int prepare_volumetric(Model *m, char *err, size_t errlen)
-{
-    const Params *p = &m->p;
-    ContactModel *cm = &m->d.contact;
-    memset(cm, 0, sizeof *cm);
-    cm->kh = p->soil_kh;
-    cm->eta = p->soil_eta;
-    cm->gamma = p->soil_gamma;
-    cm->Kvx = p->soil_Kvx;
-    cm->Kvy_ratio = p->soil_KvyRatio;
-    cm->cohesion = p->soil_cohesion;
-    cm->phi = p->soil_phi;
-    cm->radius = p->wheel_radius;
-    cm->width = p->wheel_width;
-    cm->slip_v_eps = p->contact_slipVelocityEps;
-    cm->method = p->contact_method;
-    return contact_model_prepare(cm, err, errlen);
-}
-
 int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
     m->eval_valid = 0;
     m->steps_taken = m->steps_rejected = 0;
     if (check_params(p, err, errlen) != 0) return -1;
-    if (prepare_volumetric(m, err, errlen) != 0) return -1;
-    if (prepare_wong_reece(m, err, errlen) != 0) return -1;
+    const SoilLaws laws = SOIL_LAWS_OF(p);
+    if (wheel_soil_prepare_laws(&laws, &m->d.contact, &m->d.wong_reece, err, errlen) != 0) return -1;
     derive(m);
 
     terrain_free(&m->terrain);

@@ -56,52 +56,6 @@ static int check_params(const Params *p, char *err, size_t n)
     return 0;
 }
 
-/* The volumetric law's constants (contact.h) from soil.*, the wheel and
- * contact.*: checked, and the Eqn 3 fit made. */
-static int prepare_volumetric(Model *m, char *err, size_t errlen)
-{
-    const Params *p = &m->p;
-    ContactModel *cm = &m->d.contact;
-    memset(cm, 0, sizeof *cm);
-    cm->kh = p->soil_kh;
-    cm->eta = p->soil_eta;
-    cm->gamma = p->soil_gamma;
-    cm->Kvx = p->soil_Kvx;
-    cm->Kvy_ratio = p->soil_KvyRatio;
-    cm->cohesion = p->soil_cohesion;
-    cm->phi = p->soil_phi;
-    cm->radius = p->wheel_radius;
-    cm->width = p->wheel_width;
-    cm->slip_v_eps = p->contact_slipVelocityEps;
-    cm->method = p->contact_method;
-    return contact_model_prepare(cm, err, errlen);
-}
-
-/* The Wong-Reece/Ishigami law's constants (wong_reece.h), checked whatever
- * contact.model is, so a bad value is reported when it is set. */
-static int prepare_wong_reece(Model *m, char *err, size_t errlen)
-{
-    const Params *p = &m->p;
-    if (p->contact_model != CONTACT_LAW_VOLUMETRIC && p->contact_model != CONTACT_LAW_WONG_REECE)
-        return snprintf(err, errlen, "contact.model = %d must be 0 (volumetric) or 1 (Wong-Reece)",
-                        p->contact_model), -1;
-    WongReeceModel *wm = &m->d.wong_reece;
-    memset(wm, 0, sizeof *wm);
-    wm->n = p->wr_n;
-    wm->kc = p->wr_kc;
-    wm->kphi = p->wr_kphi;
-    wm->cohesion = p->soil_cohesion;
-    wm->phi = p->soil_phi;
-    wm->K = p->wr_K;
-    wm->a0 = p->wr_a0;
-    wm->a1 = p->wr_a1;
-    wm->lambda = p->soil_gamma;
-    wm->radius = p->wheel_radius;
-    wm->width = p->wheel_width;
-    wm->points = p->wr_points;
-    return wong_reece_prepare(wm, err, errlen);
-}
-
 /* ------------------------------------------------------------- the force */
 
 /* The wheel's spin (rad/s) from the inputs, at hub speed v_long along the
@@ -272,8 +226,8 @@ int model_initialize(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
     if (check_params(p, err, errlen) != 0) return -1;
-    if (prepare_volumetric(m, err, errlen) != 0) return -1;
-    if (prepare_wong_reece(m, err, errlen) != 0) return -1;
+    const SoilLaws laws = SOIL_LAWS_OF(p);
+    if (wheel_soil_prepare_laws(&laws, &m->d.contact, &m->d.wong_reece, err, errlen) != 0) return -1;
     m->d.mass = p->rig_mass > 0 ? p->rig_mass : p->rig_load / RIG_GRAVITY;
     const double t0 = m->s.time;
     memset(&m->s, 0, sizeof m->s);

@@ -5,6 +5,8 @@
  * extensions that act at the contact (slip-sinkage, grousers).
  */
 #include <math.h>
+#include <stdio.h>
+#include <string.h>
 
 #include "wheel_soil.h"
 
@@ -203,4 +205,41 @@ void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const Whee
         *F_long = c->wr.F_long;
         if (jac) jac[0] = jac[1] = jac[2] = 0.0;
     }
+}
+
+/* ------------------------------------------------- preparing the laws */
+
+int wheel_soil_prepare_laws(const SoilLaws *s, ContactModel *cm, WongReeceModel *wm, char *err, size_t errlen)
+{
+    memset(cm, 0, sizeof *cm);
+    cm->kh = s->kh;
+    cm->eta = s->eta;
+    cm->gamma = s->gamma;
+    cm->Kvx = s->Kvx;
+    cm->Kvy_ratio = s->Kvy_ratio;
+    cm->cohesion = s->cohesion;
+    cm->phi = s->phi;
+    cm->radius = s->radius;
+    cm->width = s->width;
+    cm->slip_v_eps = s->slip_v_eps;
+    cm->method = s->method;
+    if (contact_model_prepare(cm, err, errlen) != 0) return -1;
+    if (s->law != CONTACT_LAW_VOLUMETRIC && s->law != CONTACT_LAW_WONG_REECE)
+        return snprintf(err, errlen, "contact.model = %d must be 0 (volumetric) or 1 (Wong-Reece)", s->law), -1;
+    /* the rebound lambda is soil.gamma; cohesion, phi and the wheel are the volumetric law's,
+     * checked above */
+    memset(wm, 0, sizeof *wm);
+    wm->n = s->wr_n;
+    wm->kc = s->wr_kc;
+    wm->kphi = s->wr_kphi;
+    wm->cohesion = s->cohesion;
+    wm->phi = s->phi;
+    wm->K = s->wr_K;
+    wm->a0 = s->wr_a0;
+    wm->a1 = s->wr_a1;
+    wm->lambda = s->gamma;
+    wm->radius = s->radius;
+    wm->width = s->width;
+    wm->points = s->wr_points;
+    return wong_reece_prepare(wm, err, errlen);
 }

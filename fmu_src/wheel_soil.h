@@ -35,6 +35,29 @@
 
 enum { CONTACT_LAW_VOLUMETRIC = 0, CONTACT_LAW_WONG_REECE = 1 };
 
+/* What both contact laws are prepared from: the FMU variables soil.*, wheel.radius, wheel.width,
+ * contact.* and wr.*, which every model that uses this file declares under the same names in
+ * its Params.  SOIL_LAWS_OF(p) gathers them from a model's Params p. */
+typedef struct {
+    double kh, eta, gamma, Kvx, Kvy_ratio, cohesion, phi, radius, width, slip_v_eps;
+    int method, law;
+    double wr_n, wr_kc, wr_kphi, wr_K, wr_a0, wr_a1;
+    int wr_points;
+} SoilLaws;
+
+#define SOIL_LAWS_OF(p)                                                                        \
+    ((SoilLaws){(p)->soil_kh, (p)->soil_eta, (p)->soil_gamma, (p)->soil_Kvx, (p)->soil_KvyRatio, \
+                (p)->soil_cohesion, (p)->soil_phi, (p)->wheel_radius, (p)->wheel_width,          \
+                (p)->contact_slipVelocityEps, (p)->contact_method, (p)->contact_model,           \
+                (p)->wr_n, (p)->wr_kc, (p)->wr_kphi, (p)->wr_K, (p)->wr_a0, (p)->wr_a1,           \
+                (p)->wr_points})
+
+/* Prepares both contact laws from s: the volumetric law (checked, the Eqn 3 fit made) into cm
+ * and the Wong-Reece/Ishigami law into wm, the latter checked whatever contact.model is, so a
+ * bad value is reported when it is set, not when the law is switched on later (its messages
+ * name the FMU variables).  Returns 0, or -1 with the first problem in err. */
+int wheel_soil_prepare_laws(const SoilLaws *s, ContactModel *cm, WongReeceModel *wm, char *err, size_t errlen);
+
 /* The law's constants for one wheel: both contact laws prepared
  * (contact_model_prepare, wong_reece_prepare) and the extensions beyond
  * the paper's model that act at the contact, off at 0. */
