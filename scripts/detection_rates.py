@@ -86,6 +86,8 @@ def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...],
             "second_round": [_evidence(c) for c in result.get("second_round", [])]}
     if design != "default":
         case["design"] = design
+    info = EFFECT_INFO[effects[0]]
+    case["kind"] = "catalog" if info.exact_form else ("form" if info.in_catalog else "decoy")
     if len(effects) > 1:
         # Stronger: the larger one-cause gain, each effect's model judged against the base model.
         stronger_first = sorted(effects, key=lambda e: -gains.get(e, -np.inf))

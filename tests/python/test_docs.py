@@ -165,7 +165,6 @@ def test_the_example_campaign_raises_no_plausibility_finding():
 
 def test_the_example_campaigns_terrain_run_stays_over_its_scan():
     """The terrain run's measured path lies inside the scanned area (with a wheelbase's margin)."""
-    import numpy as np
     from juno.campaign import load_campaign, read_run, read_terrain_points
 
     campaign = load_campaign(EXAMPLE)
@@ -192,7 +191,45 @@ def test_a_detection_study_is_tabled_with_its_provenance():
     summary = gen.detection_summary(study)
     assert "none 2/2" in summary and "grouser 1/2" in summary and "abc1234" in summary
     assert "slip_sinkage" not in summary          # pairs are tabled on the page, not in the one-line summary
+    assert "alternative forms" not in summary and "decoys" not in summary    # none in this study
     page = gen.detection_page(study)
     for text in ("abc1234", "test machine", "2026-01-01 00:00 UTC", "--seeds 2", study["table"]):
         assert text in page
     assert "not measured" not in page
+
+
+def test_a_study_of_forms_and_decoys_is_summed_up_by_kind():
+    """Alternative forms and decoys are counted as two groups beside the catalog effects: the
+    one-line summary stays short however many forms the study hid."""
+    gen = _generator()
+    cases = ([{"effect": "none", "correct": True, "kind": "catalog"}]
+             + [{"effect": "soil_strip", "correct": ok, "kind": "form"} for ok in (True, True, False)]
+             + [{"effect": "side_drag", "correct": ok, "kind": "decoy", "design": "alt"} for ok in (True, False)])
+    study = {"cases": cases, "table": "",
+             "provenance": {"command": "c", "commit": "abc1234", "started": "s", "finished": "f", "machine": "m"}}
+    summary = gen.detection_summary(study)
+    assert "none 1/1" in summary
+    assert "alternative forms named as their mechanism 2/3" in summary
+    assert "decoys outside the catalog naming no catalog cause 1/2" in summary
+    assert "soil_strip" not in summary and "side_drag" not in summary
+
+
+def test_side_by_side_studies_stop_together_when_one_fails(tmp_path):
+    """A study that fails stops the others still running (no process is left behind) and fails
+    the whole: no results page is written from part of the studies."""
+    import os
+    import subprocess
+    import time
+
+    gen = _generator()
+    pid_file = tmp_path / "slow.pid"
+    slow = [sys.executable, "-c", f"import os, pathlib, time; pathlib.Path({str(pid_file)!r}).write_text(str(os.getpid())); "
+                                  "time.sleep(60)"]
+    failing = [sys.executable, "-c", "import sys, time; time.sleep(1.0); sys.exit(3)"]
+    t0 = time.monotonic()
+    with pytest.raises(subprocess.CalledProcessError) as failed:
+        gen._run_side_by_side([slow, failing], at_once=2)
+    assert failed.value.returncode == 3
+    assert time.monotonic() - t0 < 30               # the slow study was stopped, not waited for
+    with pytest.raises(ProcessLookupError):
+        os.kill(int(pid_file.read_text()), 0)      # and it is gone
