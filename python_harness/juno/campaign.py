@@ -584,7 +584,8 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
         raise ValueError(f"kind must be 'drawbar' or 'terrain' (a wheel_rig table: read_rig_csv), got {kind!r}")
     p = Path(path)
     text = decode_input_text(p, read_input_bytes(p))
-    names, rows, lines = _read_table(p, text, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind))
+    names, rows, lines = _read_table(p, text, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind,
+                                                                                     KNOWN_COLUMNS))
     columns: dict[str, FloatArray] = {}
     extra: dict[str, np.ndarray] = {}
     for j, name in enumerate(names):
@@ -634,7 +635,11 @@ def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
     return names, rows, lines
 
 
-def _check_header(path: Path, names: list[str], required: Sequence[str], kind: str) -> None:
+def _check_header(path: Path, names: list[str], required: Sequence[str], kind: str,
+                  known: Sequence[str]) -> None:
+    """Column names: present, unique, the ``required`` ones there.  A name that is a ``known``
+    column written with its unit or in another case is refused, not kept as an extra column the
+    harness would silently leave out."""
     if all(NUMBER_RE.fullmatch(n) for n in names if n) and any(names):
         raise InputError("the first line must be a header of column names; it holds numbers", path, 1)
     seen: set[str] = set()
@@ -647,8 +652,35 @@ def _check_header(path: Path, names: list[str], required: Sequence[str], kind: s
     for name in required:
         if name not in seen:
             raise InputError(
-                f"missing required column (a {kind} run needs {', '.join(required)})", path, 1, name
+                f"missing required column (a {kind} run needs {', '.join(required)})"
+                + _missing_column_hint(names, name), path, 1, name
             )
+    for name in known:
+        hint = "" if name in seen else _missing_column_hint(names, name)
+        if hint:
+            raise InputError(f"column {name!r} is not read{hint}", path, 1, name)
+
+
+#: A unit written into a column name: "time [s]", "pos_x (m)", "torque_left/Nm".
+_UNIT_SUFFIX_RE = re.compile(r"\s*(\[[^\]]*\]|\([^)]*\)|/\s*\S+)\s*$")
+
+
+def _missing_column_hint(names: Sequence[str], wanted: str) -> str:
+    """Why ``wanted`` may be missing from a header ``names`` that has something like it: the
+    file is not comma-separated, a column name carries its unit, or differs in case."""
+    if len(names) == 1:
+        for sep, what in ((";", "semicolons"), ("\t", "tabs"), ("|", "vertical bars")):
+            if sep in names[0]:
+                return (f"; the header is one cell, separated by {what}: the format is comma-separated with "
+                        f"'.' as the decimal point (docs/campaign-format.md)")
+    for name in names:
+        bare = _UNIT_SUFFIX_RE.sub("", name)
+        if bare != name and bare.strip().lower() == wanted:
+            return (f"; column {name!r} looks like {wanted!r} with its unit: the format fixes every unit (SI) and "
+                    f"names the column {wanted!r} alone (docs/campaign-format.md)")
+        if name.lower() == wanted:
+            return f"; column {name!r} differs only in case: column names are lower case ({wanted!r})"
+    return ""
 
 
 def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
@@ -705,7 +737,7 @@ def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
 
 
 def _check_rig_header(path: Path, names: list[str]) -> None:
-    _check_header(path, names, RIG_REQUIRED, "wheel_rig")
+    _check_header(path, names, RIG_REQUIRED, "wheel_rig", RIG_COLUMNS)
     present = set(names)
     for name in names:
         if name.endswith(RIG_STD_SUFFIX) and name in RIG_COLUMNS and name[: -len(RIG_STD_SUFFIX)] not in present:

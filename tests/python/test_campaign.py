@@ -255,6 +255,32 @@ def test_row_with_too_few_cells(campaign_dir: Path) -> None:
     assert_refused(campaign_dir, file="dbp1.csv", line=10, says="cells, the header has")
 
 
+@pytest.mark.parametrize("separator, says", [(";", "separated by semicolons"), ("\t", "separated by tabs")])
+def test_a_file_not_separated_by_commas_is_named_as_such(campaign_dir: Path, separator: str, says: str) -> None:
+    """A spreadsheet's export with another separator is refused with the reason, not as a file
+    missing its columns."""
+    p = campaign_dir / "runs/dbp1.csv"
+    p.write_text(p.read_text().replace(",", separator))
+    assert_refused(campaign_dir, file="dbp1.csv", line=1, column="time", says=says)
+
+
+@pytest.mark.parametrize("written, column", [("time [s]", "time"), ("omega_left (rad/s)", "omega_left"),
+                                             ("pos_x/m", "pos_x"), ("Torque_Left", "torque_left"),
+                                             ("yaw [rad]", "yaw")])
+def test_a_column_named_with_its_unit_or_in_capitals_is_refused_with_the_name_it_needs(
+        campaign_dir: Path, written: str, column: str) -> None:
+    """The units are fixed by the format: a known column written with its unit (or in another
+    case) is refused, naming the column it should be, even when the column is optional (kept as
+    an extra column, it would be left out without a word)."""
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    header = lines[0].split(",")
+    assert column in header
+    header[header.index(column)] = written
+    p.write_text("\n".join([",".join(header)] + lines[1:]) + "\n")
+    assert_refused(campaign_dir, file="dbp1.csv", line=1, column=column, says=f"column {written!r}")
+
+
 def test_duplicate_column_name(campaign_dir: Path) -> None:
     p = campaign_dir / "runs/dbp1.csv"
     p.write_text(p.read_text().replace("battery_volts", "pos_x", 1))
