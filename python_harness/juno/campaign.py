@@ -793,11 +793,23 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
         if not np.any((t >= a) & (t <= b)):
             raise InputError(
                 f"run {spec.id!r}: steady_window [{a}, {b}] s holds no samples; the run spans "
-                f"{t[0]!r} to {t[-1]!r} s",
+                f"{float(t[0])!r} to {float(t[-1])!r} s" + _steady_window_hint(a, b, float(t[0]), float(t[-1])),
                 campaign.manifest_path,
                 _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
             )
     return data
+
+
+def _steady_window_hint(a: float, b: float, t0: float, t1: float) -> str:
+    """The likely mistake behind a steady window [a, b] (s) outside a run spanning [t0, t1] (s):
+    a window counted from the run's start on a clock that does not start at zero, or a time
+    column in milliseconds."""
+    if t0 > 0 and t0 <= a + t0 and b + t0 <= t1:
+        return (f"; the window is on the run's own clock, which starts at {t0!r} s: counted from the "
+                f"start, it is [{a + t0!r}, {b + t0!r}]")
+    if t0 / 1000.0 <= a and b <= t1 / 1000.0:
+        return "; is the time column in milliseconds? The format's time is in seconds"
+    return ""
 
 
 def read_rig(campaign: Campaign, run: Union[RunSpec, str]) -> RigTable:

@@ -67,8 +67,9 @@ _SEP_RE = re.compile(r"\s*,\s*|\s+")
 def read_xyz(path: PathLike) -> NDArray[np.float64]:
     """Read a LIDAR point cloud; returns an (N, 3) float array of x, y, z in m.
 
-    Text format: three numbers per line (``x y z``, whitespace or comma separated),
-    ``#`` starts a comment, blank lines are skipped. Files starting with the line ``ply`` (or
+    Text format: a point per line, ``x y z`` first (whitespace or comma separated), further
+    fields (intensity, colour) left out but as many on every line; an optional first line naming
+    the fields (``x y z ...``, or ``//X Y Z ...``); ``#`` starts a comment, blank lines are skipped. Files starting with the line ``ply`` (or
     named ``*.ply``) are read as ASCII PLY (``element vertex`` with properties ``x``, ``y``,
     ``z``); binary PLY is refused.
 
@@ -87,17 +88,33 @@ def read_xyz(path: PathLike) -> NDArray[np.float64]:
 
 
 def _parse_xyz_text(path: Path, text: str) -> NDArray[np.float64]:
+    """x, y, z from the first three fields of every line.  Exports often add fields (intensity,
+    colour) and a header line naming them (``//X Y Z Intensity``): the first line may be such a
+    header, and fields beyond the third are left out, as extra CSV columns are; every point's line
+    must have as many fields as the first, so a broken line is not read as a point."""
     rows: list[tuple[float, float, float]] = []
+    fields: Optional[int] = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
         tokens = _SEP_RE.split(line)
-        if len(tokens) != 3:
-            raise InputError(f"expected 3 numbers 'x y z', found {len(tokens)} fields: {line[:60]!r}", path, lineno)
+        if fields is None and not rows and _is_xyz_header(tokens):
+            continue
+        if len(tokens) < 3 or (fields is not None and len(tokens) != fields):
+            expected = "3 numbers 'x y z'" if fields is None else f"{fields} fields, as the first point's line has"
+            raise InputError(f"expected {expected}, found {len(tokens)} fields: {line[:60]!r}", path, lineno)
+        fields = len(tokens)
         x, y, z = (parse_finite(t, path, lineno, name) for t, name in zip(tokens, "xyz"))
         rows.append((x, y, z))
     return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _is_xyz_header(tokens: list[str]) -> bool:
+    """Whether a line's fields name the columns, the first three x, y and z (any case, a leading
+    ``//`` as some exporters write it)."""
+    names = [tok.lstrip("/").strip().lower() for tok in tokens]
+    return len(names) >= 3 and names[:3] == ["x", "y", "z"]
 
 
 def _parse_ply(path: Path, data: bytes) -> NDArray[np.float64]:

@@ -215,6 +215,25 @@ def test_bad_token_refused_with_file_and_line(tmp_path: Path, bad_line: str, say
     assert p.read_bytes() == before
 
 
+@pytest.mark.parametrize("header", ["", "x y z intensity\n", "//X,Y,Z,Intensity\n", "X Y Z R G B\n"])
+def test_an_export_with_a_header_and_more_fields_reads_its_first_three(tmp_path: Path, header: str) -> None:
+    """LIDAR exports add intensity or colour and often a header naming the fields: the points are
+    the first three fields."""
+    p = tmp_path / "scan.xyz"
+    extra = 3 if header.count("R") else 1
+    p.write_text(header + "".join(f"{x} {y} {z}" + " 7" * extra + "\n" for x, y, z in [(0, 0, 0.5), (1, 0, 0.25), (0, 1, 0.125)]))
+    np.testing.assert_array_equal(read_xyz(p), [[0, 0, 0.5], [1, 0, 0.25], [0, 1, 0.125]])
+
+
+def test_a_header_line_after_the_first_point_is_refused(tmp_path: Path) -> None:
+    """Only the first line may name the fields: a name further down is a broken line."""
+    p = tmp_path / "scan.xyz"
+    p.write_text("0 0 0\nx y z\n1 1 1\n")
+    with pytest.raises(InputError, match="not a number") as info:
+        read_xyz(p)
+    assert info.value.line == 2
+
+
 @pytest.mark.parametrize("text", ["0 0 0\n1 1 1\n", "0 0 0\n1 1 1\n2 2 5\n3 3 1\n", "1 1 1\n1 1 2\n1 1 3\n"])
 def test_collinear_or_too_few_points_refused(tmp_path: Path, text: str) -> None:
     p = tmp_path / "line.xyz"
