@@ -281,6 +281,23 @@ def test_a_column_named_with_its_unit_or_in_capitals_is_refused_with_the_name_it
     assert_refused(campaign_dir, file="dbp1.csv", line=1, column=column, says=f"column {written!r}")
 
 
+@pytest.mark.parametrize("shift, scale, says", [
+    (1000.0, 1.0, "the run's own clock, which starts at 1000.0 s: counted from the start, it is [1002.0, 1005.0]"),
+    (0.0, 1000.0, "is the time column in milliseconds?")])
+def test_a_steady_window_off_its_run_names_the_likely_mistake(campaign_dir: Path, shift: float, scale: float,
+                                                             says: str) -> None:
+    """A steady window [2, 5] s that holds no sample of its run says why when the cause is
+    plain: the run's clock does not start at zero, or its time is in milliseconds."""
+    p = campaign_dir / "runs/dbp1.csv"
+    header, *rows = p.read_text().splitlines()
+    assert header.startswith("time,")
+    rows = [f"{float(r.split(',', 1)[0]) * scale + shift!r},{r.split(',', 1)[1]}" for r in rows]
+    p.write_text("\n".join([header, *rows]) + "\n")
+    line = 1 + next(i for i, l in enumerate((campaign_dir / "campaign.json").read_text().splitlines()) if '"dbp1"' in l)
+    assert_refused(campaign_dir, file="campaign.json", line=line, says="steady_window [2.0, 5.0] s holds no samples")
+    assert_refused(campaign_dir, file="campaign.json", line=line, says=says)
+
+
 def test_duplicate_column_name(campaign_dir: Path) -> None:
     p = campaign_dir / "runs/dbp1.csv"
     p.write_text(p.read_text().replace("battery_volts", "pos_x", 1))
