@@ -681,10 +681,31 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
         spans = _spans(t, off)
         share = float(np.mean(off))
         severity = "error" if share > OFF_SCAN_ERROR else "warning"
+        hint = _off_scan_hint(run, points, limits) if severity == "error" else ""
         out.append(Finding(severity, spec.file, "pos_x", f"run {spec.id!r}: the rover's wheel footprint leaves the "
                            f"scan {scan_file} during {_format_spans(spans)} ({share:.0%} of the position samples; "
-                           f"more than {OFF_SCAN_ERROR:.0%} is an error): the terrain there is not measured"))
+                           f"more than {OFF_SCAN_ERROR:.0%} is an error): the terrain there is not measured{hint}"))
     return out
+
+
+#: Length units a scan may be written in by mistake, with the factor to metres.
+SCAN_UNITS = (("millimetres", 1e-3), ("centimetres", 1e-2), ("feet", 0.3048))
+
+
+def _off_scan_hint(run: RunData, points: FloatArray, limits: RoverLimits) -> str:
+    """Why a path lies mostly off its scan: the scan in another length unit (the path lies on
+    the scan once it is converted to metres), or else the two extents, to compare frames."""
+    for unit, to_m in SCAN_UNITS:
+        _, off = path_off_scan(run, points * to_m, limits)
+        if np.mean(off) <= OFF_SCAN_ERROR:
+            return (f"; the scan looks like it is in {unit}: converted to metres, the path lies on it "
+                    "(the format's lengths are in m)")
+    _, x, _ = _own(run, "pos_x")
+    _, y, _ = _own(run, "pos_y")
+    lo, hi = points[:, :2].min(axis=0), points[:, :2].max(axis=0)
+    return (f"; the scan spans x {lo[0]:.2f} to {hi[0]:.2f} m, y {lo[1]:.2f} to {hi[1]:.2f} m, the path x "
+            f"{np.nanmin(x):.2f} to {np.nanmax(x):.2f} m, y {np.nanmin(y):.2f} to {np.nanmax(y):.2f} m: are both in "
+            "the same world frame?")
 
 
 def _outlier_axes(points: FloatArray, bad: NDArray[np.bool_]) -> tuple[bool, bool, bool]:

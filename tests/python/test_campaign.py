@@ -587,3 +587,30 @@ def test_a_scan_too_small_for_the_path_names_the_run_and_the_time(tmp_path: Path
     assert message.startswith("run 't3d': the rover's wheel footprint leaves the scan terrain/scan.xyz during ")
     start, end = message.split(" during ")[1].split(" s ")[0].split("-")
     assert 4.0 <= float(start) <= 4.8 and float(end) == 5.8
+
+
+@pytest.mark.parametrize("unit, to_m", [("millimetres", 1e-3), ("centimetres", 1e-2)])
+def test_a_scan_in_another_length_unit_is_named_as_such(tmp_path: Path, unit: str, to_m: float) -> None:
+    """A scan written in mm or cm leaves the path off it: the error says which unit puts the
+    path back on the scan."""
+    from juno.plausibility import check_campaign
+
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), make_runs(), {"scan": make_terrain() / to_m})
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "pos_x")]
+    assert f"the scan looks like it is in {unit}" in errors[0].message
+
+
+def test_a_scan_in_another_frame_shows_both_extents(tmp_path: Path) -> None:
+    """A scan in map coordinates (UTM) beside a path in a local frame: the error gives both
+    extents, to compare the frames."""
+    from juno.plausibility import check_campaign
+
+    pts = make_terrain() + np.array([500000.0, 5400000.0, 0.0])
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), make_runs(), {"scan": pts})
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert len(errors) == 1
+    assert "the same world frame?" in errors[0].message and "y 5399998" in errors[0].message
+    assert "looks like it is in" not in errors[0].message
