@@ -199,16 +199,18 @@ static void kinematics(const Model *m, Eval *ev, Frames *fr)
 }
 
 /* M and Q of the seven bodies (ev->M, ev->Q cleared first; ev->D and
- * ev->K cleared for the contacts and inputs to add to). */
-static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
+ * ev->K cleared for the contacts and inputs to add to, unless kept). */
+static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep_jacobians)
 {
     const Params *p = &m->p;
     const Derived *d = &m->d;
     const double *u = m->s.u;
     memset(ev->M, 0, sizeof ev->M);
     memset(ev->Q, 0, sizeof ev->Q);
-    memset(ev->D, 0, sizeof ev->D);
-    memset(ev->K, 0, sizeof(double) * NU * NU);
+    if (!keep_jacobians) {
+        memset(ev->D, 0, sizeof ev->D);
+        memset(ev->K, 0, sizeof(double) * NU * NU);
+    }
     BodyCommon common;
     common.w = &u[U_WX];
     common.g = p->env_gravity;
@@ -273,7 +275,7 @@ void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
     Frames fr;
     kinematics(m, ev, &fr);
-    if (matrices) assemble_bodies(m, ev, &fr);
+    if (matrices) assemble_bodies(m, ev, &fr, matrices == EVAL_KEEP_JACOBIANS);
     for (int wh = 0; wh < NUM_WHEELS; ++wh) rover_wheel_contact(m, ev, wh, matrices);
 }
 
@@ -310,13 +312,16 @@ void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega
 /* The part that depends on the inputs (and s.pid_integral): the drive
  * torques and, if matrices, the drive, rocker damping and drawbar terms
  * added to the Q, D, K of rover_evaluate_passive (once per passive
- * evaluation). */
+ * evaluation; with EVAL_KEEP_JACOBIANS to Q only, and the torque slopes
+ * stay those D and K were made with). */
 void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
 {
     const Params *p = &m->p;
     const double *u = m->s.u;
-    double (*K)[NU] = ev->K;
-    double *slope = ev->torque_slope;
+    const int jacobians = matrices == EVAL_MATRICES;
+    double (*D)[NU] = ev->D, (*K)[NU] = ev->K;
+    double now_slope[2];
+    double *slope = jacobians || !matrices ? ev->torque_slope : now_slope;
     rover_drive_torques(m, ev->torque, slope);
     if (!matrices) return;
 
@@ -326,12 +331,12 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
     const double transmitted = 1.0 - p->drive_lossFraction;
     for (int k = 0; k < 2; ++k) {
         ev->Q[U_SPIN_L + k] += transmitted * ev->torque[k];
-        ev->D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
+        if (jacobians) D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
         /* The PID's integral acts like a torsion spring on the spin angle (I' = ref - omega):
          * treated implicitly as a stiffness, so a stiff PID stays stable at large steps
          * (explicitly, K_i = 2e4 N m/rad went unstable at 5 ms in soft soil).  Off when the
          * torque is saturated (slope 0), where the anti-windup holds the integral. */
-        if (p->drive_mode == DRIVE_PID && slope[k] != 0)
+        if (jacobians && p->drive_mode == DRIVE_PID && slope[k] != 0)
             K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
         /* Drivetrain friction on the wheel side (drive.frictionLeft/Right: Coulomb,
          * drive.viscousFriction: viscous), opposing the spin relative to the rocker; the
@@ -341,12 +346,12 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
         if (coulomb > 0 || p->drive_viscousFriction > 0) {
             const double w = u[U_SPIN_L + k], th = tanh(w / 0.05);
             ev->Q[U_SPIN_L + k] -= coulomb * th + p->drive_viscousFriction * w;
-            ev->D[U_SPIN_L + k][U_SPIN_L + k] += coulomb * (1.0 - th * th) / 0.05 + p->drive_viscousFriction;
+            if (jacobians) D[U_SPIN_L + k][U_SPIN_L + k] += coulomb * (1.0 - th * th) / 0.05 + p->drive_viscousFriction;
         }
     }
     /* Rocker differential friction. */
     ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
-    ev->D[U_BETA][U_BETA] += p->rover_rockerDamping;
+    if (jacobians) D[U_BETA][U_BETA] += p->rover_rockerDamping;
     /* Drawbar: horizontal, backwards along the heading, at the hitch (a
      * chassis point r from the reference point: Q_v += F, Q_w += r x F). */
     const double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ};

@@ -41,15 +41,25 @@ extern const char *const rover_wheel_names[NUM_WHEELS];
 static inline int side_of(int w) { return w / 2; }
 static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
 
+/* What an evaluation computes beside the kinematics and the forces (the
+ * `matrices` argument below):
+ *   EVAL_FORCES       nothing more (the outputs);
+ *   EVAL_MATRICES     M, Q, and the damping D and stiffness K, the Jacobians
+ *                     the linearly implicit step needs;
+ *   EVAL_KEEP_JACOBIANS  M and Q afresh, D, K and the drive's torque slopes
+ *                     left as an earlier EVAL_MATRICES evaluation of the same
+ *                     Eval made them (the automatic step's half-way point). */
+enum { EVAL_FORCES = 0, EVAL_MATRICES = 1, EVAL_KEEP_JACOBIANS = 2 };
+
 /* rover_wheel_contact.c */
 
 /* Terrain elevation (m) at world (x, y) and, if n, the unit normal there,
  * with the registration offsets (terrain.offset*) applied. */
 double rover_terrain_at(const Model *m, double x, double y, double n[3]);
 
-/* Contact of wheel w: fills ev->wheel[w]; with matrices, adds its
- * generalised force to ev->Q, its damping to ev->D and its stiffness to
- * ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
+/* Contact of wheel w: fills ev->wheel[w]; with matrices (EVAL_MATRICES or
+ * EVAL_KEEP_JACOBIANS), adds its generalised force to ev->Q, and with
+ * EVAL_MATRICES its damping to ev->D and its stiffness to ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
 void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices);
 
 /* rover_dynamics.c */

@@ -308,8 +308,15 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
  * one and at most solver.step.  The velocities, positions, attitude,
  * rocker angle and PID integral are extrapolated; the soil memory, the
  * rut and the applied torque are B's (the memory's maximum and clamps are
- * not smooth in time).  A step costs two evaluations (the half-way point
- * and the end, which the next step starts from) and three solves.  A
+ * not smooth in time).  All three substeps linearise with the Jacobians
+ * of the step's start (the damping D and stiffness K, the drive's torque
+ * slopes), as LIMEX does: with the matrix fixed over the step, the
+ * substeps' errors still expand in powers of h, so the extrapolation keeps
+ * its order, and a Jacobian a half step old damps the stiff soil modes as
+ * well; the mass matrix M and the forces Q are the half-way point's, as the
+ * equations of motion are.  A step so costs one evaluation with Jacobians
+ * (the end, which the next step starts from), one without (the half-way
+ * point: about two thirds of the cost) and three solves.  A
  * rejected step, or one whose state fails the checks of a diverging state,
  * is taken again from the saved state, shorter, down to STEP_MIN, below
  * which that failure is reported. */
@@ -388,9 +395,9 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
             state_copy(s, &saved, with_rut);
             ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, first half */
         }
-        if (ok) {
-            rover_evaluate_passive(m, ev, 1);
-            rover_evaluate_inputs(m, ev, 1);
+        if (ok) {   /* the half-way point: M and Q afresh, the Jacobians D and K the step's start's */
+            rover_evaluate_passive(m, ev, EVAL_KEEP_JACOBIANS);
+            rover_evaluate_inputs(m, ev, EVAL_KEEP_JACOBIANS);
             ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, second half */
         }
         if (ok) {

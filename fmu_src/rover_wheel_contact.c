@@ -352,8 +352,10 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     WheelSoilContact sc;
     wheel_soil_slip(&ws, &in, &sc);
     wc->slip = sc.slip;
-    wheel_soil_normal(&ws, &m->s.memory[w], &in, matrices, &sc);
+    const int jacobians = matrices == EVAL_MATRICES;
+    wheel_soil_normal(&ws, &m->s.memory[w], &in, jacobians, &sc);
     ShearGeometry sg;
-    contact_forces(m, &ws, Jh, Jw, sp, &cf, &in, &sc, matrices, wc, &sg);
-    if (matrices) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
+    contact_forces(m, &ws, Jh, Jw, sp, &cf, &in, &sc, jacobians, wc, &sg);
+    if (jacobians) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
+    else if (matrices) point_add_generalised(ev->Q, sg.Jp, wc->force, sp);
 }
