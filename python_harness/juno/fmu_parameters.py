@@ -16,7 +16,7 @@ from typing import Any, Iterable, Mapping
 
 from .errors import InputError, parse_finite
 
-__all__ = ["fmu_variables", "parse_assignments", "parameter_value", "check_parameters"]
+__all__ = ["fmu_variables", "parse_assignments", "parameter_value", "check_parameters", "check_rover_overrides"]
 
 
 def fmu_variables(fmu_path: str | Path | None) -> dict[str, Any]:
@@ -102,3 +102,26 @@ def check_parameters(params: Mapping[str, object], fmu_path: str | Path | None,
         return {}
     variables = fmu_variables(fmu_path)
     return {name: parameter_value(variables, name, value, option) for name, value in params.items()}
+
+
+def check_rover_overrides(rover: Mapping[str, object], manifest: str | Path,
+                          fmu_path: str | Path | None) -> dict[str, object]:
+    """A campaign's ``rover`` parameter overrides typed and range-checked against the FMU
+    (:func:`parameter_value`), so that a misspelt name or a value in the wrong unit is refused
+    with the manifest's file and line before any simulation, not by a worker half-way through."""
+    if not rover:
+        return {}
+    variables = fmu_variables(fmu_path)
+    path = Path(manifest)
+    try:
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        lines = []
+    checked = {}
+    for name, value in rover.items():
+        try:
+            checked[name] = parameter_value(variables, name, value, option="'rover':")
+        except InputError as exc:
+            line = next((i for i, text in enumerate(lines, start=1) if f'"{name}"' in text), None)
+            raise InputError(exc.message, path, line, name) from None
+    return checked

@@ -92,6 +92,7 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from statistics import NormalDist
 from typing import Callable, Iterable, Mapping, Optional, TextIO, Union
 
@@ -741,13 +742,20 @@ def check_campaign(campaign: Campaign) -> list[Finding]:
 
 
 def enforce_plausibility(campaign: Campaign, force: bool = False,
-                         stream: Optional[Union[TextIO, Callable[[str], None]]] = None) -> list[Finding]:
-    """Runs :func:`check_campaign` before any computation.
+                         stream: Optional[Union[TextIO, Callable[[str], None]]] = None,
+                         fmu: Optional[Union[str, Path]] = None) -> list[Finding]:
+    """Runs :func:`check_campaign` before any computation, after the campaign's ``rover``
+    overrides are checked against the FMU ``fmu`` (default: the project's FMU): a name the FMU
+    does not have, or a value outside its range, raises InputError (``force`` does not pass it:
+    the FMU would refuse it).
 
     Warnings are written one line each to ``stream`` (default stderr; a callable gets each line).
     Errors raise :class:`PlausibilityError` listing every error finding, unless ``force``: then
     they are written as warnings too and the command goes on. Returns the findings.
     """
+    from .fmu_parameters import check_rover_overrides
+
+    check_rover_overrides(campaign.rover, campaign.manifest_path, fmu)
     findings = check_campaign(campaign)
     if stream is None:
         stream = sys.stderr

@@ -176,6 +176,28 @@ def test_bad_param_exits_2_naming_it(param, needle):
     one_line_error(proc, needle)
 
 
+@pytest.mark.parametrize("command", ["identify", "validate", "diagnose"])
+@pytest.mark.parametrize("override, needles", [
+    ({"wheel.widht": 0.254}, ("campaign.json", "wheel.widht", "did you mean wheel.width")),
+    ({"wheel.width": 254}, ("campaign.json", "wheel.width=254", "out of the FMU's range")),
+], ids=["misspelt", "in-mm"])
+def test_a_bad_rover_override_in_the_manifest_exits_2_naming_its_line(tmp_path, small_campaign, command, override,
+                                                                      needles):
+    """The campaign's ``rover`` overrides are checked against the FMU before any simulation:
+    the file, the line and the rule, not a worker's KeyError half-way through."""
+    import shutil
+
+    root = tmp_path / "campaign"
+    shutil.copytree(small_campaign(101).path, root)
+    manifest = root / "campaign.json"
+    doc = json.loads(manifest.read_text())
+    doc["rover"] = {**doc.get("rover", {}), **override}
+    manifest.write_text(json.dumps(doc, indent=1))
+    line = next(i for i, text in enumerate(manifest.read_text().splitlines(), start=1) if next(iter(override)) in text)
+    proc = run_juno(command, root, "--quiet")
+    one_line_error(proc, *needles, f"line {line}")
+
+
 def test_missing_params_file_exits_2_naming_it(tmp_path, small_campaign):
     c = small_campaign(101)
     missing = tmp_path / "no-such-params.json"

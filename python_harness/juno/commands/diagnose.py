@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from ..simulator import JunoFMU
     say = progress_printer(args.quiet)
     campaign = load_campaign(args.campaign)
-    enforce_plausibility(campaign, force=args.force)
+    enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     result = diagnose(campaign, fmu=JunoFMU(args.fmu) if args.fmu else None, workers=args.workers,
                       candidates=args.candidates, progress=say, scheduler=args.scheduler,
                       terrain_segment=args.terrain_segments)

@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from ..simulator import JunoFMU
     say = progress_printer(args.quiet)
     campaign = load_campaign(args.campaign)
-    enforce_plausibility(campaign, force=args.force)
+    enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     batch = {"workers": args.workers, "scheduler": args.scheduler}
     out: dict[str, Any] = {"campaign": campaign.name}
     has_rig = bool(campaign.runs_of_kind("wheel_rig"))

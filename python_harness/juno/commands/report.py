@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     from ..validate import validate_run
     say = progress_printer(args.quiet)
     campaign = load_campaign(args.campaign)
-    enforce_plausibility(campaign, force=args.force)
+    enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     timings: dict[str, float] = {}
     rig = None
     if campaign.runs_of_kind("wheel_rig"):

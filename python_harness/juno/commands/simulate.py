@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
             from ..plausibility import enforce_plausibility
             from ..validate import grid_terrain
             campaign = load_campaign(args.campaign)
-            enforce_plausibility(campaign, force=args.force)
+            enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
             run_spec = campaign.run(args.run) if args.run else campaign.runs[0]
             with tempfile.TemporaryDirectory() as tmp:
                 grid = str(grid_terrain(campaign, run_spec, tmp)[0]) if run_spec.kind == "terrain" else None

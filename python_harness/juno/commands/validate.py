@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     cell = GRID_CELL if args.cell is None else args.cell
     soil = load_identified_soil(args.params) if args.params else None
     campaign = load_campaign(args.campaign)
-    enforce_plausibility(campaign, force=args.force)
+    enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     require_runs(campaign, "validate")
     with JunoFMU(args.fmu) as fmu:
         if soil is None:
