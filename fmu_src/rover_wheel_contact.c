@@ -101,6 +101,23 @@ static void add_outer(double Mx[NU][NU], const double a[NU], double s, const dou
     }
 }
 
+/* M -= a^T b, then M -= c^T d: add_outer(M, a, -1, b) then add_outer(M,
+ * c, -1, d) in one pass over M, each entry getting the same two additions
+ * in the same order. */
+static void sub_outer_pair(double Mx[NU][NU], const double a[NU], const double b[NU], const double c[NU],
+                           const double d[NU])
+{
+    for (int i = 0; i < NU; ++i) {
+        const double ai = a[i] * -1.0, ci = c[i] * -1.0;
+        if (a[i] != 0 && c[i] != 0)
+            for (int j = 0; j < NU; ++j) Mx[i][j] = (Mx[i][j] + ai * b[j]) + ci * d[j];
+        else if (a[i] != 0)
+            for (int j = 0; j < NU; ++j) Mx[i][j] += ai * b[j];
+        else if (c[i] != 0)
+            for (int j = 0; j < NU; ++j) Mx[i][j] += ci * d[j];
+    }
+}
+
 /* ------------------------------------------------------ terrain, soil */
 
 /* Terrain at world (x, y), with the registration extension: the grid is
@@ -292,8 +309,7 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
         dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
         dFy[k] = jac[3] * g_long[k] + jac[4] * g_lat[k] + jac[5] * g_spin[k];
     }
-    add_outer(ev->D, a_t, -1.0, dFl);
-    add_outer(ev->D, g_lat, -1.0, dFy);
+    sub_outer_pair(ev->D, a_t, dFl, g_lat, dFy);
     /* The stiffness K = -dQ/dq: the force's direction times the sinkage's
      * gradient.  Sinkage = R - (H_z - z_t) n_z / in_plane grows by
      * -(n . dH) / in_plane when the hub moves by dH, whatever the force's
@@ -307,7 +323,8 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
      * at 1 ms; with this K the same to 6 digits at every step). */
     double a_s[NU];
     point_vec_times_jac(a_s, cf->n, Jh, sp);
-    for (int k = 0; k < NU; ++k) a_s[k] /= cf->in_plane;
+    if (cf->in_plane != 1.0)                /* 1 exactly wherever the axle is level across the slope */
+        for (int k = 0; k < NU; ++k) a_s[k] /= cf->in_plane;
     double a_n[NU];
     if (sc->wong_reece) {
         /* Slip damping of WR's in-plane forces: Q = Jh^T (Fx f + Fz np) -
