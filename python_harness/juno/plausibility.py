@@ -112,6 +112,7 @@ __all__ = [
     "RoverLimits",
     "rover_limits",
     "check_run",
+    "check_signs",
     "check_scan",
     "check_rig",
     "path_off_scan",
@@ -148,6 +149,13 @@ ABSURD_STEP = 10.0
 #: digits; exact repeats over seconds mean it stopped updating.
 FROZEN_SPAN = 2.0
 TURNING = 0.2
+#: A drawbar run's median drive torque of the wrong sign is an error beyond this share of the
+#: drive torque per side: a reversed sensor sign, not a sensor offset.
+SIGN_MATERIAL = 0.05
+#: A drawbar run's median drawbar force of the wrong sign is an error beyond this share of the
+#: thrust its measured torques give (their medians' sum over the wheel radius): a reversed sign,
+#: not a load cell's offset on a run with a load near zero.
+DRAWBAR_SIGN_MATERIAL = 0.25
 #: Probability that Gaussian noise over one column raises an outlier finding.
 FALSE_ALARM = 1e-4
 #: Gaussian efficiency of the MAD as a scale estimate (degrees of freedom per sample).
@@ -411,6 +419,38 @@ def check_torques(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     return out
 
 
+def _forward_spin(run: RunData) -> float:
+    """Median spin (rad/s) of both sides' samples, signed (forward > 0); 0 without spins."""
+    vals = [_own(run, n)[1] for n in ("omega_left", "omega_right") if run.has(n)]
+    return float(np.median(np.concatenate(vals))) if vals else 0.0
+
+
+def check_signs(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Sign conventions of a drawbar run, from physics: on flat ground, a rover whose wheels
+    drive forward while it pulls a load takes driving torque (torque and spin of one sign) and
+    the load cell holds it back (``drawbar_force`` > 0).  A median of the other sign beyond
+    SIGN_MATERIAL of the drive torque, or DRAWBAR_SIGN_MATERIAL of the thrust the measured
+    torques give, is a reversed sign."""
+    if run.kind != "drawbar" or _forward_spin(run) <= TURNING:
+        return []
+    out = []
+    for name in ("torque_left", "torque_right"):
+        if run.has(name):
+            median = float(np.median(_own(run, name)[1]))
+            if median < -SIGN_MATERIAL * limits.drive_torque:
+                out.append(Finding("error", file, name, f"the median {name} is {_g(median)} N m while the wheels "
+                                   f"drive forward (median spin {_g(_forward_spin(run))} rad/s): pulling a load on "
+                                   "flat ground takes driving torque, of the spin's sign; is the sign reversed?"))
+    torque = sum(abs(float(np.median(_own(run, n)[1]))) for n in ("torque_left", "torque_right") if run.has(n))
+    if run.has("drawbar_force"):
+        median = float(np.median(_own(run, "drawbar_force")[1]))
+        if median < -DRAWBAR_SIGN_MATERIAL * torque / limits.wheel_radius:
+            out.append(Finding("error", file, "drawbar_force", f"the median drawbar_force is {_g(median)} N while "
+                               "the wheels drive forward: the load cell's force holds the rover back and is "
+                               "positive then (docs/campaign-format.md); is the sign reversed?"))
+    return out
+
+
 def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Drawbar force beyond what the wheels of both sides can push."""
     name = "drawbar_force"
@@ -523,7 +563,7 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Every check of one run's columns; a column with an error gets no outlier warning on top."""
     found = (check_time(run, file) + check_angles(run, file, limits) + check_spins(run, file, limits)
              + check_torques(run, file, limits) + check_drawbar(run, file, limits)
-             + check_positions(run, file, limits))
+             + check_signs(run, file, limits) + check_positions(run, file, limits))
     with_error = {f.column for f in found if f.severity == "error"}
     columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
     return found + check_outliers(run, file, columns, limits)

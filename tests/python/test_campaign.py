@@ -569,6 +569,33 @@ def test_implausible_values_are_named_by_file_column_and_evidence(tmp_path: Path
     assert "12.5" in found[("error", "runs/t3d.csv", "pitch")] and "degrees" in found[("error", "runs/t3d.csv", "pitch")]
 
 
+@pytest.mark.parametrize("column", ["torque_left", "drawbar_force"])
+def test_a_reversed_sign_on_a_drawbar_run_is_an_error(tmp_path: Path, column: str) -> None:
+    """Wheels driving forward while pulling a load take driving torque, and the load cell holds
+    the rover back: a drive torque or a drawbar force of the other sign is a reversed sensor."""
+    from juno.plausibility import check_campaign
+
+    runs = make_runs()
+    runs["dbp1"][column] = -runs["dbp1"][column]
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), runs, {"scan": wide_terrain()})
+    found = check_campaign(load_campaign(root))
+    assert [(f.severity, f.file, f.column) for f in found] == [("error", "runs/dbp1.csv", column)]
+    assert "is the sign reversed?" in found[0].message
+
+
+def test_a_drawbar_run_without_a_load_is_no_sign_error(tmp_path: Path) -> None:
+    """A load cell reading a few newtons below zero on a run without a load is its offset, not a
+    reversed sign."""
+    from juno.plausibility import check_campaign
+
+    runs = make_runs()
+    runs["dbp1"]["drawbar_force"] = np.full(len(runs["dbp1"]["time"]), -8.0)
+    root = tmp_path / "camp"
+    write_campaign(root, make_manifest(), runs, {"scan": wide_terrain()})
+    assert check_campaign(load_campaign(root)) == []
+
+
 def test_a_scan_too_small_for_the_path_names_the_run_and_the_time(tmp_path: Path) -> None:
     """On a scan of +-1 m the front wheels' footprint (0.69 m ahead of the prism) passes the
     gridded margin (1 m beyond the last scan point) when the rover reaches x = 1.3 m, at about
