@@ -872,7 +872,9 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
         if isinstance(terrain_file, dict):
             return terrain_file.get(run.id)
         return terrain_file
-    prepared = [prepare_run(campaign, r, terrain_file=grid_of(r) if r.kind == "terrain" else None) for r in runs]
+    data = {r.id: read_run(campaign, r) for r in runs}
+    prepared = [prepare_run(campaign, r, data[r.id], terrain_file=grid_of(r) if r.kind == "terrain" else None)
+                for r in runs]
     if optimizer not in ("least-squares", "nelder-mead"):
         raise ValueError(f"unknown optimizer '{optimizer}' (least-squares or nelder-mead)")
     # Tasks per batch: the runs of one evaluation, or the Jacobian's four points.
@@ -883,8 +885,9 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     # during the fit, serial or parallel alike.
     with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
         fun = JointResiduals(fmu, prepared, extra, pool)
-        result = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
-    result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra)
+        result, at_optimum = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
+    result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
+                                                 workers=n_workers or 1, data=data)
     result.wall_time = time.perf_counter() - start
     return result
 
@@ -896,12 +899,18 @@ AT_LIMIT = 0.01
 
 
 def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun], result: JointResult,
-               extra: dict[str, object] | None = None) -> tuple[list[str], dict | None]:
+               extra: dict[str, object] | None = None, residuals: np.ndarray | None = None,
+               workers: int | None = 1, data: dict[str, RunData] | None = None) -> tuple[list[str], dict | None]:
     """Why a joint fit's estimates are doubtful, in words, and the structure test behind it:
     each parameter at a bound of the search (AT_LIMIT); and structure beyond sensor noise in the
     fitted model's residuals on the drawbar runs (juno.residual_structure, every 4 s block
     tested): a model that does not describe the data bends its parameters to absorb what it
-    cannot describe, so their uncertainty understates how wrong they are."""
+    cannot describe, so their uncertainty understates how wrong they are.
+
+    ``residuals``: the fit's scaled residuals at ``result.params`` over ``prepared``, when the
+    caller has them (the model is deterministic: simulating them again gives the same numbers);
+    ``workers``: local processes for the structure test's replays (1: this process); ``data``:
+    the measured runs (run id -> RunData), when already read."""
     from .residual_structure import residual_structure
     doubts = []
     x = to_search(result.params)
@@ -921,9 +930,10 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
     meta = {"run": np.array(runs), "signal": np.array(signals), "time": t,
             "block": np.floor(t / STRUCTURE_BLOCK).astype(int)}
     try:
-        r = np.concatenate([run_residuals(fmu, p, result.params, extra) for p in prepared])
+        r = residuals if residuals is not None else \
+            np.concatenate([run_residuals(fmu, p, result.params, extra) for p in prepared])
         test = residual_structure(campaign, fmu, prepared, meta, np.zeros(len(t), bool), r,
-                                  {**result.params, **(extra or {})})
+                                  {**result.params, **(extra or {})}, workers=workers, data=data)
     except SimulationError as exc:
         # The fit stands (its own simulations succeeded); what cannot be said is whether it
         # leaves structure, and that is said.
@@ -944,7 +954,8 @@ STRUCTURE_BLOCK = 4.0
 
 def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[PreparedRun],
                initial: dict[str, float] | None, max_evaluations: int, optimizer: str,
-               progress: Callable[[str], None] | None, start: float) -> JointResult:
+               progress: Callable[[str], None] | None, start: float) -> tuple[JointResult, np.ndarray]:
+    """The joint fit, and its scaled residuals at the optimum."""
     def cost(x: np.ndarray) -> float:
         r = fun(x)
         value = float(np.mean(r * r))
@@ -1004,7 +1015,7 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
                        cost=float(np.mean(r * r)), evaluations=fun.evaluations,
                        wall_time=time.perf_counter() - start, runs=[r_.id for r_ in runs],
                        singular_values=sv.tolist(), inflation=inflation,
-                       status="ok" if np.all(seen) else "not identified", failed_evaluations=fun.log.failed)
+                       status="ok" if np.all(seen) else "not identified", failed_evaluations=fun.log.failed), r
 
 
 def _seen_columns(J: np.ndarray) -> np.ndarray:

@@ -54,8 +54,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Iterable, Sequence
 
-__all__ = ["map_tasks", "TaskPool", "TaskError", "SchedulerError", "resolve_workers", "local_fmu", "FMUHandle",
-           "CONNECT_TIMEOUT"]
+__all__ = ["map_tasks", "TaskPool", "BackgroundTask", "TaskError", "SchedulerError", "resolve_workers", "local_fmu",
+           "FMUHandle", "CONNECT_TIMEOUT"]
 
 #: Seconds to wait for a Dask scheduler to answer before giving up.
 CONNECT_TIMEOUT = 10.0
@@ -275,6 +275,54 @@ def map_tasks(fn: Callable[[Any], Any], items: Iterable[Any], *, workers: int | 
         return []
     with TaskPool(workers, scheduler, connect_timeout, max_items=len(items)) as pool:
         return pool.map(fn, items, on_result)
+
+
+class BackgroundTask:
+    """``fn(item)`` computed in a worker process of its own, started at once, while this process
+    goes on (``background=True``; the worker as a pool's, see the module docstring); or computed
+    here and now (``background=False``).  :meth:`result` waits for it and returns it, or raises
+    what it raised.  A context manager: leaving it ends the worker (terminated if still running
+    when an exception leaves the block)."""
+
+    def __init__(self, fn: Callable[[Any], Any], item: Any, background: bool = True):
+        self._executor: ProcessPoolExecutor | None = None
+        self._future = None
+        self._value: Any = None
+        self._error: BaseException | None = None
+        if background:
+            on_main_thread = threading.current_thread() is threading.main_thread()
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=_pool_context(), initializer=_worker_init,
+                                                 initargs=(os.getpid(), on_main_thread))
+            self._future = self._executor.submit(fn, item)
+        else:
+            try:
+                self._value = fn(item)
+            except Exception as exc:
+                self._error = exc
+
+    def result(self) -> Any:
+        """The task's result (waiting for it); raises the task's exception if it raised."""
+        if self._future is not None:
+            return self._future.result()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+    def close(self, terminate: bool = False) -> None:
+        """Ends the worker: waits for it, or (``terminate``) stops it without waiting."""
+        if self._executor is not None:
+            if terminate:
+                for proc in list((getattr(self._executor, "_processes", None) or {}).values()):
+                    with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
+                        proc.terminate()
+            self._executor.shutdown(wait=not terminate, cancel_futures=True)
+            self._executor = None
+
+    def __enter__(self) -> "BackgroundTask":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(terminate=exc_type is not None)
 
 
 # ------------------------------------------------------------------ per-worker FMU

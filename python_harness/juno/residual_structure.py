@@ -53,7 +53,8 @@ import numpy as np
 from .campaign import Campaign, RunData, read_run
 from .identify import PreparedRun, run_residuals
 from .rover_model import SOIL_PARAMETERS
-from .simulator import JunoFMU
+from .parallel import FMUHandle, map_tasks, resolve_workers
+from .simulator import JunoFMU, SimulationError
 
 #: At most this many false "structure" reports per campaign (Bonferroni over the signals).
 FALSE_ALARM = 0.01
@@ -311,16 +312,21 @@ def _side_covariate(signal: str, means_by_signal: Mapping[str, np.ndarray], scal
 def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[PreparedRun],
                        meta: Mapping[str, np.ndarray], train: np.ndarray, residuals: np.ndarray,
                        params: Mapping[str, object], seed: int = 0, replicas: int = REPLICAS,
-                       wheel_radius: float | None = None) -> ResidualStructure:
+                       wheel_radius: float | None = None, workers: int | None = 1,
+                       data: Mapping[str, RunData] | None = None) -> ResidualStructure:
     """The structure test (module docstring) of the model with FMU parameters ``params``, whose
     scaled residuals over ``prepared`` (labelled by ``meta``, training blocks ``train``) are
-    ``residuals``.  Deterministic for a given ``seed``.  Raises SimulationError if a replica
-    cannot be simulated (a model that cannot replay its own runs with noise a sensor's size)."""
+    ``residuals``.  Deterministic for a given ``seed``, whatever ``workers`` (local processes
+    simulating the replicas: juno.parallel; 1 = in this process with ``fmu``, None = one per
+    core).  ``data``: the measured runs (run id -> RunData) when the caller has read them
+    already.  Raises SimulationError if a replica cannot be simulated (a model that cannot
+    replay its own runs with noise a sensor's size)."""
     tested = [p for p in prepared if p.kind == "drawbar"]
     runs = [p.run_id for p in tested]
     if not tested:
         return ResidualStructure([], FALSE_ALARM, replicas, [])
-    data = {p.run_id: read_run(campaign, p.run_id) for p in tested}
+    given = data or {}
+    data = {p.run_id: given[p.run_id] if p.run_id in given else read_run(campaign, p.run_id) for p in tested}
     columns = set(INPUT_COLUMNS) | set(START_POSE_COLUMNS) | {c for p in tested for c in p.targets}
     noise = {(p.run_id, c): column_noise(*data[p.run_id].samples(c)) for p in tested for c in columns
              if data[p.run_id].has(c)}
@@ -335,16 +341,29 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
         n = sum(len(v[0]) for v in p.targets.values())
         offsets[p.run_id] = (start, start + n)
         start += n
+    # Every replica's noise is drawn first, in one fixed order (replica, then run: its inputs,
+    # then its outputs), and only then are the replays simulated, as tasks (juno.parallel): the
+    # simulations draw nothing, so where and in which order they run cannot change the test.
     rng = np.random.default_rng(seed)
-    null_means = np.empty((replicas, len(observed)))
-    for i in range(replicas):
-        d = np.zeros(len(residuals))
+    draws = []
+    for _i in range(replicas):
         for p in tested:
             run_noise = {c: noise[(p.run_id, c)] for c in columns if (p.run_id, c) in noise}
             noisy = _noisy_inputs(rng, p, data[p.run_id], run_noise)
-            r_star = run_residuals(fmu, noisy, soil, extra, OUTPUT_INTERVAL)
+            draws.append((noisy, _output_noise(rng, p, data[p.run_id], run_noise)))
+    handle = FMUHandle(fmu)
+    replays = map_tasks(_replica_task, [(handle, noisy, soil, extra) for noisy, _e in draws],
+                        workers=resolve_workers(workers, len(draws)))
+    failure = next((f for _r, f in replays if f is not None), None)
+    if failure is not None:
+        raise failure
+    null_means = np.empty((replicas, len(observed)))
+    for i in range(replicas):
+        d = np.zeros(len(residuals))
+        for j, p in enumerate(tested):
+            k = i * len(tested) + j
             a, b = offsets[p.run_id]
-            d[a:b] = (r_star - residuals[a:b]) + _output_noise(rng, p, data[p.run_id], run_noise)
+            d[a:b] = (replays[k][0] - residuals[a:b]) + draws[k][1]
         null_means[i] = _block_means(d[units.index], units.key)
 
     sigma_of = {c: s for p in tested for c, (_t, _v, _o, s, _l) in p.targets.items()}
@@ -354,6 +373,17 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
                             means_by_signal, len(np.unique(units.unit_signal)))
                for sig in np.unique(units.unit_signal)]
     return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs)
+
+
+def _replica_task(args: tuple[FMUHandle, PreparedRun, dict[str, float], dict[str, object]]
+                  ) -> tuple[np.ndarray | None, SimulationError | None]:
+    """One replica's replay of one run: (its scaled residuals, None), or (None, the simulation's
+    failure), which the caller raises as it is (a task's error would arrive wrapped)."""
+    handle, noisy, soil, extra = args
+    try:
+        return run_residuals(handle.get(), noisy, soil, extra, OUTPUT_INTERVAL), None
+    except SimulationError as exc:
+        return None, exc
 
 
 def _wheel_radius(campaign: Campaign, fmu: JunoFMU) -> float:

@@ -13,10 +13,10 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from ..identify import SOIL_SEARCH_BOUNDS, EvaluationLog, from_search, to_search
-from ..parallel import map_tasks
+from ..parallel import TaskPool, local_fmu, map_tasks, resolve_workers
 from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
-from .problem import Problem, residuals_by_run, residuals_for, residuals_or_failure, run_kinds
+from .problem import Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds
 
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
@@ -119,8 +119,10 @@ class _FitSession:
     the search vector on the training blocks of chosen kinds of run, and counts the evaluations
     and the kinds of run fitted to."""
 
-    def __init__(self, problem: Problem, space: SearchSpace, fmu: JunoFMU, log: EvaluationLog) -> None:
-        self.problem, self.space, self.fmu, self.log = problem, space, fmu, log
+    def __init__(self, problem: Problem, space: SearchSpace, fmu: JunoFMU, log: EvaluationLog,
+                 pool: TaskPool | None = None) -> None:
+        self.problem, self.space, self.fmu, self.log, self.pool = problem, space, fmu, log, pool
+        self.replays = ReplayCache()
         self.run_kind = run_kinds(problem)
         self.evaluations = 0
         self.fitted_kinds: set[str] = set()
@@ -134,22 +136,15 @@ class _FitSession:
     def fit(self, x_start: np.ndarray, kinds: tuple[str, ...], free: np.ndarray, iterations: int) -> np.ndarray:
         """Least squares (soft L1 at FIT_LOSS_SCALE) over the ``free`` entries of the search vector
         on the training residuals of the runs of ``kinds``, from ``x_start``, at most
-        ``iterations`` evaluations; returns the fitted search vector."""
-        train = self.training_mask(kinds)
-        n_train = int(np.sum(train))
+        ``iterations`` evaluations; returns the fitted search vector.  With a parallel pool, the
+        finite-difference Jacobian's points are evaluated as its tasks (the same numbers)."""
         self.fitted_kinds.update(kinds)
-
-        def train_residuals(xf: np.ndarray) -> np.ndarray:
-            self.evaluations += 1
-            x = x_start.copy()
-            x[free] = xf
-            r, failure = residuals_or_failure(self.fmu, self.problem, self.space.params(x), kinds)
-            self.log.record(failure)
-            return np.full(n_train, FAILED_TRIAL_RESIDUAL) if r is None else r[train]
+        fun = _TrainingResiduals(self, x_start, free, kinds)
         lo, hi = self.space.bounds(free)
         robust = {"loss": "soft_l1", "f_scale": FIT_LOSS_SCALE} if FIT_LOSS_SCALE else {}
-        ls = least_squares(train_residuals, np.clip(x_start[free], lo, hi), method="trf", diff_step=1e-3,
-                           bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8, **robust)
+        parallel = {"workers": fun.map} if self.pool is not None and self.pool.parallel else {}
+        ls = least_squares(fun, np.clip(x_start[free], lo, hi), method="trf", diff_step=1e-3,
+                           bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8, **robust, **parallel)
         x = x_start.copy()
         x[free] = ls.x
         return x
@@ -158,16 +153,74 @@ class _FitSession:
         """fit_loss of the training residuals of the runs of ``kinds`` at ``x`` (one evaluation;
         infinite if a run fails)."""
         self.evaluations += 1
-        r = residuals_for(self.fmu, self.problem, self.space.params(x), kinds)
+        r = residuals_for(self.fmu, self.problem, self.space.params(x), kinds, self.replays)
         return np.inf if r is None else fit_loss(r[self.training_mask(kinds)])
+
+
+class _TrainingResiduals:
+    """A least-squares fit's residual function (_FitSession.fit): the ``free`` entries of the
+    search vector (the others as in ``x_start``) -> the training residuals of the runs of
+    ``kinds``, FAILED_TRIAL_RESIDUAL on every sample when a run fails.
+
+    In the process that made it, each call is one evaluation of the session (counted, logged,
+    its replays remembered).  Pickled, it carries only what a worker process needs to evaluate
+    a point with that process's FMU (juno.parallel.local_fmu): the runs of ``kinds`` and the
+    search space; :meth:`map` evaluates the Jacobian's points there and logs them here."""
+
+    def __init__(self, session: _FitSession, x_start: np.ndarray, free: np.ndarray, kinds: tuple[str, ...]):
+        self.session: _FitSession | None = session
+        problem = session.problem
+        self.problem = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path,
+                               [p for p in problem.prepared if p.kind in kinds])
+        self.space, self.x_start, self.free, self.kinds = session.space, x_start.copy(), free, kinds
+        self.train = session.training_mask(kinds)
+        self.n_train = int(np.sum(self.train))
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["session"] = None
+        return state
+
+    def __call__(self, xf: np.ndarray) -> np.ndarray:
+        x = self.x_start.copy()
+        x[self.free] = xf
+        session = self.session
+        if session is None:       # a worker process's evaluation (map logs it)
+            r, _failure = residuals_or_failure(local_fmu(self.problem.fmu_path), self.problem, self.space.params(x),
+                                               self.kinds)
+        else:
+            session.evaluations += 1
+            r, failure = residuals_or_failure(session.fmu, self.problem, self.space.params(x), self.kinds,
+                                              session.replays)
+            session.log.record(failure)
+        return np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r[self.train]
+
+    def map(self, fn: Callable[[np.ndarray], np.ndarray], points) -> list[np.ndarray]:
+        """SciPy's ``workers``: ``fn`` (SciPy's wrapper of this object) at each point, as tasks of
+        the session's pool, each logged here as one evaluation in order.  A point that failed
+        there is evaluated again here (the model is deterministic), which logs why it failed."""
+        session = self.session
+        points = list(points)
+        results = session.pool.map(fn, points)
+        for x, r in zip(points, results):
+            if np.all(np.asarray(r) == FAILED_TRIAL_RESIDUAL):
+                self(x)
+            else:
+                session.evaluations += 1
+                session.log.record(None)
+        return results
 
 
 # ------------------------------------------------------------------ one model's fit
 
 def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dict[str, float],
-                  max_nfev: int = 60, start_ext: dict[str, float] | None = None) -> FitResult:
+                  max_nfev: int = 60, start_ext: dict[str, float] | None = None, workers: int | None = 1
+                  ) -> FitResult:
     """Least squares of the soil parameters (and the candidate's) on the training residuals
     (the base model when ``candidate`` is None), at most ``max_nfev`` evaluations per fit.
+    ``workers``: local processes over which each finite-difference Jacobian's points are
+    evaluated (juno.parallel; 1: all in this process, None: one per core, but 1 inside a
+    worker process); the fit is the same either way.
 
     A failed simulation during a least-squares fit gives that fit a constant stand-in residual;
     the fits' evaluations are logged (identify.EvaluationLog), and a fit over which more than
@@ -182,14 +235,17 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
     # nothing and OpenBLAS's spinning takes CPU from the simulations (see identify_joint).
     blas = threadpool_limits(limits=1, user_api="blas")
     log = EvaluationLog()
+    pool = TaskPool(workers) if resolve_workers(workers) > 1 else None
     try:
-        session = _FitSession(problem, SearchSpace.of(candidate), fmu, log)
+        session = _FitSession(problem, SearchSpace.of(candidate), fmu, log, pool)
         x = _search(session, candidate, session.space.start(start_soil, start_ext), max_nfev)
         return _result_at_optimum(session, candidate, x, t0)
     except Exception as exc:  # a candidate that cannot be fitted is reported, not fatal
         return FitResult(name, {}, np.inf, np.inf, np.zeros(0), 0, time.perf_counter() - t0, error=str(exc),
                          failed_evaluations=log.failed)
     finally:
+        if pool is not None:
+            pool.close()
         blas.restore_original_limits()
         fmu.close()
 
@@ -236,7 +292,7 @@ def _result_at_optimum(session: _FitSession, candidate: Candidate | None, x: np.
     """The FitResult at the fitted search vector ``x``: every run replayed there.  A run fitted
     to that fails at the optimum makes the fit a failed one (EvaluationLog.check raises)."""
     params = session.space.params(x)
-    r, failures = residuals_by_run(session.fmu, session.problem, params)
+    r, failures = residuals_by_run(session.fmu, session.problem, params, session.replays)
     kind_of = {p.run_id: p.kind for p in session.problem.prepared}
     at_optimum = [f for run_id, f in failures.items() if kind_of[run_id] in session.fitted_kinds]
     if at_optimum:
@@ -256,21 +312,28 @@ FitJob = (tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | 
           | tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | None, int])
 
 
-def _fit_job(args: FitJob) -> FitResult:
-    """fit_candidate for one job (a picklable task for juno.parallel)."""
+def _fit_job(args: FitJob, workers: int | None = 1) -> FitResult:
+    """fit_candidate for one job (a picklable task for juno.parallel), its Jacobians evaluated
+    over ``workers`` local processes."""
     problem, candidate, start_soil, start_ext, *budget = args
     return fit_candidate(problem, candidate, start_soil, max_nfev=budget[0] if budget else CANDIDATE_ITERATIONS,
-                         start_ext=start_ext)
+                         start_ext=start_ext, workers=workers)
 
 
 def run_jobs(jobs: list[FitJob], workers: int | None, scheduler: str | None,
              say: Callable[[str], None]) -> list[FitResult]:
     """Candidate fits, one task each (juno.parallel): local processes over the cores by default,
-    serially with ``workers=1``, or on the Dask cluster at ``scheduler``.  A job without a budget
-    gets CANDIDATE_ITERATIONS evaluations per fit."""
-    return map_tasks(_fit_job, jobs, workers=workers, scheduler=scheduler,
-                     on_result=lambda i, res: say(f"  {res.name}: held-out mse {res.test_mse:.4g} "
-                                                  f"({res.evaluations} evaluations, {res.wall_time:.0f} s)"))
+    serially with ``workers=1``, or on the Dask cluster at ``scheduler``.  A lone job on local
+    processes is fitted here, its Jacobians' points spread over them instead (one task would
+    leave all cores but one idle).  A job without a budget gets CANDIDATE_ITERATIONS evaluations
+    per fit."""
+    def said(i: int, res: FitResult) -> None:
+        say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, {res.wall_time:.0f} s)")
+    if scheduler is None and len(jobs) == 1 and resolve_workers(workers) > 1:
+        res = _fit_job(jobs[0], workers)
+        said(0, res)
+        return [res]
+    return map_tasks(_fit_job, jobs, workers=workers, scheduler=scheduler, on_result=said)
 
 
 # ------------------------------------------------------------------ the loss, and two fits compared

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..campaign import Campaign
-from ..identify import PreparedRun, prepare_run
+from ..identify import PreparedRun, prepare_run, run_residuals
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
@@ -76,6 +76,37 @@ def _prepared_runs(campaign: Campaign, grid_file: str | dict[str, str] | None, t
     return prepared
 
 
+class ReplayCache:
+    """The replays of one fit, remembered: (run, FMU parameters) -> the run's scaled residuals, or
+    why its simulation failed.  The model is deterministic (the FMU is reset before every run),
+    so a replay asked for again gives the numbers it gave; a fit asks again where least squares
+    returns to a point it evaluated (the coarse search's best point is where the fit starts, the
+    optimum is replayed for the result).  Keeps the ``size`` most recent replays."""
+
+    def __init__(self, size: int = 128) -> None:
+        self.size = size
+        self.hits = 0
+        self._entries: dict[tuple, tuple[np.ndarray | None, str | None]] = {}
+
+    @staticmethod
+    def key(run: PreparedRun, params: dict[str, object]) -> tuple:
+        """The prepared run (itself: the same run id prepared for another drive is another
+        replay) and its FMU parameters, exactly (every number as a float, names sorted)."""
+        return (run.run_id, id(run)) + tuple((k, v if isinstance(v, str) else float(v)) for k, v in sorted(params.items()))
+
+    def get(self, key: tuple) -> tuple[np.ndarray | None, str | None] | None:
+        found = self._entries.get(key)
+        if found is not None:
+            self.hits += 1
+            self._entries[key] = self._entries.pop(key)       # most recent last
+        return found
+
+    def put(self, key: tuple, value: tuple[np.ndarray | None, str | None]) -> None:
+        self._entries[key] = value
+        while len(self._entries) > self.size:
+            del self._entries[next(iter(self._entries))]
+
+
 def run_kinds(problem: Problem) -> np.ndarray:
     """The kind of run ("drawbar" or "terrain") of every residual of ``problem``."""
     kind_of = {p.run_id: p.kind for p in problem.prepared}
@@ -87,14 +118,14 @@ def all_residuals(fmu: JunoFMU, problem: Problem, params: dict[str, object]) -> 
     return residuals_by_run(fmu, problem, params)[0]
 
 
-def residuals_by_run(fmu: JunoFMU, problem: Problem, params: dict[str, object]
+def residuals_by_run(fmu: JunoFMU, problem: Problem, params: dict[str, object], cache: ReplayCache | None = None
                      ) -> tuple[np.ndarray, dict[str, str]]:
     """all_residuals's residuals, and for each run that failed (run id), why (its run, file,
-    simulation time and FMU message)."""
+    simulation time and FMU message).  ``cache``: replays already made (residuals_or_failure)."""
     parts, failures = [], {}
     for p in problem.prepared:
         one = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, [p])
-        r, failure = residuals_or_failure(fmu, one, params, (p.kind,))
+        r, failure = residuals_or_failure(fmu, one, params, (p.kind,), cache)
         n = sum(len(v[0]) for v in p.targets.values())
         parts.append(r if r is not None else np.full(n, np.nan))
         if failure is not None:
@@ -103,17 +134,19 @@ def residuals_by_run(fmu: JunoFMU, problem: Problem, params: dict[str, object]
 
 
 def residuals_for(fmu: JunoFMU, problem: Problem, params: dict[str, object],
-                  kinds: tuple[str, ...] = ("drawbar", "terrain")) -> np.ndarray | None:
+                  kinds: tuple[str, ...] = ("drawbar", "terrain"), cache: ReplayCache | None = None
+                  ) -> np.ndarray | None:
     """Scaled residuals of the runs of ``kinds`` for the FMU parameters ``params`` (in the
     order of ``problem.prepared``); None if a run fails."""
-    return residuals_or_failure(fmu, problem, params, kinds)[0]
+    return residuals_or_failure(fmu, problem, params, kinds, cache)[0]
 
 
 def residuals_or_failure(fmu: JunoFMU, problem: Problem, params: dict[str, object],
-                         kinds: tuple[str, ...] = ("drawbar", "terrain")) -> tuple[np.ndarray | None, str | None]:
+                         kinds: tuple[str, ...] = ("drawbar", "terrain"), cache: ReplayCache | None = None
+                         ) -> tuple[np.ndarray | None, str | None]:
     """(residuals_for's residuals, None), or (None, why the first failed run failed: its run,
-    file, simulation time and FMU message)."""
-    from ..identify import run_residuals
+    file, simulation time and FMU message).  With a ``cache``, a run replayed before with the
+    same parameters is not simulated again."""
     soil = {k: params[k] for k in SOIL_PARAMETERS}
     extra = {k: v for k, v in params.items() if k not in SOIL_PARAMETERS}
     # The registration belongs to the scan: runs on flat ground (no terrain file) do not get it
@@ -123,11 +156,26 @@ def residuals_or_failure(fmu: JunoFMU, problem: Problem, params: dict[str, objec
     for p in problem.prepared:
         if p.kind not in kinds:
             continue
-        try:
-            part = run_residuals(fmu, p, soil, extra if "terrain.file" in p.params else flat_extra, OUTPUT_INTERVAL)
-        except SimulationError as exc:
-            return None, str(exc)
-        if not np.all(np.isfinite(part)):
-            return None, f"run '{p.run_id}' ({p.file}): the simulation gives non-finite values"
+        run_extra = extra if "terrain.file" in p.params else flat_extra
+        key = ReplayCache.key(p, {**p.params, **soil, **run_extra}) if cache is not None else None
+        known = cache.get(key) if cache is not None else None
+        part, failure = known if known is not None else _replay(fmu, p, soil, run_extra)
+        if cache is not None and known is None:
+            cache.put(key, (part, failure))
+        if failure is not None:
+            return None, failure
         parts.append(part)
     return (np.concatenate(parts) if parts else np.zeros(0)), None
+
+
+def _replay(fmu: JunoFMU, p: PreparedRun, soil: dict[str, float], extra: dict[str, object]
+            ) -> tuple[np.ndarray | None, str | None]:
+    """(scaled residuals of the run ``p``, None), or (None, why its simulation failed or gave
+    non-finite values)."""
+    try:
+        part = run_residuals(fmu, p, soil, extra, OUTPUT_INTERVAL)
+    except SimulationError as exc:
+        return None, str(exc)
+    if not np.all(np.isfinite(part)):
+        return None, f"run '{p.run_id}' ({p.file}): the simulation gives non-finite values"
+    return part, None

@@ -5,6 +5,7 @@ diagnose() runs it all and returns a DiagnosisResult."""
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import tempfile
 import time
@@ -14,7 +15,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..campaign import Campaign, load_campaign
+from ..campaign import Campaign, load_campaign, read_run
 from ..errors import InputError
 from ..identify import PAPER_INITIAL, gridded_scans, require_runs
 from ..registration import HELD_OUT_RATIO, HeldOutEvidence
@@ -30,6 +31,7 @@ from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
+from ..parallel import BackgroundTask
 from ..residual_structure import ResidualStructure, residual_structure
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
@@ -53,10 +55,23 @@ class Search:
     workers: int | None
     scheduler: str | None
     say: Callable[[str], None]
+    #: the registration still being fitted (in a worker process of its own while the first fits
+    #: run: it simulates nothing, and only the registration candidate's start needs it)
+    registering: BackgroundTask | None = None
     run_kind: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.run_kind = run_kinds(self.problem)
+
+    def registration_known(self) -> None:
+        """Waits for the registration being fitted (if any), and says what it found."""
+        if self.registering is None:
+            return
+        self.registration, self.registering = self.registering.result(), None
+        if self.registration is not None:
+            self.say(f"registration fitted on the training blocks of terrain run "
+                     f"{self.campaign.runs_of_kind('terrain')[0].id}: held-out pose "
+                     f"{self.registration.ratio:.3g} times better than the scan as it is")
 
     def fits(self, jobs: list[FitJob]) -> list[FitResult]:
         """The fits of ``jobs``, in order (fitting.run_jobs, where this search's fits run)."""
@@ -127,24 +142,34 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     fmu_path = str(fmu.fmu_path) if fmu is not None else str(default_fmu_path())
     names = list(candidates or CANDIDATES)
     require_runs(campaign, "diagnose")
-    with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp, contextlib.ExitStack() as stack:
         fmu_path = fmu_snapshot(fmu_path, tmp, scheduler)
-        setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say)
-        registration = registration_evidence(campaign, setting.grid) if setting.grid is not None else None
-        if registration is not None:
-            say(f"registration fitted on the training blocks of terrain run "
-                f"{campaign.runs_of_kind('terrain')[0].id}: held-out pose "
-                f"{registration.ratio:.3g} times better than the scan as it is")
+        registering: list[BackgroundTask] = []
+
+        def start_registration(grid) -> None:
+            """The kinematic registration, fitted in a process of its own from the moment the
+            scan is gridded (in this process when the diagnosis is to run in one)."""
+            registering.append(stack.enter_context(
+                BackgroundTask(_registration_task, (campaign, grid), background=workers != 1)))
+        setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration)
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
-        search = Search(campaign, setting.problem, searched, registration, workers, scheduler, say)
+        search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
+                        registering[0] if registering else None)
         first = first_round(search, setting)
         outcome = further_causes(search, first)
-        structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say)
+        structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
+                                           workers if scheduler is None else None)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
     judged = verdict([r.name for r in outcome.chosen], *structures)
     return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                             judged, structures)
+
+
+def _registration_task(args: tuple[Campaign, Any]) -> HeldOutEvidence | None:
+    """starts.registration_evidence of (campaign, gridded scan): a picklable task."""
+    campaign, grid = args
+    return registration_evidence(campaign, grid)
 
 
 def terrain_runs_named(campaign: Campaign) -> str:
@@ -168,13 +193,16 @@ def fmu_snapshot(fmu_path: str, tmp: str, scheduler: str | None) -> str:
 
 
 def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, base: FitResult, outcome: Outcome,
-                          say: Callable[[str], None]) -> tuple[ResidualStructure, ResidualStructure | None]:
-    """The residual structure test (structure.py) of the base model and of the model with every
-    named cause (None when none was named), on the held-out blocks of the drawbar runs."""
+                          say: Callable[[str], None], workers: int | None = None
+                          ) -> tuple[ResidualStructure, ResidualStructure | None]:
+    """The residual structure test (juno.residual_structure) of the base model and of the model
+    with every named cause (None when none was named), on the held-out blocks of the drawbar
+    runs; the bootstrap's replays run in ``workers`` local processes (None: one per core)."""
     models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
+    data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
     with JunoFMU(fmu_path) as fmu:
         tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
-                                    m.params) for m in models]
+                                    m.params, workers=workers, data=data) for m in models]
     for m, t in zip(models, tests):
         found = ", ".join(f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()) or "none"
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
@@ -182,16 +210,21 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
 
 
 def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terrain_segment: float | None,
-            say: Callable[[str], None]) -> Setting:
+            say: Callable[[str], None], workers: int | None = 1,
+            on_grid: Callable[[Any], None] | None = None) -> Setting:
     """Grids every terrain run's scan into ``tmp`` (each terrain run is replayed on its own), builds
-    the problem, fits the base model (an error if it fails) and chooses the terrain drive the
-    candidates are fitted with.  Without a terrain run the candidates that need one are left out."""
+    the problem, fits the base model (an error if it fails; its Jacobians over ``workers`` local
+    processes) and chooses the terrain drive the candidates are fitted with.  Without a terrain
+    run the candidates that need one are left out.  ``on_grid`` is called with the first
+    terrain run's gridded scan as soon as it is made."""
     grid_file: dict[str, str] | None = None
     grid = None
     if campaign.runs_of_kind("terrain"):
         scans = gridded_scans(campaign, tmp, "validate")
         grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
         grid = next(iter(scans.values()))[1]
+        if on_grid is not None:
+            on_grid(grid)
     else:
         # A candidate is never missing from the results unexplained, and a diagnosis left with no
         # candidate would report "none" without having tried one: an error, before the base fit.
@@ -205,7 +238,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
             say(f"left out {', '.join(left_out)}: {why}")
     problem = build_problem(campaign, fmu_path, grid_file, terrain_segment)
     say(f"fitting the base model on the training blocks ({int(np.sum(problem.train))} residuals)")
-    base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS)
+    base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS, workers=workers)
     if base.error:
         raise SimulationError("the base model could not be fitted", [base.error])
     terrain_drive, drive_losses, problems = "spin", {}, {"spin": problem}
@@ -270,12 +303,23 @@ def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list
     extension can never end worse than the base on the training data."""
     names, base, problem = setting.names, setting.base, setting.problem
     start_soil = {k: base.params[k] for k in SOIL_PARAMETERS}
-    first_starts = {"soil_patch": patch_start(search.campaign, problem, base.residuals),
-                    "terrain_offset": registration_start(search.registration)}
-    jobs = [(problem, search.searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)) for n in names]
+    first_starts = {"soil_patch": patch_start(search.campaign, problem, base.residuals)}
+
+    def job(n: str) -> FitJob:
+        return problem, search.searched.get(n, CANDIDATES[n]), start_soil, first_starts.get(n)
+    # The registration candidate starts where the registration puts the scan: while that is
+    # being fitted, the other fits run, and it is fitted after them.
+    later = [n for n in names if n == "terrain_offset"] if search.registering is not None else []
+    if not later:
+        first_starts["terrain_offset"] = registration_start(search.registration)
+    now = [n for n in names if n not in later]
     restarts = [n for n in names if CANDIDATES[n].soil_restart]
-    jobs += [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None) for n in restarts]
-    return search.fits(jobs), restarts
+    fitted = search.fits([job(n) for n in now] + [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None)
+                                                  for n in restarts])
+    search.registration_known()
+    first_starts["terrain_offset"] = registration_start(search.registration)
+    fit_of = dict(zip(now, fitted)) | dict(zip(later, search.fits([job(n) for n in later]) if later else []))
+    return [fit_of[n] for n in names] + fitted[len(now):], restarts
 
 
 def equally_good_as(best: JudgedCandidate | None, significant: Sequence[JudgedCandidate]) -> list[str]:
