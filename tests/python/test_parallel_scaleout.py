@@ -105,6 +105,18 @@ def test_a_batch_inside_a_worker_runs_in_that_worker():
         assert pid != os.getpid() and inner == [pid] * 3
 
 
+def test_a_background_task_runs_in_a_process_of_its_own_and_gives_its_result_or_error():
+    with parallel.BackgroundTask(where, None) as task:
+        assert task.result() != os.getpid()
+    with parallel.BackgroundTask(square_positive, -4) as task:
+        with pytest.raises(ValueError, match="negative input -4"):
+            task.result()
+    here = parallel.BackgroundTask(where, None, background=False)
+    assert here.result() == os.getpid()
+    with pytest.raises(ValueError, match="negative input -2"):
+        parallel.BackgroundTask(square_positive, -2, background=False).result()
+
+
 def test_workers_must_be_positive():
     with pytest.raises(ValueError, match="workers must be at least 1"):
         map_tasks(where, range(2), workers=0)
