@@ -54,7 +54,15 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
-def write_json(path: str | None, payload: Any) -> None:
-    """Write ``payload`` (made JSON-safe) to ``path`` whole or not at all; nothing when ``path`` is None."""
+def write_json(path: str | None, payload: Any, command: str = "") -> None:
+    """Write ``payload`` (made JSON-safe) to ``path`` whole or not at all; nothing when ``path`` is None.
+    A dict payload gets ``written_by`` ("juno VERSION COMMAND") first, which lets a later run
+    replace the file and nothing else (:func:`juno.outputs.written_by_juno`)."""
     if path:
-        atomic_write_text(path, json.dumps(to_jsonable(payload), indent=2) + "\n")
+        data = to_jsonable(payload)
+        if isinstance(data, dict):
+            from . import __version__
+            from .outputs import WRITTEN_BY
+
+            data = {WRITTEN_BY: " ".join(filter(None, ("juno", __version__, command))), **data}
+        atomic_write_text(path, json.dumps(data, indent=2) + "\n")

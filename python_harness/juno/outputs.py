@@ -6,7 +6,10 @@ Every output path a command is given (``--json FILE``, ``--out CSV``, ``--out DI
 * an output never is, contains or lies inside an input (the campaign folder and every file in
   it, a ``--params`` file, the FMU): writing it would destroy what the command reads;
 * a file output must not be an existing directory or special file, and its nearest existing
-  parent must be a writable directory (else the failure would come only after the work);
+  parent must be a writable directory (else the failure would come only after the work); an
+  existing file is replaced only when juno wrote it (:func:`written_by_juno`: a JSON result
+  names its writer, a CSV has the header juno writes), so a user's file at that path is never
+  lost to a mistyped option;
 * a folder output (a report, residual plots) is replaced whole, so it may only be a new or
   empty folder, or one that the same command wrote before: such a folder holds a marker file
   (:data:`REPORT_MARKER`, :data:`PLOTS_MARKER`) written together with the rest of it.  A folder
@@ -28,7 +31,8 @@ from typing import Iterable, Iterator, Optional, Union
 
 PathLike = Union[str, "os.PathLike[str]"]
 
-__all__ = ["OutputError", "REPORT_MARKER", "PLOTS_MARKER", "check_output_file", "check_output_dir",
+__all__ = ["OutputError", "REPORT_MARKER", "PLOTS_MARKER", "WRITTEN_BY", "check_output_file", "check_output_dir",
+           "written_by_juno",
            "check_campaign_dir", "is_synthesized_campaign", "marked_directory", "campaign_inputs"]
 
 #: Marker file of a folder written by ``juno report``.
@@ -112,7 +116,43 @@ def check_output_file(out: Optional[PathLike], inputs: Iterable[Optional[PathLik
         raise OutputError(f"{what} {os.fspath(out)} exists and is not a regular file; refusing to replace it")
     if p.exists() and not os.access(p, os.W_OK):
         raise OutputError(f"{what} {os.fspath(out)}: permission denied")
+    if p.is_file() and p.stat().st_size > 0 and not written_by_juno(p):
+        raise OutputError(f"{what} {os.fspath(out)} exists and was not written by juno; it would be replaced, so "
+                          "give a new path (or remove the file first)")
     _check_parent_writable(p, what)
+
+
+#: The key every JSON result of juno carries, naming its writer (``"juno 0.1.0 identify"``).
+WRITTEN_BY = "written_by"
+
+
+def written_by_juno(path: PathLike) -> bool:
+    """Whether the file at ``path`` is a result juno wrote, which a new result may replace: a JSON
+    object whose WRITTEN_BY starts with "juno", or a CSV with the header of ``juno simulate --out``
+    (time and simulated outputs) or ``juno sweep --out`` (parameters, summary columns, error)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError:
+        return False
+    text = head.decode("utf-8", errors="replace").lstrip()
+    if text.startswith("{"):
+        import json
+
+        try:
+            with open(path, encoding="utf-8") as f:
+                doc = json.load(f)
+        except (OSError, ValueError):
+            return False
+        return isinstance(doc, dict) and str(doc.get(WRITTEN_BY, "")).startswith("juno")
+    header = [cell.strip() for cell in text.splitlines()[0].split(",")] if text else []
+    from .simulator import DEFAULT_OUTPUTS
+    from .sweep import SUMMARY_COLUMNS
+
+    if len(header) > 1 and header[0] == "time" and set(header[1:]) <= set(DEFAULT_OUTPUTS):
+        return True
+    tail = list(SUMMARY_COLUMNS) + ["error"]
+    return header[-len(tail):] == tail
 
 
 def _folder_output(out: Optional[PathLike], inputs: Iterable[Optional[PathLike]], what: str) -> Optional[Path]:

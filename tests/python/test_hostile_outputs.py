@@ -19,6 +19,7 @@ The commands run in this process (``juno.cli.main``) for speed; one case runs th
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import pytest
@@ -145,13 +146,46 @@ def test_a_folder_filled_while_the_report_was_built_is_not_replaced(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["data.csv"]
 
 
-def test_an_empty_or_new_folder_and_a_plain_file_are_accepted(tmp_path):
+def test_an_empty_or_new_folder_and_a_file_juno_wrote_are_accepted(tmp_path):
     (tmp_path / "empty").mkdir()
     check_output_dir(tmp_path / "empty", [], "--out", REPORT_MARKER, "juno report")
     check_output_dir(tmp_path / "new" / "deeper", [], "--out", REPORT_MARKER, "juno report")
-    (tmp_path / "old.json").write_text("{}\n")
+    (tmp_path / "old.json").write_text('{"written_by": "juno 0.1.0 identify", "paper": []}\n')
     check_output_file(tmp_path / "old.json", [tmp_path / "input.csv"], "--json")
+    (tmp_path / "old.csv").write_text("time,x,y,wheelFL.slip\n0.0,0.0,0.0,0.0\n")
+    check_output_file(tmp_path / "old.csv", [], "--out")
+    (tmp_path / "empty.json").write_text("")
+    check_output_file(tmp_path / "empty.json", [], "--json")
     check_output_file(tmp_path / "new" / "x.json", [], "--json")
+
+
+@pytest.mark.parametrize("name, content", [
+    ("notes.txt", "my notes\n"),
+    ("other.json", '{"paper": []}\n'),                                      # a JSON juno did not write
+    ("campaign.json", '{"name": "another campaign", "runs": []}\n'),
+    ("dbp1.csv", "time,torque_left,torque_right,omega_left,omega_right,pos_x,pos_y,pos_z,drawbar_force\n0,1,1,1,1,0,0,0,5\n"),
+])
+def test_a_users_file_at_an_output_path_is_refused_and_kept(tmp_path, name, content):
+    """A file output replaces an existing file only when juno wrote it: a user's notes, another
+    campaign's manifest or a measured run given by a mistyped option stay as they are."""
+    target = tmp_path / name
+    target.write_text(content)
+    with pytest.raises(OutputError, match="exists and was not written by juno"):
+        check_output_file(target, [], "--json")
+    assert target.read_text() == content
+
+
+def test_every_json_result_names_juno_as_its_writer(tmp_path):
+    """What write_json writes, a later run may replace (and nothing else)."""
+    from juno.core import write_json
+    from juno.outputs import written_by_juno
+
+    out = tmp_path / "result.json"
+    write_json(str(out), {"soil": {"soil.kh": 2.0e5}}, "validate")
+    assert json.loads(out.read_text())["written_by"].startswith("juno ")
+    assert json.loads(out.read_text())["written_by"].endswith(" validate")
+    assert written_by_juno(out)
+    check_output_file(out, [], "--json")
 
 
 def test_only_what_synthesize_writes_counts_as_a_synthesized_campaign(work):

@@ -41,5 +41,5 @@ def run(args: argparse.Namespace) -> int:
                             sections=args.only, with_diagnose=args.with_diagnose,
                             build_dir=Path(args.build_dir) if args.build_dir else None, build=not args.no_build,
                             fmu_path=Path(args.fmu) if args.fmu else None, say=progress_printer(args.quiet))
-    write_json(args.json, record)
+    write_json(args.json, record, "bench")
     return 0

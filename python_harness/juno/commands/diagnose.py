@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         with marked_directory(args.plots, PLOTS_MARKER, "juno diagnose --plots",
                               inputs=campaign_inputs(args.campaign), what="--plots") as tmp:
             residual_figures(result, Path(tmp))
-    write_json(args.json, public_json(result))
+    write_json(args.json, public_json(result), "diagnose")
     for line in summary_lines(result):
         print(line)
     print(f"diagnosis took {result.wall_time:.0f} s", file=sys.stderr)

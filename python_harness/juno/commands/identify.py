@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "rig" or (has_rig and args.method == "both"):
         out["rig"] = _rig_fits(campaign, args, say)
         if args.method == "rig" or not campaign.runs_of_kind("drawbar"):
-            write_json(args.json, out)
+            write_json(args.json, out, "identify")
             return 0
     with JunoFMU(args.fmu) as fmu:
         if args.method in ("paper", "both"):
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
             for doubt in joint.doubts:
                 print(f"joint: doubtful: {doubt}")
-    write_json(args.json, out)
+    write_json(args.json, out, "identify")
     return 0
 
 

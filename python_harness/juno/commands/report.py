@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
             path = write_report(args.out, campaign, [], None, [], rig=rig, timings=timings)
             print(f"wrote report {path}")
             write_json(args.json, {"report": str(path), "rig": {law: f.params for law, f in rig.fits.items()},
-                                   "timings": timings})
+                                   "timings": timings}, "report")
             return 0
     with JunoFMU(args.fmu) as fmu:
         t = time.perf_counter()
@@ -84,5 +84,5 @@ def run(args: argparse.Namespace) -> int:
     path = write_report(args.out, campaign, paper, joint, validations, diagnosis, truth=truth, timings=timings,
                         rig=rig)
     print(f"wrote report {path}")
-    write_json(args.json, {"report": str(path), "joint": joint.params, "timings": timings})
+    write_json(args.json, {"report": str(path), "joint": joint.params, "timings": timings}, "report")
     return 0

@@ -61,5 +61,5 @@ def run(args: argparse.Namespace) -> int:
     print(f"{label}: t = {final['time']:.2f} s, x = {final['x']:.3f} m, y = {final['y']:.3f} m, "
           f"vx = {final['vx']:.4f} m/s, slip FL = {final['wheelFL.slip']:.4f}, "
           f"sinkage FL/RL = {final['wheelFL.sinkage'] * 1000:.1f}/{final['wheelRL.sinkage'] * 1000:.1f} mm")
-    write_json(args.json, {"label": label, "final": final})
+    write_json(args.json, {"label": label, "final": final}, "simulate")
     return 0

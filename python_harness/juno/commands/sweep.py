@@ -73,5 +73,5 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(result)} points, {len(failed)} failed")
     write_json(args.json, {"scenario": args.scenario, "stop_time": stop, "fixed": fixed, "vary": vary,
                            "points": [{"params": p.params, "summary": p.summary, "error": p.error}
-                                      for p in result]})
+                                      for p in result]}, "sweep")
     return 0

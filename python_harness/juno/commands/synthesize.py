@@ -40,5 +40,5 @@ def run(args: argparse.Namespace) -> int:
                       noise=args.noise, time_scale=args.time_scale, overwrite=args.overwrite, progress=say,
                       heavy_run=args.heavy_run, design=args.design)
     print(f"wrote campaign {path} (effect hidden: see {path}/truth.json only)")
-    write_json(args.json, {"campaign": str(path)})
+    write_json(args.json, {"campaign": str(path)}, "synthesize")
     return 0

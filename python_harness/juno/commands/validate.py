@@ -83,5 +83,5 @@ def run(args: argparse.Namespace) -> int:
                 v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=cell)
                 results[run_spec.id] = v.rms
                 print(f"{run_spec.id}: RMS " + ", ".join(f"{k} {x:.4g}" for k, x in v.rms.items()))
-    write_json(args.json, {"soil": soil, "rms": results})
+    write_json(args.json, {"soil": soil, "rms": results}, "validate")
     return 0
