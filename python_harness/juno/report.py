@@ -230,7 +230,12 @@ def _validation_section(campaign: Campaign, validations: Sequence[tuple[str, Val
         for label, v in validations:
             first_of_run.setdefault(v.run_id, (label, v))
         lines += [f"RMS errors over each run after its first {SETTLING:g} s (the PID catching the measured "
-                  "spins).", ""]
+                  "spins). In units of each column's sensor noise, estimated from the measured column itself "
+                  "(1 is agreement to within the noise; many times it is model error):", ""]
+        for label, v in validations:
+            known = [name for name in v.rms if np.isfinite(v.noise_ratio(name))]
+            lines.append(f"- {v.run_id}, {label}: " + ", ".join(f"{name} {v.noise_ratio(name):.2g}" for name in known))
+        lines.append("")
         for run_id, (label, v) in first_of_run.items():
             lines += [f"Run {run_id}, {label}:", "",
                       f"![validation {run_id}]({figure_validation(v, out)})", "",

@@ -18,6 +18,7 @@ import numpy as np
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
+from .residual_structure import column_noise
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: Default terrain grid resolution (m).
@@ -67,6 +68,15 @@ class ValidationResult:
     measured: dict[str, np.ndarray]
     simulated: dict[str, np.ndarray]
     rms: dict[str, float] = field(default_factory=dict)
+    #: Each measured column's sensor noise (1 sigma, SI units) estimated from the column itself
+    #: (:func:`juno.residual_structure.column_noise`); NaN for a derived signal (speed).  An RMS
+    #: error near it is agreement to within the sensor's noise; many times it is model error.
+    noise: dict[str, float] = field(default_factory=dict)
+
+    def noise_ratio(self, name: str) -> float:
+        """The RMS error of ``name`` in units of its sensor noise (NaN where not estimated)."""
+        noise = self.noise.get(name, float("nan"))
+        return self.rms[name] / noise if noise > 0 else float("nan")
 
 
 #: signal -> (measured column or derived, FMU output)
@@ -115,17 +125,19 @@ def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dic
     data = read_run(campaign, run)
     t0 = float(data.time[0])
     times = np.arange(0.0, float(data.time[-1] - t0) + 1e-9, 0.1)
-    measured, simulated, rms = {}, {}, {}
+    measured, simulated, rms, noise = {}, {}, {}, {}
     for name, output in COMPARED.items():
         if name == "speed":
             m = forward_speed(data, times + t0)
+            noise[name] = float("nan")
         else:
             ts, vs = data.samples(name)
             m = np.interp(times, ts - t0, vs)
+            noise[name] = column_noise(ts, vs)
         s = np.interp(times, sim["time"], sim[output])
         measured[name], simulated[name] = m, s
         # The first SETTLING s are the PID catching the measured spins (the paper's settling
         # phase): plotted, but not in the RMS.
         settled = times >= SETTLING
         rms[name] = float(np.sqrt(np.mean((m[settled] - s[settled]) ** 2)))
-    return ValidationResult(run.id, str(grid_file), cell, times, measured, simulated, rms)
+    return ValidationResult(run.id, str(grid_file), cell, times, measured, simulated, rms, noise)

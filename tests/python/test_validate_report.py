@@ -66,6 +66,23 @@ def test_true_soil_validates_much_better_than_the_initial_guess(terrain_validati
     assert torque[0] < TORQUE_RATIO * torque[1], f"torque RMS: truth {torque[0]:.2f}, initial guess {torque[1]:.2f}"
 
 
+def test_each_measured_columns_noise_is_estimated_from_the_data(terrain_validation):
+    """The RMS errors come with the sensor noise of each measured column, estimated from the
+    column itself: on a synthetic campaign it is the noise the sensors were given (within 30 %),
+    so an RMS error can be read in units of it."""
+    from juno.synthetic_design import PAPER_SENSORS
+
+    v = terrain_validation.truth
+    for sensor in PAPER_SENSORS:
+        if sensor.column not in COMPARED:
+            continue
+        typical = float(np.median(np.abs(v.measured[sensor.column])))
+        sigma = sensor.sigma + sensor.relative * typical
+        assert 0.7 * sigma <= v.noise[sensor.column] <= 1.3 * sigma, (sensor.column, v.noise[sensor.column], sigma)
+        assert v.noise_ratio(sensor.column) == pytest.approx(v.rms[sensor.column] / v.noise[sensor.column])
+    assert math.isnan(v.noise["speed"]) and math.isnan(v.noise_ratio("speed"))   # derived, not measured
+
+
 def test_gridded_terrain_reproduces_the_true_surface(terrain_campaign, terrain_validation):
     grid = read_esri_ascii(terrain_validation.grid_file)   # the file the FMU reads
     assert grid.cell == pytest.approx(GRID_CELL)

@@ -76,12 +76,18 @@ def run(args: argparse.Namespace) -> int:
         if soil is None:
             say("no --params given: identifying first (joint fit)")
             soil = identify_joint(fmu, campaign, progress=say).params
-        results = {}
+        results, noise = {}, {}
         with tempfile.TemporaryDirectory() as tmp:
             for run_spec in campaign.runs_of_kind("terrain"):
                 say(f"validating on terrain run {run_spec.id}")
                 v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=cell)
-                results[run_spec.id] = v.rms
-                print(f"{run_spec.id}: RMS " + ", ".join(f"{k} {x:.4g}" for k, x in v.rms.items()))
-    write_json(args.json, {"soil": soil, "rms": results}, "validate")
+                results[run_spec.id], noise[run_spec.id] = v.rms, v.noise
+                print(f"{run_spec.id}: RMS " + ", ".join(_rms_text(v, k) for k in v.rms))
+    write_json(args.json, {"soil": soil, "rms": results, "noise": noise}, "validate")
     return 0
+
+
+def _rms_text(v, name: str) -> str:
+    """``pos_x 0.009021 (4.5 x noise)``: an RMS error, in units of its sensor noise where known."""
+    ratio = v.noise_ratio(name)
+    return f"{name} {v.rms[name]:.4g}" + (f" ({ratio:.2g} x noise)" if ratio == ratio else "")
