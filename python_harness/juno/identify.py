@@ -886,8 +886,8 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
         fun = JointResiduals(fmu, prepared, extra, pool)
         result, at_optimum = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
-    result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
-                                                 workers=n_workers or 1, data=data)
+        result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
+                                                     data=data, pool=pool)
     result.wall_time = time.perf_counter() - start
     return result
 
@@ -900,7 +900,8 @@ AT_LIMIT = 0.01
 
 def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun], result: JointResult,
                extra: dict[str, object] | None = None, residuals: np.ndarray | None = None,
-               workers: int | None = 1, data: dict[str, RunData] | None = None) -> tuple[list[str], dict | None]:
+               workers: int | None = 1, data: dict[str, RunData] | None = None, pool: TaskPool | None = None
+               ) -> tuple[list[str], dict | None]:
     """Why a joint fit's estimates are doubtful, in words, and the structure test behind it:
     each parameter at a bound of the search (AT_LIMIT); and structure beyond sensor noise in the
     fitted model's residuals on the drawbar runs (juno.residual_structure, every 4 s block
@@ -909,8 +910,9 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
 
     ``residuals``: the fit's scaled residuals at ``result.params`` over ``prepared``, when the
     caller has them (the model is deterministic: simulating them again gives the same numbers);
-    ``workers``: local processes for the structure test's replays (1: this process); ``data``:
-    the measured runs (run id -> RunData), when already read."""
+    ``workers``: local processes for the structure test's replays (1: this process), or
+    ``pool``: the open pool to run them on; ``data``: the measured runs (run id -> RunData),
+    when already read."""
     from .residual_structure import residual_structure
     doubts = []
     x = to_search(result.params)
@@ -933,7 +935,7 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
         r = residuals if residuals is not None else \
             np.concatenate([run_residuals(fmu, p, result.params, extra) for p in prepared])
         test = residual_structure(campaign, fmu, prepared, meta, np.zeros(len(t), bool), r,
-                                  {**result.params, **(extra or {})}, workers=workers, data=data)
+                                  {**result.params, **(extra or {})}, workers=workers, data=data, pool=pool)
     except SimulationError as exc:
         # The fit stands (its own simulations succeeded); what cannot be said is whether it
         # leaves structure, and that is said.

@@ -53,7 +53,7 @@ import numpy as np
 from .campaign import Campaign, RunData, read_run
 from .identify import PreparedRun, run_residuals
 from .rover_model import SOIL_PARAMETERS
-from .parallel import FMUHandle, map_tasks, resolve_workers
+from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import JunoFMU, SimulationError
 
 #: At most this many false "structure" reports per campaign (Bonferroni over the signals).
@@ -313,12 +313,13 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
                        meta: Mapping[str, np.ndarray], train: np.ndarray, residuals: np.ndarray,
                        params: Mapping[str, object], seed: int = 0, replicas: int = REPLICAS,
                        wheel_radius: float | None = None, workers: int | None = 1,
-                       data: Mapping[str, RunData] | None = None) -> ResidualStructure:
+                       data: Mapping[str, RunData] | None = None, pool: TaskPool | None = None
+                       ) -> ResidualStructure:
     """The structure test (module docstring) of the model with FMU parameters ``params``, whose
     scaled residuals over ``prepared`` (labelled by ``meta``, training blocks ``train``) are
     ``residuals``.  Deterministic for a given ``seed``, whatever ``workers`` (local processes
     simulating the replicas: juno.parallel; 1 = in this process with ``fmu``, None = one per
-    core).  ``data``: the measured runs (run id -> RunData) when the caller has read them
+    core), or the tasks of ``pool``, already open.  ``data``: the measured runs (run id -> RunData) when the caller has read them
     already.  Raises SimulationError if a replica cannot be simulated (a model that cannot
     replay its own runs with noise a sensor's size)."""
     tested = [p for p in prepared if p.kind == "drawbar"]
@@ -351,9 +352,9 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
             run_noise = {c: noise[(p.run_id, c)] for c in columns if (p.run_id, c) in noise}
             noisy = _noisy_inputs(rng, p, data[p.run_id], run_noise)
             draws.append((noisy, _output_noise(rng, p, data[p.run_id], run_noise)))
-    handle = FMUHandle(fmu)
-    replays = map_tasks(_replica_task, [(handle, noisy, soil, extra) for noisy, _e in draws],
-                        workers=resolve_workers(workers, len(draws)))
+    tasks = [(FMUHandle(fmu), noisy, soil, extra) for noisy, _e in draws]
+    replays = pool.map(_replica_task, tasks) if pool is not None else \
+        map_tasks(_replica_task, tasks, workers=resolve_workers(workers, len(draws)))
     failure = next((f for _r, f in replays if f is not None), None)
     if failure is not None:
         raise failure
