@@ -50,6 +50,8 @@ typedef struct {
     double drive_frictionLeft, drive_frictionRight, drive_viscousFriction;   /* drivetrain friction, off at 0 */
     double strip_x, strip_halfWidth, strip_khFactor, strip_strengthFactor;   /* soil strip, off at factors 1 */
     double slipSinkage_exponent, grouser_thrustSlip, multipass_compactionDepth;
+    int grouser_lugCount;                        /* lugs per wheel (lug ripple), 0: none */
+    double grouser_rippleAmplitude;              /* lug ripple of the traction limit, off at 0 */
 } Params;
 
 /* Multi-pass: each side remembers the residual rut its front wheel leaves,
@@ -83,6 +85,8 @@ typedef struct {
     double quat[4];                /* world-from-chassis rotation (w, x, y, z) */
     double beta;                   /* left rocker angle; right = -beta */
     double u[NU];                  /* generalised velocities, see U_* */
+    double spin_angle[2];          /* rad, each side's wheel angle relative to its rocker: the
+                                    * integral of u[U_SPIN_L + side] from 0 at initialisation */
     ContactMemory memory[NUM_WHEELS];
     double pid_integral[2];        /* rad (integral of the spin error) */
     double path[2];                /* forward travel of each side's front wheel, m */
@@ -97,7 +101,7 @@ typedef struct {
 
 typedef struct {
     double x, y, z, roll, pitch, yaw, vx, omegaLeft, omegaRight;
-    double torqueLeftApplied, torqueRightApplied, rocker;
+    double torqueLeftApplied, torqueRightApplied, rocker, spinAngleLeft, spinAngleRight;
     WheelOutputs wheel[NUM_WHEELS];
 } Outputs;
 
@@ -136,7 +140,7 @@ typedef struct {
     Params p;
     Derived d;
     Terrain terrain;
-    double pos[3], quat[4], beta, u[NU];
+    double pos[3], quat[4], beta, u[NU], spin_angle[2];
     ContactMemory memory[NUM_WHEELS];
     double path[2];
     double rut[2][RUT_SAMPLES];

@@ -391,6 +391,8 @@ void rover_outputs_from(Model *m, const Eval *ev)
     o->torqueLeftApplied = ev->torque[SIDE_LEFT];
     o->torqueRightApplied = ev->torque[SIDE_RIGHT];
     o->rocker = m->s.beta;
+    o->spinAngleLeft = m->s.spin_angle[SIDE_LEFT];
+    o->spinAngleRight = m->s.spin_angle[SIDE_RIGHT];
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const WheelContact *wc = &ev->wheel[w];
         WheelOutputs *wo = &o->wheel[w];

@@ -2,7 +2,8 @@
  * The integrator (rover_internal.h): one communication step in internal
  * steps of at most solver.step, linearly implicit Euler in the velocities
  * (the stiff soil shear, normal stiffness and drive damping are
- * linearised), then the positions with the new velocities (symplectic):
+ * linearised), then the positions (and the wheels' spin angles) with the new
+ * velocities (symplectic):
  *   (M + h D + h^2 K) du = h (Q - h K u),   u += du,   q += h u.
  * The contact memory (max sinkage, distance rolled), the multi-pass rut
  * and the PID integral are advanced explicitly once per internal step.
@@ -184,6 +185,7 @@ static void eval_key_store(Model *m)
     memcpy(k->quat, s->quat, sizeof k->quat);
     k->beta = s->beta;
     memcpy(k->u, s->u, sizeof k->u);
+    memcpy(k->spin_angle, s->spin_angle, sizeof k->spin_angle);
     memcpy(k->memory, s->memory, sizeof k->memory);
     memcpy(k->path, s->path, sizeof k->path);
     if (m->p.multipass_rutFraction > 0) memcpy(k->rut, s->rut, sizeof k->rut);
@@ -197,6 +199,7 @@ static int eval_key_matches(const Model *m)
            memcmp(&k->terrain, &m->terrain, sizeof k->terrain) == 0 &&
            memcmp(k->pos, s->pos, sizeof k->pos) == 0 && memcmp(k->quat, s->quat, sizeof k->quat) == 0 &&
            memcmp(&k->beta, &s->beta, sizeof k->beta) == 0 && memcmp(k->u, s->u, sizeof k->u) == 0 &&
+           memcmp(k->spin_angle, s->spin_angle, sizeof k->spin_angle) == 0 &&
            memcmp(k->memory, s->memory, sizeof k->memory) == 0 &&
            memcmp(k->path, s->path, sizeof k->path) == 0 &&
            (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
@@ -257,6 +260,7 @@ static int advance(Model *m, double h, char *err, size_t errlen)
     for (int i = 0; i < 3; ++i) s->pos[i] += h * s->u[U_VX + i];
     quat_integrate_world(s->quat, &s->u[U_WX], h);
     s->beta += h * s->u[U_BETA];
+    for (int k = 0; k < 2; ++k) s->spin_angle[k] += h * s->u[U_SPIN_L + k];
     for (int w = 0; w < NUM_WHEELS; ++w)
         contact_memory_update(&m->d.contact, &s->memory[w], ev->wheel[w].sinkage, ev->wheel[w].v_long, h);
     if (m->p.multipass_rutFraction > 0) {
@@ -306,7 +310,7 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
  * rocker rates) is within solver.tolerance (m/s); the next step is
  * 0.9 h sqrt(tol / est) (B's error grows as h^2), within 0.2..2 times this
  * one and at most solver.step.  The velocities, positions, attitude,
- * rocker angle and PID integral are extrapolated; the soil memory, the
+ * rocker angle, wheel spin angles and PID integral are extrapolated; the soil memory, the
  * rut and the applied torque are B's (the memory's maximum and clamps are
  * not smooth in time).  All three substeps linearise with the Jacobians
  * of the step's start (the damping D and stiffness K, the drive's torque
@@ -363,6 +367,7 @@ static void extrapolate(State *s, const State *a)
     n = 1.0 / sqrt(n);
     for (int i = 0; i < 4; ++i) s->quat[i] *= n;
     s->beta = 2.0 * s->beta - a->beta;
+    for (int k = 0; k < 2; ++k) s->spin_angle[k] = 2.0 * s->spin_angle[k] - a->spin_angle[k];
     for (int k = 0; k < 2; ++k) s->pid_integral[k] = 2.0 * s->pid_integral[k] - a->pid_integral[k];
 }
 

@@ -364,8 +364,15 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     wc->in_contact = 1;
     const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
                           m->p.grouser_thrustGain, m->p.grouser_lugHeight, m->p.slipSinkage_exponent,
-                          m->p.grouser_thrustSlip};
+                          m->p.grouser_thrustSlip, m->p.grouser_lugCount, m->p.grouser_rippleAmplitude};
     in.spin = wheel_spin(m, ev, Jw, sp);
+    /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
+     * and chassis' pitch, a few degrees, shift the phase a little); the rear
+     * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
+     * ripple's dependence on the angle is explicit in the step (not in K):
+     * N omega h is small at the steps that resolve the ripple. */
+    in.spin_angle = m->s.spin_angle[side_of(w)];
+    in.lug_phase = w % 2 == 1 ? M_PI : 0.0;
     WheelSoilContact sc;
     wheel_soil_slip(&ws, &in, &sc);
     wc->slip = sc.slip;

@@ -81,7 +81,7 @@ void wheel_rig_force(const Model *m, double z, int at_rest, RigForce *f)
                           .slip_sinkage = m->p.slipSinkage_coefficient, .thrust_gain = m->p.grouser_thrustGain,
                           .lug_height = m->p.grouser_lugHeight, .slip_sinkage_power = m->p.slipSinkage_exponent,
                           .thrust_slip = m->p.grouser_thrustSlip};
-    const WheelSoilInput in = {f->sinkage, f->v_long, f->spin, 1.0, 1.0};
+    const WheelSoilInput in = {f->sinkage, f->v_long, f->spin, 1.0, 1.0, 0.0, 0.0};   /* no lug ripple */
     WheelSoilContact sc;
     wheel_soil_slip(&ws, &in, &sc);
     wheel_soil_normal(&ws, &m->s.memory, &in, 1, &sc);

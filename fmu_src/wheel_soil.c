@@ -2,7 +2,7 @@
  * The soil's force on one rigid wheel (wheel_soil.h): the slip, the
  * normal force and its tilt from the contact law (volumetric, Petersen &
  * McPhee 2013, or Wong-Reece/Ishigami), the slip-vector shear, and the
- * extensions that act at the contact (slip-sinkage, grousers).
+ * extensions that act at the contact (slip-sinkage, grousers, lug ripple).
  */
 #include <math.h>
 #include <stdio.h>
@@ -132,6 +132,14 @@ void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilCon
     const double gain = ws->thrust_slip > 0 ? ws->thrust_gain * (1.0 - exp(-fabs(c->slip) / ws->thrust_slip))
                                             : ws->thrust_gain;
     c->shear_factor = in->strength_factor * (1.0 + gain);
+    /* Lug ripple (grouser.lugCount N, grouser.rippleAmplitude a): each lug
+     * entering the soil bears on it before the soil between the lugs is
+     * sheared, so the traction limit pulses N times per revolution,
+     * F_taumax (1 + a cos(N theta + phi)) at the wheel's angle theta.  The
+     * lateral limit pulses with it (the same shear surface).  Skipped when
+     * off, so that the forces stay bit for bit those without it. */
+    if (ws->ripple_amplitude > 0 && ws->lug_count > 0)
+        c->shear_factor *= 1.0 + ws->ripple_amplitude * cos(ws->lug_count * in->spin_angle + in->lug_phase);
     /* Grouser lugs (grouser.lugHeight h, volumetric law only): the soil
      * between the lugs turns with the wheel, so the shear surface is the lug
      * tips' circle, h beyond the rim the normal law presses on.  The shear's

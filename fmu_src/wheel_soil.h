@@ -19,7 +19,8 @@
  * of the rim point on the tilted ray, which only the caller's kinematics
  * know:
  *   1. wheel_soil_slip    the longitudinal slip and the soil factors that
- *                         depend on it (slip-sinkage, grouser thrust);
+ *                         depend on it (slip-sinkage, grouser thrust) or
+ *                         on the wheel's angle (lug ripple);
  *   2. wheel_soil_normal  the normal force, its tilt alpha, the contact
  *                         area and the normal stiffness, from the law
  *                         chosen (volumetric or Wong-Reece/Ishigami);
@@ -70,6 +71,8 @@ typedef struct {
     double lug_height;                  /* grouser.lugHeight, m: shear radius R + h (volumetric) */
     double slip_sinkage_power;          /* slipSinkage.exponent p: k_h / (1 + c |slip|^p); 0 or 1: linear */
     double thrust_slip;                 /* grouser.thrustSlip s_g: F_taumax (1 + g (1 - exp(-|slip| / s_g))); 0: (1 + g) */
+    double lug_count;                   /* grouser.lugCount N: lugs per wheel, 0: no ripple */
+    double ripple_amplitude;            /* grouser.rippleAmplitude a: F_taumax (1 + a cos(N theta + phi)), 0: off */
 } WheelSoil;
 
 /* The wheel's state relative to the soil, in its contact frame. */
@@ -79,6 +82,8 @@ typedef struct {
     double spin;                        /* wheel spin about its axle, rad/s (positive rolls forward) */
     double kh_factor;                   /* local k_h relative to soil.kh (soil patch, rut), 1: none */
     double strength_factor;             /* local shear strength relative to the soil's, 1: none */
+    double spin_angle;                  /* theta, the wheel's angle about its axle, rad (lug ripple) */
+    double lug_phase;                   /* phi, the ripple's phase at theta = 0, rad (lug ripple) */
 } WheelSoilInput;
 
 /* The Wong-Reece/Ishigami law at one wheel mapped onto the volumetric
@@ -98,7 +103,7 @@ typedef struct {
     double den;                         /* slip denominator max(|omega R|, |v_long|, eps), m/s */
     double slip;                        /* (omega R - v_long) / den */
     double kh_factor;                   /* the input's, with slip-sinkage */
-    double shear_factor;                /* F_taumax scaling: strength and grouser thrust */
+    double shear_factor;                /* F_taumax scaling: strength, grouser thrust, lug ripple */
     double shear_radius;                /* where the shear acts: R + lug height (volumetric), R (WR), m */
     /* wheel_soil_normal */
     int wong_reece;                     /* the law is Wong-Reece */

@@ -124,6 +124,8 @@
     REAL(507, "slipSinkage.exponent", PARAM, "1", 1.0, 0.25, 4, p.slipSinkage_exponent, "Slip-sinkage exponent p: k_h / (1 + c |slip|^p) (1 = the linear law)") \
     REAL(508, "grouser.thrustSlip", PARAM, "1", 0.0, 0, 1, p.grouser_thrustSlip, "Slip s_g over which the grouser thrust builds up: F_taumax (1 + g (1 - exp(-|slip| / s_g))) (0 = the full gain at any slip)") \
     REAL(509, "multipass.compactionDepth", PARAM, "m", 0.002, 1e-4, 0.5, p.multipass_compactionDepth, "Rut depth d at which the compaction reaches half its effect: k_h (1 + (multipass.khFactor - 1) rut / (rut + d))") \
+    INT (510, "grouser.lugCount", PARAM, 0, 0, 100, p.grouser_lugCount, "Lugs per wheel N of the lug ripple: the traction limit pulses N times per revolution (0 = no ripple)") \
+    REAL(511, "grouser.rippleAmplitude", PARAM, "1", 0.0, 0, 1, p.grouser_rippleAmplitude, "Lug ripple: F_taumax (1 + a cos(N theta + phi)), theta the side's spinAngle, phi 0 on the front wheels and pi on the rear (assumed half a lug pitch behind) (0 = off)") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
     REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \
@@ -145,6 +147,8 @@
     REAL(309, "torqueLeftApplied",  OUTPUT, "N.m", 0, -NOLIM, NOLIM, out.torqueLeftApplied,  "Drive torque applied to the left wheels") \
     REAL(310, "torqueRightApplied", OUTPUT, "N.m", 0, -NOLIM, NOLIM, out.torqueRightApplied, "Drive torque applied to the right wheels") \
     REAL(311, "rocker", OUTPUT, "rad", 0, -NOLIM, NOLIM, out.rocker, "Left rocker angle relative to the chassis (right is its negative)") \
+    REAL(312, "spinAngleLeft",  OUTPUT, "rad", 0, -NOLIM, NOLIM, out.spinAngleLeft,  "Wheel angle of the left side relative to its rocker, the integral of omegaLeft from 0 at initialisation (encoder angle)") \
+    REAL(313, "spinAngleRight", OUTPUT, "rad", 0, -NOLIM, NOLIM, out.spinAngleRight, "Wheel angle of the right side relative to its rocker, the integral of omegaRight from 0 at initialisation (encoder angle)") \
     WHEEL_OUTPUTS(0, "FL", 400) \
     WHEEL_OUTPUTS(1, "RL", 410) \
     WHEEL_OUTPUTS(2, "FR", 420) \
