@@ -43,6 +43,11 @@ slip_sinkage_power   the soil yields with the square root of slip (steeply    sl
 grouser_buildup      the lugs' extra thrust builds up with slip (the soil     grouser
                      between lugs shears first): F_taumax x (1 + 0.35 S
                      (1 - exp(-|s| / 0.15))), shear at R + 25 S mm
+lug_ripple           the catalog's lug thrust, and the traction limit         grouser
+                     pulsing as each of 18 lugs enters the soil: F_taumax
+                     x (1 + 0.35 S) (1 + 0.3 S cos(18 theta + phi)), shear
+                     at R + 25 S mm (theta the wheel angle, phi 0 front, pi
+                     rear; 2-6 Hz at 0.7-2 rad/s, below a 20 Hz Nyquist)
 drivetrain_friction  Coulomb plus viscous friction in each drivetrain on the   drivetrain_loss
                      wheel side: 15 S N m + 8 S N m s/rad x spin
 terrain_tilt         the LIDAR scan is tilted by 1 S deg about a horizontal   terrain_offset
@@ -96,6 +101,7 @@ ALTERNATIVE_FORMS: dict[str, str] = {
                        "in a rut that partly springs back",
     "slip_sinkage_power": "sinkage grows with the square root of slip",
     "grouser_buildup": "the lugs' extra thrust builds up with slip",
+    "lug_ripple": "the lugs' extra thrust ripples as each lug enters the soil",
     "drivetrain_friction": "Coulomb and viscous friction in the drivetrains, not seen by the motor current",
     "terrain_tilt": "the scanned terrain is tilted about a horizontal axis relative to the real one",
 }
@@ -103,7 +109,8 @@ ALTERNATIVE_FORMS: dict[str, str] = {
 #: The catalog effect whose mechanism each alternative form shares.
 ALTERNATIVE_OF: dict[str, str] = {
     "soil_strip": "soil_patch", "multipass_depth": "multipass", "slip_sinkage_power": "slip_sinkage",
-    "grouser_buildup": "grouser", "drivetrain_friction": "drivetrain_loss", "terrain_tilt": "terrain_offset",
+    "grouser_buildup": "grouser", "lug_ripple": "grouser", "drivetrain_friction": "drivetrain_loss",
+    "terrain_tilt": "terrain_offset",
 }
 
 DECOYS: dict[str, str] = {
@@ -111,6 +118,9 @@ DECOYS: dict[str, str] = {
     "side_drag": "a brake drags on the left wheels; the measured motor torque does not see it",
     "clock_offset": "the IMU and total-station clocks are offset from the motor clock",
 }
+
+#: Lugs per wheel of the ``lug_ripple`` form (an assumption for the Juno's 22 in tyre).
+LUG_COUNT = 18
 
 #: Every effect ``juno synthesize`` can hide.
 ALL_EFFECTS: dict[str, str] = {**EFFECTS, **ALTERNATIVE_FORMS, **DECOYS}
@@ -212,6 +222,13 @@ def hidden_parameters(effect: str, strength: float, rng: np.random.Generator) ->
         return {"slipSinkage.coefficient": 1.2 * s, "slipSinkage.exponent": 0.5}, {}
     if effect == "grouser_buildup":
         return {"grouser.thrustGain": 0.35 * s, "grouser.lugHeight": 0.025 * s, "grouser.thrustSlip": 0.15}, {}
+    if effect == "lug_ripple":
+        # The catalog grouser's thrust and lug height, pulsing at the lug-passing frequency.  18
+        # lugs: an assumed count for the Juno's 22 in tyre (a lug pitch of about 10 cm, as ATV
+        # tyres of that size have 16-20).  At the campaigns' spins of 0.7-2 rad/s the ripple is at
+        # 2-6 Hz, which the 50 Hz and 20 Hz torque and spin samples resolve (Nyquist 25 and 10 Hz).
+        return {"grouser.thrustGain": 0.35 * s, "grouser.lugHeight": 0.025 * s, "grouser.lugCount": LUG_COUNT,
+                "grouser.rippleAmplitude": 0.3 * s}, {}
     if effect == "drivetrain_friction":
         return {"drive.frictionLeft": 15.0 * s, "drive.frictionRight": 15.0 * s,
                 "drive.viscousFriction": 8.0 * s}, {}

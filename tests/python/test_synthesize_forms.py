@@ -13,7 +13,9 @@ Specification:
   its slope times the distance from the axis and moves no point sideways; the soil strip
   weakens the soil inside the strip only; the square-root slip-sinkage sinks deeper than the
   linear law; the grouser thrust that builds up with slip helps less than the full gain; a
-  deeper rut for half compaction stiffens the rear wheels' soil less;
+  deeper rut for half compaction stiffens the rear wheels' soil less; the lug ripple keeps the
+  catalog grouser's mean torque and makes the measured torque pulse at the lug-passing
+  frequency;
 * ``design="alt"``: four drawbar runs, clocks not at zero with the steady windows inside the
   runs, the columns in another order with an unused ``battery_voltage``, another terrain and
   throttle, loaded and plausible as they are;
@@ -31,7 +33,7 @@ import pytest
 
 from harness_fixtures import run_juno
 from juno.campaign import load_campaign, read_run, read_terrain_points, steady_average
-from juno.effects import ALTERNATIVE_FORMS, ALTERNATIVE_OF, DECOYS, EFFECT_INFO
+from juno.effects import ALTERNATIVE_FORMS, ALTERNATIVE_OF, DECOYS, EFFECT_INFO, LUG_COUNT
 from juno.plausibility import check_campaign
 from juno.rover_model import rover
 from juno.simulator import InputSignals
@@ -237,6 +239,36 @@ def test_a_deeper_rut_for_half_compaction_stiffens_the_rear_wheels_soil_less(har
     deep = _flat_run(harness_fmu, {**common, "multipass.compactionDepth": 0.02})
     late = shallow["time"] > 5.0
     assert np.mean(deep["wheelRL.sinkage"][late]) > 1.05 * np.mean(shallow["wheelRL.sinkage"][late])
+
+
+def _lug_band_peak(root: Path, run_id: str) -> tuple[float, float]:
+    """A drawbar run's steady mean of the left motor torque (N m) and the largest amplitude of its
+    Hann-windowed spectrum within 0.5 Hz of the lug-passing frequency N omega / (2 pi)."""
+    campaign = load_campaign(root)
+    spec = campaign.run(run_id)
+    run = read_run(campaign, spec)
+    t, torque = run.samples("torque_left")
+    t_spin, spin = run.samples("omega_left")
+    lo, hi = spec.steady_window
+    inside = (t >= lo) & (t <= hi)
+    torque, dt = torque[inside], float(np.median(np.diff(t)))
+    lug_hz = LUG_COUNT * float(np.mean(spin[(t_spin >= lo) & (t_spin <= hi)])) / (2 * np.pi)
+    freq = np.fft.rfftfreq(len(torque), dt)
+    spectrum = np.abs(np.fft.rfft((torque - torque.mean()) * np.hanning(len(torque))))
+    return float(np.mean(torque)), float(spectrum[np.abs(freq - lug_hz) < 0.5].max())
+
+
+def test_the_lug_ripple_keeps_the_grouser_thrust_and_pulses_the_torque_at_the_lug_frequency(campaigns):
+    """Without noise: the lug ripple's drawbar runs take the catalog grouser's mean motor torque
+    (within 2 %), and their torque spectrum near N omega / (2 pi), 1.5-3 Hz here and below the 25
+    Hz Nyquist frequency of the 50 Hz torque samples, is more than four times the grouser's."""
+    grouser, ripple = campaigns("grouser", noise=0.0), campaigns("lug_ripple", noise=0.0)
+    assert truth_of(ripple)["hidden"]["sim"]["grouser.lugCount"] == LUG_COUNT
+    for run_id in ("dbp1", "dbp2", "dbp3"):
+        (mean_g, band_g), (mean_r, band_r) = _lug_band_peak(grouser, run_id), _lug_band_peak(ripple, run_id)
+        print(f"\n{run_id}: torque {mean_g:.1f} / {mean_r:.1f} N m, at the lug frequency {band_g:.1f} / {band_r:.1f}")
+        assert mean_r == pytest.approx(mean_g, rel=0.02)
+        assert band_r > 4.0 * band_g
 
 
 # ------------------------------------------------------------------ the alternative design
