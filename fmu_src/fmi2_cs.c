@@ -442,7 +442,9 @@ typedef struct {
 } Snapshot;
 
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
-#define SNAPSHOT_VERSION 1u
+/* Raised with every change of ModelState's layout (2: the wheels' spin angles), so that a state
+ * saved by another version of the FMU is refused as such, even at an equal size. */
+#define SNAPSHOT_VERSION 2u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)
 {
@@ -540,7 +542,8 @@ FMI2_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte s
     CHECK(c, "fmi2DeSerializeFMUstate", ST_ANY_ALIVE);
     if (!serializedState || !FMUstate) return refuse(inst, "fmi2DeSerializeFMUstate", "NULL argument");
     if (size != SERIAL_SIZE)
-        return refuse(inst, "fmi2DeSerializeFMUstate", "serialized state has %zu bytes, expected %zu", size,
+        return refuse(inst, "fmi2DeSerializeFMUstate",
+                      "serialized state has %zu bytes, expected %zu (saved by another version of this FMU?)", size,
                       (size_t)SERIAL_SIZE);
     Snapshot tmp;
     uint64_t sum;
