@@ -110,17 +110,18 @@ static double tolerance = 1e-9;
 #define TRACE_COLS (1 + (int)(sizeof(Outputs) / sizeof(double)))
 static const char *const trace_names[] = {
     "time", "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight", "torqueLeftApplied",
-    "torqueRightApplied", "rocker",
+    "torqueRightApplied", "rocker", "spinAngleLeft", "spinAngleRight",
     "FL.sinkage", "FL.slip", "FL.Fn", "FL.Ft", "FL.Fx", "FL.Fy", "FL.Fz",
     "RL.sinkage", "RL.slip", "RL.Fn", "RL.Ft", "RL.Fx", "RL.Fy", "RL.Fz",
     "FR.sinkage", "FR.slip", "FR.Fn", "FR.Ft", "FR.Fx", "FR.Fy", "FR.Fz",
     "RR.sinkage", "RR.slip", "RR.Fn", "RR.Ft", "RR.Fx", "RR.Fy", "RR.Fz"};
-static const double head_floor[13] = {1, 1, 1, 1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 10, 10, 0.1};
+#define HEAD_COLS 15             /* time and the outputs before the wheels' */
+static const double head_floor[HEAD_COLS] = {1, 1, 1, 1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 10, 10, 0.1, 1, 1};
 static const double wheel_floor[7] = {1e-3, 0.01, 10, 10, 10, 10, 10};
 
 static double trace_floor(int col)
 {
-    return col < 13 ? head_floor[col] : wheel_floor[(col - 13) % 7];
+    return col < HEAD_COLS ? head_floor[col] : wheel_floor[(col - HEAD_COLS) % 7];
 }
 
 /* Compares trace files a (reference) and b; prints the worst outputs.

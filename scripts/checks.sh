@@ -70,7 +70,9 @@ note "ASan+UBSan: $(cd build-asan && ctest -N | tail -1 | sed 's/Total Tests: //
 # --------------------------------------------------------- 2. valgrind
 t0=$SECONDS
 echo "== checks: valgrind memcheck and helgrind (Release FMU, build/)"
-cmake --build build --target conformance parallel test_wheel_rig test_wheel_rig_fmi
+# The benchmark programs are built on demand (juno bench): built here too, so that a change of the
+# model's structs that they mirror fails the checks, not a user's benchmark.
+cmake --build build --target conformance parallel test_wheel_rig test_wheel_rig_fmi bench_contact bench_fmu
 vg=(valgrind -q --error-exitcode=97 --leak-check=full --show-leak-kinds=definite,indirect,possible
     --errors-for-leak-kinds=definite,indirect,possible --track-origins=yes)
 "${vg[@]}" build/conformance build/fmu build | tail -1
