@@ -31,7 +31,7 @@ from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
-from ..parallel import BackgroundTask
+from ..parallel import BackgroundTask, TaskPool
 from ..residual_structure import ResidualStructure, residual_structure
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
@@ -200,9 +200,9 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
     runs; the bootstrap's replays run in ``workers`` local processes (None: one per core)."""
     models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
     data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
-    with JunoFMU(fmu_path) as fmu:
+    with JunoFMU(fmu_path) as fmu, TaskPool(workers) as pool:
         tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
-                                    m.params, workers=workers, data=data) for m in models]
+                                    m.params, data=data, pool=pool) for m in models]
     for m, t in zip(models, tests):
         found = ", ".join(f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()) or "none"
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
