@@ -214,6 +214,9 @@ def test_terrain_only_campaign_is_refused_by_identification_and_diagnosis(campai
     assert cli.main(["identify", str(c.root), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "'identify' needs at least one drawbar run" in err and "concatenate" not in err
+    assert cli.main(["report", str(c.root), "--out", str(tmp_path / "report"), "--quiet"]) == 2
+    assert "'report' needs at least one drawbar run" in capsys.readouterr().err   # the command the user ran
+    assert not (tmp_path / "report").exists()
 
 
 def test_drawbar_only_campaign_is_refused_by_validation_and_terrain_fits(campaign, tmp_path, capsys):

@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..campaign import load_campaign
-    from ..identify import identify_joint, identify_paper_runs
+    from ..identify import identify_joint, identify_paper_runs, require_runs
     from ..plausibility import enforce_plausibility
     from ..report import write_report
     from ..simulator import JunoFMU
@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
             write_json(args.json, {"report": str(path), "rig": {law: f.params for law, f in rig.fits.items()},
                                    "timings": timings}, "report")
             return 0
+    require_runs(campaign, "report")
     with JunoFMU(args.fmu) as fmu:
         t = time.perf_counter()
         say("paper-style identification of every drawbar run (one task per run, on the cores)")
