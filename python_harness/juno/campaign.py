@@ -205,8 +205,25 @@ class Campaign:
         return None if spec.terrain is None else self.root / spec.terrain
 
 
+class _ColumnTable:
+    """Access by column name to a table whose ``columns`` map names to float arrays (NaN = no
+    value in that row): what a run's samples and a testbed's points share."""
+
+    columns: dict[str, FloatArray]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.columns
+
+    def __getitem__(self, name: str) -> FloatArray:
+        return self.columns[name]
+
+    def has(self, name: str) -> bool:
+        """True when the column exists and has at least one value."""
+        return name in self.columns and bool(np.any(~np.isnan(self.columns[name])))
+
+
 @dataclass
-class RunData:
+class RunData(_ColumnTable):
     """The samples of one run CSV.
 
     Attributes:
@@ -234,16 +251,6 @@ class RunData:
     def __len__(self) -> int:
         return int(self.time.shape[0])
 
-    def __contains__(self, name: object) -> bool:
-        return name in self.columns
-
-    def __getitem__(self, name: str) -> FloatArray:
-        return self.columns[name]
-
-    def has(self, name: str) -> bool:
-        """True when the column exists and has at least one sample."""
-        return name in self.columns and bool(np.any(~np.isnan(self.columns[name])))
-
     def samples(self, name: str) -> tuple[FloatArray, FloatArray]:
         """(times, values) of the column's own non-empty samples.
 
@@ -260,7 +267,7 @@ class RunData:
 
 
 @dataclass
-class RigTable:
+class RigTable(_ColumnTable):
     """The points of one wheel_rig table (:func:`read_rig_csv`).
 
     Attributes:
@@ -282,16 +289,6 @@ class RigTable:
 
     def __len__(self) -> int:
         return int(self.columns["slip"].shape[0])
-
-    def __contains__(self, name: object) -> bool:
-        return name in self.columns
-
-    def __getitem__(self, name: str) -> FloatArray:
-        return self.columns[name]
-
-    def has(self, name: str) -> bool:
-        """True when the column exists and has at least one value."""
-        return name in self.columns and bool(np.any(~np.isnan(self.columns[name])))
 
     @property
     def slip_angle(self) -> FloatArray:
