@@ -186,17 +186,17 @@ static void trace_line(FILE *f, const Model *m)
 
 /* ------------------------------------------------------------ direct */
 
-static RunResult run_direct(const Scenario *sc, FILE *trace)
+/* A model set up for scenario sc, not yet initialised (NULL: out of memory): the defaults, the
+ * scenario's start, load and throttle, and the solver settings step (s, > 0 to set it) and
+ * tolerance (>= 0 to set it). */
+static Model *scenario_model(const Scenario *sc, double step, double tolerance)
 {
-    RunResult r;
-    memset(&r, 0, sizeof r);
-    const double t0 = now(), c0 = cpu_now();
     Model *m = (Model *)calloc(1, sizeof *m);
-    if (!m) return snprintf(r.error, sizeof r.error, "out of memory"), r;
+    if (!m) return NULL;
     model_set_defaults(m);
     terrain_init_flat(&m->terrain);
-    if (solver_step > 0) m->p.solver_step = solver_step;
-    if (solver_tolerance >= 0) m->p.solver_tolerance = solver_tolerance;
+    if (step > 0) m->p.solver_step = step;
+    if (tolerance >= 0) m->p.solver_tolerance = tolerance;
     if (contact_model >= 0) m->p.contact_model = contact_model;
     m->p.init_x = sc->init_x;
     m->in.drawbarForce = sc->drawbar;
@@ -205,6 +205,16 @@ static RunResult run_direct(const Scenario *sc, FILE *trace)
         m->terrain_file = (char *)malloc(strlen(sc->terrain) + 1);
         if (m->terrain_file) strcpy(m->terrain_file, sc->terrain);
     }
+    return m;
+}
+
+static RunResult run_direct(const Scenario *sc, FILE *trace)
+{
+    RunResult r;
+    memset(&r, 0, sizeof r);
+    const double t0 = now(), c0 = cpu_now();
+    Model *m = scenario_model(sc, solver_step, solver_tolerance);
+    if (!m) return snprintf(r.error, sizeof r.error, "out of memory"), r;
     char err[512];
     if (model_initialize(m, err, sizeof err) != 0) {
         snprintf(r.error, sizeof r.error, "model_initialize: %s", err);
@@ -369,20 +379,11 @@ static double cpu_per_call(Model *m, Eval *ev, int what, int n)
 
 static int profile_scenario(const Scenario *sc)
 {
-    Model *m = (Model *)calloc(1, sizeof *m);
+    Model *m = scenario_model(sc, 1e-3, 0.0);
     Eval *ev = (Eval *)calloc(1, sizeof *ev);
-    if (!m || !ev) return free(m), free(ev), fprintf(stderr, "bench_fmu: out of memory\n"), -1;
-    model_set_defaults(m);
-    terrain_init_flat(&m->terrain);
-    m->p.solver_step = 1e-3;
-    m->p.solver_tolerance = 0.0;
-    if (contact_model >= 0) m->p.contact_model = contact_model;
-    m->p.init_x = sc->init_x;
-    m->in.drawbarForce = sc->drawbar;
-    m->in.throttleLeft = m->in.throttleRight = sc->throttle;
-    if (sc->terrain) {
-        m->terrain_file = (char *)malloc(strlen(sc->terrain) + 1);
-        if (m->terrain_file) strcpy(m->terrain_file, sc->terrain);
+    if (!m || !ev) {
+        if (m) model_free(m), free(m);
+        return free(ev), fprintf(stderr, "bench_fmu: out of memory\n"), -1;
     }
     char err[512];
     int rc = model_initialize(m, err, sizeof err);
