@@ -59,7 +59,7 @@ FALSE_ALARM = 0.01
 N_RANGE = (4, 48)
 #: A ripple smaller than this fraction of the signal's sensor noise (amplitude over the per-sample
 #: sigma) is not reported.  Calibrated by simulation (scripts/periodic_calibration.py, true soil,
-#: seeds 500-503 of both designs): on campaigns with nothing hidden the strongest N's amplitude
+#: four campaigns of each design): on campaigns with nothing hidden the strongest N's amplitude
 #: is what noise alone fits, 0.10-0.14 sigma with the default design's 50 Hz torques and up to
 #: 0.28 sigma with the alt design's 20 Hz ones (fewer samples), never significant; the lug_ripple
 #: form left by the catalog grouser is 1.3-2.5 sigma at strength 1 and 0.45-0.86 sigma at 0.3.

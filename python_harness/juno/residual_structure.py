@@ -35,6 +35,10 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    covariates an engineer would look at: a constant offset, time in the run, position x and y,
    the drive torque, the wheel spin, the slip, the run, and for the paired left/right signals
    the side.  Each is reported with the share of the structure it accounts for.
+6. **A ripple in the wheel angle.**  Block means average away a ripple at a few Hz (a lugged
+   wheel's traction pulsing at N per revolution), so the held-out torque samples themselves are
+   tested for a component periodic in each side's measured wheel angle
+   (juno.periodic_structure; at most FALSE_ALARM false reports per campaign of its own).
 
 Only drawbar runs are tested: over the 3-D terrain the replay drifts from the measured path
 even at the true parameters (the terrain run's block means at the truth are many times the
@@ -52,6 +56,7 @@ import numpy as np
 
 from .campaign import Campaign, RunData, read_run
 from .identify import PreparedRun, run_residuals
+from .periodic_structure import PeriodicSignal, PeriodicStructure, periodic_structure, series_of_residuals
 from .rover_model import SOIL_PARAMETERS
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import JunoFMU, SimulationError
@@ -128,21 +133,29 @@ class SignalStructure:
 
 @dataclass
 class ResidualStructure:
-    """Every signal's structure test; ``significant`` if any signal has structure."""
+    """Every signal's structure test, and the drive torques' test for a ripple in the wheel angle
+    (``periodic``: juno.periodic_structure, on the same held-out samples); ``significant`` if any
+    signal has structure or a ripple."""
 
     signals: list[SignalStructure]
     level: float                  # the per-signal p threshold (FALSE_ALARM / signals)
     replicas: int
     runs: list[str]
+    periodic: PeriodicStructure | None = None
 
     @property
     def significant(self) -> bool:
-        return any(s.significant for s in self.signals)
+        return any(s.significant for s in self.signals) or bool(self.periodic and self.periodic.significant)
 
     @property
     def excess(self) -> float:
-        """Sum over signals of (structure RMS / noise)^2: the structure's size, noise units."""
-        return float(sum(s.ratio ** 2 for s in self.signals))
+        """Sum over signals of (structure RMS / noise)^2, and of (ripple RMS / noise)^2 over the
+        ripples found: the structure's size, noise units."""
+        return float(sum(s.ratio ** 2 for s in self.signals)) + (self.periodic.excess if self.periodic else 0.0)
+
+    def ripples(self) -> list[PeriodicSignal]:
+        """The signals with a ripple in the wheel angle, largest (relative to their noise) first."""
+        return self.periodic.found() if self.periodic else []
 
     def structured(self) -> list[SignalStructure]:
         """The signals with structure, largest (relative to their noise) first."""
@@ -151,7 +164,8 @@ class ResidualStructure:
     def to_json(self) -> dict[str, Any]:
         return {"significant": self.significant, "false_alarm": FALSE_ALARM, "level": self.level,
                 "material_fraction": MATERIAL_FRACTION, "replicas": self.replicas, "runs": self.runs,
-                "signals": [s.to_json() for s in self.signals]}
+                "signals": [s.to_json() for s in self.signals],
+                "periodic": self.periodic.to_json() if self.periodic else None}
 
 
 UNITS = {"torque_left": "N m", "torque_right": "N m", "pos_x": "m per 1 s", "pos_y": "m per 1 s",
@@ -373,7 +387,8 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     signals = [_test_signal(str(sig), units, observed, null_means, noise, sigma_of, covariates,
                             means_by_signal, len(np.unique(units.unit_signal)))
                for sig in np.unique(units.unit_signal)]
-    return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs)
+    periodic = periodic_structure(series_of_residuals(prepared, meta, train, residuals, data, noise), UNITS)
+    return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs, periodic)
 
 
 def _replica_task(args: tuple[FMUHandle, PreparedRun, dict[str, float], dict[str, object]]

@@ -3,7 +3,11 @@ structure its models leave (juno/diagnose/verdict.py)."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_structure
 from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
+from juno.diagnose.render import _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 
 
@@ -50,3 +54,52 @@ def test_a_cause_that_removes_less_than_half_is_not_named():
     assert v.unexplained.absorbed_by == ["soil_patch"]
     assert v.unexplained.share_removed < EXPLAINED_SHARE
     assert "soil_patch would remove only" in explanation(v, "a weaker patch")
+
+
+def _ripple(amplitude: float, seed: int = 0) -> PeriodicStructure:
+    """The periodic test of drive torques (left and right, two runs at 0.6 and 1.0 rad/s, 50 Hz
+    samples of noise sigma 3 N m, held-out halves of 4 s blocks) rippling with ``amplitude`` (N m)
+    at 18 per revolution of the wheel angle."""
+    rng = np.random.default_rng(seed)
+    series = []
+    for signal in ("torque_left", "torque_right"):
+        for run, spin, duration in (("dbp1", 0.6, 24.0), ("dbp2", 1.0, 20.0)):
+            t = np.arange(0.0, duration, 0.02)
+            angle = spin * t
+            r = 3.0 * rng.standard_normal(len(t)) + amplitude * np.cos(18 * angle + 1.0)
+            block = np.floor(t / 4.0).astype(int)
+            held = block % 2 == 1
+            series.append(PeriodicSeries(run, signal, t[held], r[held], block[held], angle[held], 3.0, 0.02, spin))
+    return periodic_structure(series, {"torque_left": "N m", "torque_right": "N m"})
+
+
+def _with_ripple(structure: ResidualStructure, amplitude: float) -> ResidualStructure:
+    structure.periodic = _ripple(amplitude)
+    return structure
+
+
+def test_a_ripple_the_named_cause_leaves_is_reported_as_following_the_wheel_angle():
+    """The grouser removes the block means' structure (its missing thrust) but not the torques'
+    ripple at 18 per revolution: grouser is named and the ripple is what remains."""
+    base = _with_ripple(_structure(torque_left=3.0, torque_right=3.0), 4.0)
+    after = _with_ripple(_structure(torque_left=0.0, torque_right=0.0), 4.0)
+    v = verdict(["grouser"], base, after)
+    assert v.cause == "grouser" and v.unexplained is not None
+    assert v.unexplained.signals == []
+    assert sorted(r.signal for r in v.unexplained.ripples) == ["torque_left", "torque_right"]
+    words = explanation(v, "lugs add thrust")
+    assert "follows the wheel angle at 18 per revolution (lug passing?)" in words
+    assert v.unexplained.to_json()["ripples"][0]["per_revolution"] == 18
+    table = "\n".join(_structure_table(v.unexplained))
+    assert "the wheel angle at 18 per revolution" in table
+
+
+def test_a_ripple_with_no_cause_named_is_unexplained():
+    v = verdict([], _with_ripple(_structure(torque_left=0.0, pitch=0.0), 4.0), None)
+    assert v.cause == "unexplained" and v.unexplained.ripples
+    assert "lug passing" in explanation(v, "")
+
+
+def test_noise_alone_in_the_wheel_angle_keeps_a_right_model_none():
+    v = verdict([], _with_ripple(_structure(torque_left=0.0, pitch=0.0), 0.0), None)
+    assert (v.cause, v.unexplained) == ("none", None)

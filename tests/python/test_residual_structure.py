@@ -16,8 +16,10 @@ import pytest
 
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
-from juno.residual_structure import MATERIAL_FRACTION, column_noise, residual_structure
+from juno.residual_structure import MATERIAL_FRACTION, REPLICAS, column_noise, residual_structure
 from juno.rover_model import SOIL_PARAMETERS
+
+from harness_fixtures import NOISY_SEED, NOISY_TIME_SCALE, make_campaign
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -43,10 +45,11 @@ def _offset_columns(src: Path, dst: Path, offsets: dict[str, float]) -> Path:
     return dst
 
 
-def _structure_at_truth(root: Path, fmu, soil: dict[str, float], seed: int = 3, workers: int = 1):
-    """The structure test of the drawbar runs of the campaign at ``root`` at the soil ``soil``,
-    with the alternating 4 s training / held-out blocks the diagnosis uses, its replicas simulated
-    in ``workers`` processes."""
+def _structure_at_truth(root: Path, fmu, soil: dict[str, float], seed: int = 3, workers: int = 1,
+                        replicas: int = REPLICAS):
+    """The structure test of the drawbar runs of the campaign at ``root`` at the soil ``soil``
+    (and any other FMU parameters in it), with the alternating 4 s training / held-out blocks the
+    diagnosis uses, its ``replicas`` simulated in ``workers`` processes."""
     campaign = load_campaign(root)
     prepared = [prepare_run(campaign, run) for run in campaign.runs_of_kind("drawbar")]
     runs, signals, times = [], [], []
@@ -61,7 +64,8 @@ def _structure_at_truth(root: Path, fmu, soil: dict[str, float], seed: int = 3, 
     meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
     train = block % 2 == 0
     r = np.concatenate([run_residuals(fmu, p, soil, {}, 0.05) for p in prepared])
-    return residual_structure(campaign, fmu, prepared, meta, train, r, dict(soil), seed=seed, workers=workers)
+    return residual_structure(campaign, fmu, prepared, meta, train, r, dict(soil), seed=seed, workers=workers,
+                              replicas=replicas)
 
 
 def _signal(result, name):
@@ -81,6 +85,22 @@ def test_the_models_own_data_has_no_structure(noisy_campaign, harness_fmu):
     assert not result.significant, [s.to_json() for s in result.signals if s.significant]
     for s in result.signals:
         assert s.noise > 0 and np.isfinite(s.p_value)
+
+
+def test_a_lug_ripple_the_grouser_leaves_is_reported_at_18_per_revolution(harness_fmu, tmp_path):
+    """A campaign hiding the lug_ripple form replayed with the catalog grouser's true thrust (what
+    the grouser candidate fits): the drive torques still ripple with the wheel angle at the 18
+    lugs per revolution, which the block means cannot show; the periodic part of the test
+    reports it on both sides (the block-mean part is left to the tests above: few replicas)."""
+    c = make_campaign(tmp_path / "ripple", harness_fmu, NOISY_SEED, 1.0, NOISY_TIME_SCALE, effect="lug_ripple")
+    hidden = c.truth["hidden"]["sim"]
+    grouser = {k: hidden[k] for k in ("grouser.thrustGain", "grouser.lugHeight")}
+    result = _structure_at_truth(c.path, harness_fmu, {**c.soil, **grouser}, replicas=3)
+    assert result.significant
+    ripples = result.ripples()
+    assert sorted(r.signal for r in ripples) == ["torque_left", "torque_right"]
+    assert all(r.lugs == hidden["grouser.lugCount"] and r.ratio > 1.0 for r in ripples)
+    assert result.to_json()["periodic"]["signals"][0]["per_revolution"] == 18
 
 
 def test_a_pitch_bias_is_structure_in_pitch_that_follows_a_constant(noisy_campaign, harness_fmu, tmp_path):

@@ -165,12 +165,17 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
 
 
 def _structure_table(u: Unexplained) -> list[str]:
-    """One row per signal with structure: its size, against its sensor noise, and what it follows."""
+    """One row per signal with structure: its size, against its sensor noise, and what it follows;
+    then one per signal that ripples with the wheel angle."""
     lines = ["| signal | structure (RMS) | x sensor noise | follows |", "|---|---|---|---|"]
     for s in u.signals:
         follows = "; ".join(f"{c.name} ({c.share:.0%}" + (f", {c.slope:+.3g} {c.unit}" if c.name != "run" else "")
                             + ")" for c in s.follows) or "-"
         lines.append(f"| {s.signal} | {s.structure_rms:.3g} {s.unit} | {s.ratio:.2g} | {follows} |")
+    for r in u.ripples:      # amplitude a of a cos(N theta + phi): RMS a / sqrt 2
+        lines.append(f"| {r.signal} | {r.amplitude / np.sqrt(2.0):.3g} {r.unit} (amplitude {r.amplitude:.3g}) | "
+                     f"{r.ratio / np.sqrt(2.0):.2g} | the wheel angle at {r.lugs} per revolution "
+                     f"(lug passing?; p {r.p_value:.2g}) |")
     lines.append("")
     return lines
 

@@ -204,7 +204,9 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
         tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
                                     m.params, data=data, pool=pool) for m in models]
     for m, t in zip(models, tests):
-        found = ", ".join(f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()) or "none"
+        found = ", ".join([f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()]
+                          + [f"{r.signal} ripple at {r.lugs} per wheel revolution ({r.ratio:.2g} x noise)"
+                             for r in t.ripples()]) or "none"
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
     return tests[0], (tests[1] if len(tests) > 1 else None)
 

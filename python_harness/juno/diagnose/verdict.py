@@ -1,12 +1,13 @@
 """The verdict: a catalog cause, ``none``, or ``unexplained``.
 
 The search (search.py) names catalog causes by their held-out gain.  The verdict then asks the
-residual structure test (structure.py) what the models leave:
+residual structure test (juno/residual_structure.py) what the models leave:
 
 - no cause named, and the base model leaves no structure: ``none``; the residuals are
   consistent with sensor noise;
 - no cause named, but the base model leaves structure: ``unexplained``, with the signals and
-  what they follow;
+  what they follow (a ripple in the drive torques at N per wheel revolution counts as
+  structure: no catalog cause models one);
 - causes named, and their model leaves no structure: the causes;
 - causes named, and their model leaves structure: if it removes at least EXPLAINED_SHARE of
   the base model's structure, the causes, with the remainder reported as ``unexplained``
@@ -22,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
 
 #: The least share of the base model's residual structure a catalog model must remove to be
@@ -33,25 +35,30 @@ EXPLAINED_SHARE = 0.5
 class Unexplained:
     """Structure beyond sensor noise that the catalog does not explain: in the model ``model``
     ("base", or the named causes joined by "+"), the signals that hold it (largest relative to
-    their noise first); ``absorbed_by``: catalog causes whose model removes only ``share_removed``
-    of the base model's structure (so they are not named)."""
+    their noise first), and the signals that ripple with the wheel angle (``ripples``,
+    juno.periodic_structure); ``absorbed_by``: catalog causes whose model removes only
+    ``share_removed`` of the base model's structure (so they are not named)."""
 
     model: str
     signals: list[SignalStructure]
     absorbed_by: list[str] = field(default_factory=list)
     share_removed: float | None = None
+    ripples: list[PeriodicSignal] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
+                "ripples": [r.to_json() for r in self.ripples],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
                 "summary": self.summary()}
 
     def summary(self, most: int = 3) -> str:
         """One sentence: the ``most`` largest signals' structure and the covariate each follows
-        best (the JSON has every signal and covariate)."""
+        best, then the ripples in the wheel angle (the JSON has every signal and covariate)."""
         more = len(self.signals) - most
-        return "; ".join(_signal_sentence(s) for s in self.signals[:most]) + \
-            (f"; and {more} more signal{'s' if more > 1 else ''}" if more > 0 else "")
+        parts = [_signal_sentence(s) for s in self.signals[:most]]
+        if more > 0:
+            parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
+        return "; ".join(parts + [r.sentence() for r in self.ripples])
 
 
 def _signal_sentence(s: SignalStructure) -> str:
@@ -78,13 +85,13 @@ def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStruct
     tests of the base model and of the model with those causes (None when none was named)."""
     if not causes:
         if base.significant:
-            return Verdict("unexplained", [], Unexplained("base", base.structured()))
+            return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples()))
         return Verdict("none", [], None)
     assert extended is not None
     if not extended.significant:
         return Verdict(causes[0], causes, None)
     removed = 1.0 - extended.excess / base.excess if base.excess > 0 else 0.0
-    left = Unexplained("+".join(causes), extended.structured(), share_removed=removed)
+    left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples())
     if removed >= EXPLAINED_SHARE:
         return Verdict(causes[0], causes, left)
     left.absorbed_by = list(causes)
