@@ -22,6 +22,11 @@ For several batches in a row (an optimiser calling back many times) keep one poo
         a = pool.map(fn, items)
         b = pool.map(fn, other_items)
 
+For tasks that become possible only when others are done (a search's short fits, then the long
+fit from the best of them), :meth:`TaskPool.flow` runs :class:`Task` objects and calls back
+as each finishes, and the callback may add tasks; a task added with a higher priority starts
+before the tasks still waiting, so a long pole is not queued behind short tasks.
+
 Determinism: the functions mapped here are pure functions of their item (a simulation with
 given parameters), so where a task runs cannot change its result: serial, pooled and Dask
 results are identical bit for bit.  Each process (or Dask worker thread) that runs FMU tasks
@@ -44,7 +49,10 @@ terminates its workers instead of waiting for their running tasks.
 from __future__ import annotations
 
 import atexit
+import concurrent.futures
 import contextlib
+import heapq
+import itertools
 import multiprocessing
 import os
 import signal
@@ -52,10 +60,11 @@ import sys
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence
 
-__all__ = ["map_tasks", "TaskPool", "BackgroundTask", "TaskError", "SchedulerError", "resolve_workers", "local_fmu",
-           "FMUHandle", "CONNECT_TIMEOUT"]
+__all__ = ["map_tasks", "TaskPool", "Task", "BackgroundTask", "TaskError", "SchedulerError", "resolve_workers",
+           "local_fmu", "FMUHandle", "CONNECT_TIMEOUT"]
 
 #: Seconds to wait for a Dask scheduler to answer before giving up.
 CONNECT_TIMEOUT = 10.0
@@ -88,6 +97,18 @@ def _describe(item: Any) -> str:
 
 class SchedulerError(ConnectionError):
     """The Dask scheduler could not be reached (or Dask is not installed)."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """One task of a flow (:meth:`TaskPool.flow`): ``fn(item)``, with a ``key`` handed back
+    with its result.  Of the tasks waiting to start, the one with the highest ``priority``
+    starts first; equal priorities start in the order they were added."""
+
+    key: Any
+    fn: Callable[[Any], Any]
+    item: Any
+    priority: int = 0
 
 
 def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
@@ -213,6 +234,87 @@ class TaskPool:
             if on_result:
                 on_result(i, result)
         return results
+
+    def flow(self, tasks: Iterable[Task], then: Callable[[Task, Any], Iterable[Task]]) -> None:
+        """Runs ``tasks`` and every task added on the way: ``then(task, result)`` is called in
+        this process as each task's result arrives, and returns the tasks that can start now
+        (one that needed that result, say).  Returns when no task is left.
+
+        Serially, the waiting task of highest priority runs next.  In a local pool no more
+        tasks than workers are handed out at a time, so a task added later with a higher
+        priority starts before the tasks still waiting; on a Dask cluster each task is
+        submitted when added, with its priority.  Results arrive in the order tasks finish: the
+        tasks are pure functions of their items (module docstring), so only that order, not a
+        result, can change with where they run, and ``then`` must not depend on it.  A task
+        that raises stops the flow with :class:`TaskError`, whose index is the order in which
+        the task was added."""
+        counter = itertools.count()
+        waiting: list[tuple[int, int, Task]] = []
+
+        def add(new: Iterable[Task]) -> None:
+            for task in new:
+                heapq.heappush(waiting, (-task.priority, next(counter), task))
+        add(tasks)
+        if self._client is not None:
+            self._flow_on_dask(waiting, add, then)
+            return
+        capacity = self.workers if self._executor is not None else 1
+        running: dict[Any, tuple[int, Task]] = {}
+        try:
+            while waiting or running:
+                while waiting and len(running) < capacity:
+                    _, index, task = heapq.heappop(waiting)
+                    if self._executor is None:
+                        try:
+                            result = task.fn(task.item)
+                        except Exception as exc:
+                            raise TaskError(index, task.item, exc) from exc
+                        add(then(task, result))
+                        continue
+                    running[self._executor.submit(task.fn, task.item)] = (index, task)
+                if not running:
+                    continue
+                done, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
+                for future in sorted(done, key=lambda f: running[f][0]):
+                    index, task = running.pop(future)
+                    try:
+                        result = future.result()
+                    except Exception as exc:
+                        raise TaskError(index, task.item, exc) from exc
+                    add(then(task, result))
+        except BaseException:
+            for future in running:
+                future.cancel()
+            raise
+
+    def _flow_on_dask(self, waiting: list, add: Callable[[Iterable[Task]], None],
+                      then: Callable[[Task, Any], Iterable[Task]]) -> None:
+        """:meth:`flow` on the Dask cluster: every task submitted when added (Dask's own
+        ``priority`` orders them), results taken as they come."""
+        from distributed import as_completed
+        submitted: dict[Any, tuple[int, Task]] = {}
+        finished = as_completed(loop=self._client.loop)
+
+        def submit_waiting() -> None:
+            while waiting:
+                _, index, task = heapq.heappop(waiting)
+                future = self._client.submit(task.fn, task.item, pure=False, priority=task.priority)
+                submitted[future.key] = (index, task)
+                finished.add(future)
+        submit_waiting()
+        try:
+            for future in finished:
+                index, task = submitted.pop(future.key)
+                try:
+                    result = future.result()
+                except Exception as exc:
+                    raise TaskError(index, task.item, exc) from exc
+                add(then(task, result))
+                submit_waiting()
+        except BaseException:
+            for future in list(finished.futures):
+                future.cancel()
+            raise
 
     @staticmethod
     def _collect(items: Sequence[Any], futures: list, on_result) -> list:

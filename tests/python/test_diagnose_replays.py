@@ -4,14 +4,21 @@
   comes from the fit's ReplayCache, not from a new simulation; other parameters are simulated.
 * A lone fit whose finite-difference Jacobians are evaluated over two worker processes is the
   same fit, bit for bit, as the one made in this process alone (evaluations counted alike).
+* A soil patch's coarse search split into tasks (one per start, then the refinement from the
+  best) is the fit made in one session, bit for bit: the same optimum, residuals, evaluations
+  and failures, and a batch of fits reports them in the order of its jobs.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import replace
+
 from juno.diagnose.candidates import CANDIDATES
-from juno.diagnose.fitting import fit_candidate
+from juno.diagnose.fitting import (_coarse_points, _coarse_start_job, _refined_job, _split, fit_candidate,
+                                   run_jobs)
+from juno.diagnose.starts import patch_on_the_ground
 from juno.diagnose.problem import ReplayCache, build_problem, residuals_or_failure
 from juno.identify import PAPER_INITIAL
 
@@ -56,3 +63,56 @@ def test_a_lone_fit_is_the_same_with_its_jacobian_over_two_processes(small_campa
     assert here.params == spread.params
     np.testing.assert_array_equal(here.residuals, spread.residuals)
     assert here.evaluations == spread.evaluations > 3, "every Jacobian point counts as an evaluation"
+
+
+def same_fits(a, b) -> list[str]:
+    """Differences between two FitResults apart from their wall times (empty if identical)."""
+    diffs = [f"{k}: {getattr(a, k)!r} != {getattr(b, k)!r}" for k in
+             ("name", "params", "train_mse", "test_mse", "evaluations", "failed_evaluations", "error")
+             if getattr(a, k) != getattr(b, k)]
+    if not np.array_equal(a.residuals, b.residuals, equal_nan=True):
+        diffs.append("residuals differ")
+    return diffs
+
+
+def patch_job(campaign, fmu_path, budget: int = 3):
+    """A soil-patch fit with three starts along the short campaign's 1 m of drawbar track (as
+    patch_grid's, which keeps 0.5 m from either end and so has none on so short a track), each
+    refined by a short fit, from the paper's soil, ``budget`` evaluations for the refinement."""
+    problem = build_problem(campaign, fmu_path, None)
+    grid = tuple((("soilPatch.x", x), ("soilPatch.y", 0.0), ("soilPatch.radius", 0.7), ("soilPatch.khFactor", 0.8),
+                  ("soilPatch.strengthFactor", 0.8)) for x in (0.2, 0.5, 0.8))
+    patch = replace(patch_on_the_ground(campaign, fmu_path), grid=grid)
+    return (problem, patch, dict(PAPER_INITIAL), None, budget)
+
+
+def test_a_patch_search_made_of_tasks_is_the_fit_made_in_one_session(small_campaign, fmu_path):
+    """Every start of the coarse search tried on its own (as a pool's task would, here in this
+    process), then the refinement from the best of them: fit_candidate's fit, bit for bit."""
+    campaign = small_campaign(SEED, "soil_patch").campaign
+    job = patch_job(campaign, fmu_path)
+    problem, patch, start_soil, _, budget = job
+    assert _split(job) and len(_coarse_points(patch)) >= 3, "the search must have several starts to split"
+    whole = fit_candidate(problem, patch, start_soil, max_nfev=budget)
+    tried = [_coarse_start_job((job, k)) for k in range(len(_coarse_points(patch)))]
+    assert all(t.error is None for t in tried)
+    assert len({t.cost for t in tried}) == len(tried), "the starts must differ (else any start would do)"
+    split = _refined_job((job, tried))
+    assert whole.error is None
+    assert same_fits(split, whole) == []
+    assert split.evaluations > sum(t.evaluations for t in tried) > len(tried) * patch.short_fits
+
+
+def test_a_batch_with_a_split_patch_search_gives_the_serial_batch_in_order(small_campaign, fmu_path):
+    """run_jobs over two processes (the patch search as tasks beside another candidate's fit)
+    gives the serial run's fits, and says them in the order of the jobs."""
+    campaign = small_campaign(SEED, "soil_patch").campaign
+    patch = patch_job(campaign, fmu_path)
+    jobs = [patch, (patch[0], CANDIDATES["drivetrain_loss"], dict(PAPER_INITIAL), None, 3)]
+    said_serial, said_split = [], []
+    serial = run_jobs(jobs, 1, None, said_serial.append)
+    split = run_jobs(jobs, 2, None, said_split.append)
+    for a, b in zip(split, serial):
+        assert same_fits(a, b) == []
+    assert [m.split(":")[0] for m in said_split] == [m.split(":")[0] for m in said_serial] == \
+        ["  soil_patch", "  drivetrain_loss"]

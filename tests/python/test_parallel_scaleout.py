@@ -4,9 +4,12 @@ and where they run changes nothing.
 * map_tasks returns results in input order even when later items finish first; workers=1 runs
   in this process, a pool elsewhere.
 * A failing task stops the batch with a TaskError naming the item, the original error chained.
+* A flow (TaskPool.flow) runs the tasks its callback adds as results arrive, everywhere alike;
+  the waiting task of highest priority starts first.
 * A scheduler that cannot be reached gives a SchedulerError naming its address (API and CLI).
-* A parameter sweep, the joint fit and a multi-start identification give the same numbers, bit
-  for bit, serially, in a local pool and on a Dask cluster (an in-process LocalCluster with
+* A parameter sweep, the joint fit, a multi-start identification and a diagnosis's batch of
+  fits (a soil patch's search split into tasks) give the same numbers, bit for bit, serially,
+  in a local pool and on a Dask cluster (an in-process LocalCluster with
   two worker threads, each with its own FMU instance, talking TCP so every task is pickled).
 """
 
@@ -24,7 +27,7 @@ from harness_fixtures import say
 from juno import parallel
 from juno.identify import (PAPER_INITIAL, JointResiduals, from_search, identify_joint, identify_multistart,
                            prepare_run, to_search)
-from juno.parallel import SchedulerError, TaskError, TaskPool, map_tasks
+from juno.parallel import SchedulerError, Task, TaskError, TaskPool, map_tasks
 from juno.simulator import SOIL_PARAMETERS, InputSignals
 from juno.sweep import SUMMARY_COLUMNS, grid, sweep
 
@@ -132,6 +135,50 @@ def test_a_failing_task_is_named(mode, request):
     assert err.index == 3 and err.item == -7, "the first failure in input order"
     assert isinstance(err.__cause__, ValueError)
     assert "task 3" in str(err) and "-7" in str(err) and "negative input -7" in str(err)
+
+
+def chains_of_squares(pool: TaskPool, start: list[int]) -> dict[int, list[int]]:
+    """Each start's chain of squares: a task squares its item; while the square is below 1000,
+    the callback adds a task for square + 1 (a task that needs the one before)."""
+    chains: dict[int, list[int]] = {x: [] for x in start}
+
+    def then(task: Task, result: int) -> list[Task]:
+        chains[task.key].append(result)
+        return [Task(task.key, square_positive, result + 1)] if result < 1000 else []
+    pool.flow([Task(x, square_positive, x) for x in start], then)
+    return chains
+
+
+@pytest.mark.parametrize("mode", ["serial", "pool", "dask"])
+def test_a_flow_runs_the_tasks_its_results_add(mode, request):
+    kwargs = {"serial": {"workers": 1}, "pool": {"workers": 2},
+              "dask": {"scheduler": request.getfixturevalue("scheduler") if mode == "dask" else None}}[mode]
+    with TaskPool(**kwargs) as pool:
+        chains = chains_of_squares(pool, [1, 2, 3])
+    assert chains == {1: [1, 4, 25, 676, 458329], 2: [4, 25, 676, 458329], 3: [9, 100, 10201]}
+
+
+def test_a_flow_starts_the_waiting_task_of_highest_priority_first():
+    """Serially every task waits its turn: a task added later with a higher priority goes
+    before the ones added earlier; equal priorities keep the order they were added in."""
+    order = []
+
+    def then(task: Task, result: int) -> list[Task]:
+        order.append(task.key)
+        return [Task("urgent", square_positive, 1, priority=5)] if task.key == "a" else []
+    with TaskPool(workers=1) as pool:
+        pool.flow([Task(k, square_positive, 2) for k in ("a", "b", "c")], then)
+    assert order == ["a", "urgent", "b", "c"]
+
+
+@pytest.mark.parametrize("mode", ["serial", "pool", "dask"])
+def test_a_failing_task_of_a_flow_is_named(mode, request):
+    kwargs = {"serial": {"workers": 1}, "pool": {"workers": 2},
+              "dask": {"scheduler": request.getfixturevalue("scheduler") if mode == "dask" else None}}[mode]
+    with TaskPool(**kwargs) as pool:
+        with pytest.raises(TaskError) as info:
+            pool.flow([Task(x, square_positive, x) for x in (1, -3, 2)], lambda task, result: [])
+    assert info.value.index == 1 and info.value.item == -3 and isinstance(info.value.__cause__, ValueError)
 
 
 def test_an_unreachable_scheduler_is_named():
@@ -271,6 +318,18 @@ def test_joint_and_multistart_fits_are_identical_wherever_they_run(harness_fmu, 
     assert same_fit(multi.fits[1], second) == []
     assert multi.best is min(multi.fits, key=lambda f: f.cost)
     say(f"multi-start: costs {[f.cost for f in multi.fits]}, spread {multi.spread}")
+
+
+def test_a_diagnosis_batch_with_a_split_patch_search_is_the_same_on_dask(small_campaign, fmu_path, scheduler):
+    from juno.diagnose.candidates import CANDIDATES
+    from juno.diagnose.fitting import run_jobs
+    from test_diagnose_replays import SEED, patch_job, same_fits
+
+    patch = patch_job(small_campaign(SEED, "soil_patch").campaign, fmu_path)
+    jobs = [patch, (patch[0], CANDIDATES["drivetrain_loss"], dict(PAPER_INITIAL), None, 3)]
+    serial = run_jobs(jobs, 1, None, lambda message: None)
+    on_dask = run_jobs(jobs, None, scheduler, lambda message: None)
+    assert [same_fits(a, b) for a, b in zip(on_dask, serial)] == [[], []]
 
 
 def test_a_pool_keeps_running_batches_until_closed():

@@ -1,19 +1,20 @@
 """Fitting one model (the base model, or the soil with a candidate extension) on the training
-blocks (fit_candidate), the loss every fit minimises (fit_loss), and the choice between two fits
-of the same model from different starts (better_of_two_fits, training_objective)."""
+blocks (fit_candidate), many fits at once as parallel tasks (run_jobs), the loss every fit
+minimises (fit_loss), and the choice between two fits of the same model from different starts
+(better_of_two_fits, training_objective)."""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from ..identify import SOIL_SEARCH_BOUNDS, EvaluationLog, from_search, to_search
-from ..parallel import TaskPool, local_fmu, map_tasks, resolve_workers
+from ..parallel import Task, TaskPool, local_fmu, map_tasks, resolve_workers
 from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
 from .problem import Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds
@@ -37,8 +38,8 @@ N_SOIL = 4           # the soil's entries at the head of the search vector (iden
 class FitResult:
     """One model's fit: its FMU parameters, training and held-out mean squared scaled residual,
     residuals (NaN on a run it cannot simulate), ``evaluations`` and ``failed_evaluations`` of
-    its least-squares fits, wall time (s), and ``error`` when it failed (then ``status`` is
-    "failed")."""
+    its least-squares fits, wall time (s; of a fit made as several tasks, run_jobs, the sum of
+    theirs), and ``error`` when it failed (then ``status`` is "failed")."""
 
     name: str
     params: dict[str, float]
@@ -229,20 +230,31 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
     run that a physical candidate is not fitted to and that fails at its optimum gets NaN
     residuals there (judged as failed)."""
     t0 = time.perf_counter()
-    name = candidate.name if candidate else "base"
+    log = EvaluationLog()
+
+    def fitted(session: _FitSession) -> FitResult:
+        x = _search(session, candidate, session.space.start(start_soil, start_ext), max_nfev)
+        return _result_at_optimum(session, candidate, x, t0)
+    return _in_session(problem, candidate, log, fitted, lambda exc: _failed_fit(candidate, exc, t0, log), workers)
+
+
+_T = TypeVar("_T")
+
+
+def _in_session(problem: Problem, candidate: Candidate | None, log: EvaluationLog,
+                work: Callable[[_FitSession], _T], failed: Callable[[Exception], _T], workers: int | None = 1) -> _T:
+    """``work(session)`` in a fitting session of its own (its FMU opened here and closed after,
+    its Jacobians over ``workers`` local processes), or ``failed(error)`` if it raised: a
+    candidate that cannot be fitted is reported, not fatal."""
     fmu = JunoFMU(problem.fmu_path)
     # One BLAS thread: the fit's matrices are (residuals x parameters), where threads gain
     # nothing and OpenBLAS's spinning takes CPU from the simulations (see identify_joint).
     blas = threadpool_limits(limits=1, user_api="blas")
-    log = EvaluationLog()
     pool = TaskPool(workers) if resolve_workers(workers) > 1 else None
     try:
-        session = _FitSession(problem, SearchSpace.of(candidate), fmu, log, pool)
-        x = _search(session, candidate, session.space.start(start_soil, start_ext), max_nfev)
-        return _result_at_optimum(session, candidate, x, t0)
-    except Exception as exc:  # a candidate that cannot be fitted is reported, not fatal
-        return FitResult(name, {}, np.inf, np.inf, np.zeros(0), 0, time.perf_counter() - t0, error=str(exc),
-                         failed_evaluations=log.failed)
+        return work(_FitSession(problem, SearchSpace.of(candidate), fmu, log, pool))
+    except Exception as exc:
+        return failed(exc)
     finally:
         if pool is not None:
             pool.close()
@@ -250,17 +262,28 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
         fmu.close()
 
 
+def _failed_fit(candidate: Candidate | None, error: Exception | str, t0: float, log: EvaluationLog) -> FitResult:
+    """The FitResult of a fit that raised ``error`` (begun at perf_counter ``t0``)."""
+    return FitResult(candidate.name if candidate else "base", {}, np.inf, np.inf, np.zeros(0), 0,
+                     time.perf_counter() - t0, error=str(error), failed_evaluations=log.failed)
+
+
 def _search(session: _FitSession, candidate: Candidate | None, x0: np.ndarray, max_nfev: int) -> np.ndarray:
-    """The fitted search vector from ``x0``: the candidate's coarse grid (if any), then least
-    squares of the soil and the physical extension on the drawbar runs, then of the
-    registration's offsets on the terrain runs (for candidates that refine it).
+    """The fitted search vector from ``x0``: the candidate's coarse grid (if any), then the
+    refinement from its best point (_refine)."""
+    x = _coarse_search(session, candidate, x0) if candidate is not None and candidate.grid else x0.copy()
+    return _refine(session, candidate, x, max_nfev)
+
+
+def _refine(session: _FitSession, candidate: Candidate | None, x: np.ndarray, max_nfev: int) -> np.ndarray:
+    """Least squares from ``x`` of the soil and the physical extension on the drawbar runs, then
+    of the registration's offsets on the terrain runs (for candidates that refine it).
 
     The drawbar runs pin the soil and every physical extension: they cross the test track under
     controlled loads.  The terrain run is fragile under wrong soil (the model's path drifts off
     the measured one), so it only fits what it alone can see: the terrain registration, with the
     soil held."""
     space = session.space
-    x = _coarse_search(session, candidate, x0) if candidate is not None and candidate.grid else x0.copy()
     physical = candidate is None or not candidate.is_registration
     if session.has_drawbar and physical:
         x = session.fit(x, ("drawbar",), space.physical_entries, max_nfev)
@@ -269,20 +292,43 @@ def _search(session: _FitSession, candidate: Candidate | None, x0: np.ndarray, m
     return x
 
 
+def _coarse_points(candidate: Candidate) -> tuple[tuple[tuple[str, float], ...], ...]:
+    """The points of the candidate's coarse search: the start itself (no override), then its grid."""
+    return ((),) + candidate.grid
+
+
 def _coarse_search(session: _FitSession, candidate: Candidate, x0: np.ndarray) -> np.ndarray:
-    """The best of the candidate's grid points and the start ``x0`` by training loss on the runs
-    the candidate is fitted to (the terrain runs for a grid of offsets only, else the drawbar
-    runs); with Candidate.short_fits each point is first refined by a short fit."""
+    """The best of the candidate's grid points and the start ``x0`` (_best_start), each tried
+    by _coarse_point, one after the other in this session."""
+    kinds = _coarse_kinds(session, candidate)
+    return _best_start(x0, (_coarse_point(session, candidate, x0, point, kinds) for point in _coarse_points(candidate)))
+
+
+def _coarse_kinds(session: _FitSession, candidate: Candidate) -> tuple[str, ...]:
+    """The runs a coarse search ranks its points on: the terrain runs for a grid of offsets only
+    (or when there is no drawbar run), else the drawbar runs."""
     on_terrain = all(name.startswith("terrain.") for point in candidate.grid for name, _ in point)
-    kinds = ("terrain",) if on_terrain or not session.has_drawbar else ("drawbar",)
+    return ("terrain",) if on_terrain or not session.has_drawbar else ("drawbar",)
+
+
+def _coarse_point(session: _FitSession, candidate: Candidate, x0: np.ndarray, point: tuple[tuple[str, float], ...],
+                  kinds: tuple[str, ...]) -> tuple[np.ndarray, float]:
+    """(search vector, training loss on the runs of ``kinds``) of one coarse-search point: ``x0``
+    with the point's values, first refined by a short fit where the candidate has
+    Candidate.short_fits."""
+    trial = x0.copy()
+    for name, value in point:
+        trial[session.space.index(name)] = value
+    if candidate.short_fits and session.has_drawbar:
+        trial = session.fit(trial, kinds, session.space.physical_entries, candidate.short_fits)
+    return trial, session.training_loss(trial, kinds)
+
+
+def _best_start(x0: np.ndarray, tried) -> np.ndarray:
+    """Of the coarse-search points ``tried`` ((search vector, training loss), in grid order),
+    the first of lowest loss; ``x0`` itself if none has a finite loss."""
     best_x, best_cost = x0.copy(), np.inf
-    for point in ((),) + candidate.grid:
-        trial = x0.copy()
-        for name, value in point:
-            trial[session.space.index(name)] = value
-        if candidate.short_fits and session.has_drawbar:
-            trial = session.fit(trial, kinds, session.space.physical_entries, candidate.short_fits)
-        cost = session.training_loss(trial, kinds)
+    for trial, cost in tried:
         if cost < best_cost:
             best_x, best_cost = trial, cost
     return best_x
@@ -322,18 +368,131 @@ def _fit_job(args: FitJob, workers: int | None = 1) -> FitResult:
 
 def run_jobs(jobs: list[FitJob], workers: int | None, scheduler: str | None,
              say: Callable[[str], None]) -> list[FitResult]:
-    """Candidate fits, one task each (juno.parallel): local processes over the cores by default,
-    serially with ``workers=1``, or on the Dask cluster at ``scheduler``.  A lone job on local
-    processes is fitted here, its Jacobians' points spread over them instead (one task would
-    leave all cores but one idle).  A job without a budget gets CANDIDATE_ITERATIONS evaluations
-    per fit."""
-    def said(i: int, res: FitResult) -> None:
+    """Candidate fits, in the order of ``jobs``: local processes over the cores by default,
+    serially with ``workers=1`` (each fit whole, fit_candidate), or on the Dask cluster at
+    ``scheduler``.  A job without a budget gets CANDIDATE_ITERATIONS evaluations per fit.
+
+    On more than one process each fit is a task (juno.parallel), and a fit whose coarse search
+    makes short fits (a soil patch's places, Candidate.short_fits) is several: one task per
+    point, then its refinement from the best of them (_fits_as_tasks), the same fit as
+    fit_candidate's, evaluations counted alike.  Such a search is often the longest fit of its
+    batch and its points do not depend on each other: as one task it would keep one core busy
+    while the others idle once the shorter fits are done.  A grid whose points are single
+    evaluations (multipass) stays in its fit's task: handing a task out costs about what the
+    evaluation does (an FMU opened, 0.06 s, against 0.06 s for one replay of an alt-design
+    campaign's drawbar runs).  A lone job that is one task is fitted here, its Jacobians'
+    points spread over the processes instead (one task would leave all cores but one idle)."""
+    def said(res: FitResult) -> None:
         say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, {res.wall_time:.0f} s)")
-    if scheduler is None and len(jobs) == 1 and resolve_workers(workers) > 1:
+    parallel = scheduler is not None or resolve_workers(workers) > 1
+    if not parallel:
+        return map_tasks(_fit_job, jobs, workers=1, on_result=lambda i, res: said(res))
+    if scheduler is None and len(jobs) == 1 and not _split(jobs[0]):
         res = _fit_job(jobs[0], workers)
-        said(0, res)
+        said(res)
         return [res]
-    return map_tasks(_fit_job, jobs, workers=workers, scheduler=scheduler, on_result=said)
+    return _fits_as_tasks(jobs, workers, scheduler, said)
+
+
+def _split(job: FitJob) -> bool:
+    """Whether the job's coarse search runs as tasks of its own: its points are short fits."""
+    candidate = job[1]
+    return candidate is not None and bool(candidate.grid) and candidate.short_fits > 0
+
+
+#: Priorities of a batch's tasks (juno.parallel.Task): a split fit's refinement, the longest task,
+#: starts as soon as its points are tried, and the points start before whole fits, since they
+#: hold it up.
+REFINEMENT_PRIORITY, POINT_PRIORITY, FIT_PRIORITY = 2, 1, 0
+
+
+def _fits_as_tasks(jobs: list[FitJob], workers: int | None, scheduler: str | None,
+                   said: Callable[[FitResult], None]) -> list[FitResult]:
+    """run_jobs on a pool: every job a task, a split job (_split) a task per coarse-search point
+    and then one for its refinement; ``said`` each result in the order of ``jobs``."""
+    results: list[FitResult | None] = [None] * len(jobs)
+    tried: dict[int, list[CoarseStart | None]] = {}
+    first: list[Task] = []
+    for i, job in enumerate(jobs):
+        if _split(job):
+            tried[i] = [None] * len(_coarse_points(job[1]))
+            first += [Task(("point", i, k), _coarse_start_job, (job, k), POINT_PRIORITY) for k in range(len(tried[i]))]
+        else:
+            first.append(Task(("fit", i), _fit_job, job, FIT_PRIORITY))
+    told = 0
+
+    def then(task: Task, result) -> list[Task]:
+        nonlocal told
+        step, i, *k = task.key
+        if step == "point":
+            tried[i][k[0]] = result
+            if any(t is None for t in tried[i]):
+                return []
+            return [Task(("fit", i), _refined_job, (jobs[i], tried.pop(i)), REFINEMENT_PRIORITY)]
+        results[i] = result
+        while told < len(jobs) and results[told] is not None:
+            said(results[told])
+            told += 1
+        return []
+    with TaskPool(workers, scheduler, max_items=len(first)) as pool:
+        pool.flow(first, then)
+    return results
+
+
+@dataclass
+class CoarseStart:
+    """One point of a coarse search tried in a task of its own (_coarse_start_job): the search
+    vector after its short fit and its training loss, the evaluations it took and their log,
+    its wall time (s), and ``error`` if it raised (then ``x`` is None)."""
+
+    x: np.ndarray | None
+    cost: float
+    evaluations: int
+    log: EvaluationLog
+    wall_time: float
+    error: str | None = None
+
+
+def _coarse_start_job(args: tuple[FitJob, int]) -> CoarseStart:
+    """The ``k``-th point of the job's coarse search (_coarse_points), tried by _coarse_point as
+    fit_candidate's session would (a picklable task)."""
+    job, k = args
+    problem, candidate, start_soil, start_ext, *_budget = job
+    t0 = time.perf_counter()
+    log = EvaluationLog()
+
+    def tried(session: _FitSession) -> CoarseStart:
+        x0 = session.space.start(start_soil, start_ext)
+        x, cost = _coarse_point(session, candidate, x0, _coarse_points(candidate)[k], _coarse_kinds(session, candidate))
+        return CoarseStart(x, cost, session.evaluations, log, time.perf_counter() - t0)
+    return _in_session(problem, candidate, log, tried,
+                       lambda exc: CoarseStart(None, np.inf, 0, log, time.perf_counter() - t0, str(exc)))
+
+
+def _refined_job(args: tuple[FitJob, list[CoarseStart]]) -> FitResult:
+    """The job's fit from the best of its coarse-search points ``tried`` (in grid order): what
+    fit_candidate does after its coarse search, the points' evaluations and failures counted
+    in and their wall times added (a picklable task).  A point that raised fails the fit with
+    its error, counting the failures up to it, as the search made in one session stops there."""
+    (problem, candidate, start_soil, start_ext, *budget), tried = args
+    max_nfev = budget[0] if budget else CANDIDATE_ITERATIONS
+    failed_at = next((k for k, t in enumerate(tried) if t.error is not None), None)
+    counted = tried if failed_at is None else tried[:failed_at + 1]
+    log = EvaluationLog()
+    for t in counted:
+        log.count += t.log.count
+        log.failed += t.log.failed
+        if log.first_failure is None:
+            log.first_failure = t.log.first_failure
+    t0 = time.perf_counter() - sum(t.wall_time for t in counted)
+    if failed_at is not None:
+        return _failed_fit(candidate, tried[failed_at].error, t0, log)
+
+    def fitted(session: _FitSession) -> FitResult:
+        session.evaluations = sum(t.evaluations for t in tried)
+        x = _best_start(session.space.start(start_soil, start_ext), [(t.x, t.cost) for t in tried])
+        return _result_at_optimum(session, candidate, _refine(session, candidate, x, max_nfev), t0)
+    return _in_session(problem, candidate, log, fitted, lambda exc: _failed_fit(candidate, exc, t0, log))
 
 
 # ------------------------------------------------------------------ the loss, and two fits compared
