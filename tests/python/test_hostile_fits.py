@@ -20,7 +20,7 @@ from juno import cli, diagnose as diagnose_module
 from juno.core import to_jsonable
 from juno.campaign import load_campaign
 from juno.errors import InputError
-from juno.identify import (MAX_FAILED_FRACTION, PAPER_INITIAL, EvaluationLog, FitError, classify, identify_joint,
+from juno.identify import (MAX_FAILED_FRACTION, EvaluationLog, FitError, classify, identify_joint,
                            identify_multistart, identify_paper, identify_paper_runs, terrain_grids)
 from juno.pointcloud import read_esri_ascii
 from juno.simulator import SOIL_PARAMETERS, JunoFMU, SimulationError

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from juno.campaign import RunData, load_campaign, read_run
+from juno.campaign import RunData, load_campaign
 from juno.identify import SEGMENT_SETTLE, prepare_run, restart_segments, run_residuals
 from juno.simulator import SOIL_PARAMETERS
 from juno.validate import grid_terrain
