@@ -100,6 +100,20 @@ def test_each_new_effect_is_hidden_in_the_data_and_the_campaign_is_plausible(cam
     assert truth_of(hidden)["extension"] == {}, "no extended model reproduces an effect outside the catalog's forms"
 
 
+def test_every_catalog_effect_and_every_forms_mechanism_has_a_diagnosis_candidate():
+    """The catalog is the diagnosis's: each catalog effect (but none) is a candidate of the same
+    name, each alternative form's mechanism one of them, and no decoy is one; so a right answer
+    is always a name the diagnosis can give, and a decoy never is."""
+    from juno.diagnose.candidates import CANDIDATES
+    from juno.effects import EFFECTS
+
+    names = set(CANDIDATES)
+    assert set(EFFECTS) - {"none"} == names
+    assert set(ALTERNATIVE_OF.values()) <= names and set(ALTERNATIVE_OF) == set(ALTERNATIVE_FORMS)
+    assert not set(DECOYS) & names
+    assert all(not EFFECT_INFO[d].in_catalog for d in DECOYS)
+
+
 def test_catalog_effects_keep_their_truth_file_as_it_was(campaigns):
     """A catalog effect's truth.json has no keys beyond the ones it always had."""
     truth = truth_of(campaigns("drivetrain_loss"))
