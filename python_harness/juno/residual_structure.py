@@ -153,6 +153,13 @@ class ResidualStructure:
         ripples found: the structure's size, noise units."""
         return float(sum(s.ratio ** 2 for s in self.signals)) + (self.periodic.excess if self.periodic else 0.0)
 
+    @property
+    def block_excess(self) -> float:
+        """Sum over signals of (structure RMS / noise)^2 of the held-out block means alone: the size
+        of the structure the catalog's candidates act on (they are fitted and judged block by block,
+        and none models a ripple in the wheel angle)."""
+        return float(sum(s.ratio ** 2 for s in self.signals))
+
     def ripples(self) -> list[PeriodicSignal]:
         """The signals with a ripple in the wheel angle, largest (relative to their noise) first."""
         return self.periodic.found() if self.periodic else []

@@ -94,6 +94,27 @@ def test_a_ripple_the_named_cause_leaves_is_reported_as_following_the_wheel_angl
     assert "the wheel angle at 18 per revolution" in table
 
 
+def test_a_ripple_larger_than_the_thrust_the_cause_explains_does_not_unname_it():
+    """The share a cause must remove is measured on the block means' structure, which the
+    candidates act on: a strong ripple in the wheel angle, which no candidate models, does not
+    turn lugs that add thrust and ripple into 'unexplained'."""
+    base = _with_ripple(_structure(torque_left=1.2, torque_right=1.2), 12.0)
+    after = _with_ripple(_structure(torque_left=0.0, torque_right=0.0), 12.0)
+    assert after.excess > 0.5 * base.excess          # the ripple is most of the structure
+    v = verdict(["grouser"], base, after)
+    assert v.cause == "grouser" and v.unexplained.ripples and v.unexplained.absorbed_by == []
+
+
+def test_the_share_removed_ignores_the_ripple_on_both_sides():
+    """With block structure left too, the share is the block means': here a patch removes a
+    fifth of it, so it is not named, however large the ripple beside it."""
+    base = _with_ripple(_structure(torque_left=2.0, torque_right=2.0), 12.0)
+    after = _with_ripple(_structure(torque_left=1.8, torque_right=1.8), 12.0)
+    v = verdict(["soil_patch"], base, after)
+    assert v.cause == "unexplained" and v.unexplained.absorbed_by == ["soil_patch"]
+    assert v.unexplained.share_removed == 1 - (2 * 1.8 ** 2) / (2 * 2.0 ** 2)
+
+
 def test_a_ripple_with_no_cause_named_is_unexplained():
     v = verdict([], _with_ripple(_structure(torque_left=0.0, pitch=0.0), 4.0), None)
     assert v.cause == "unexplained" and v.unexplained.ripples

@@ -15,7 +15,11 @@ residual structure test (juno/residual_structure.py) what the models leave:
   part of it.  Why: a cause is named for explaining a discrepancy; one that removes less than
   half of it is fitting its free parameters to part of a discrepancy it does not describe (a
   soil patch bent around a dragging brake), and naming it would send the engineer after the
-  wrong physics.
+  wrong physics.  The share is measured on the structure of the held-out block means, the
+  structure the candidates are fitted and judged on; a ripple in the wheel angle, which no
+  candidate models, counts neither for nor against a cause: it is reported beside whatever is
+  named (lugs that add thrust and ripple are named ``grouser``, with the ripple as the
+  remainder).
 """
 
 from __future__ import annotations
@@ -90,7 +94,9 @@ def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStruct
     assert extended is not None
     if not extended.significant:
         return Verdict(causes[0], causes, None)
-    removed = 1.0 - extended.excess / base.excess if base.excess > 0 else 0.0
+    if not extended.structured():       # only a ripple is left: the causes explain what they act on
+        return Verdict(causes[0], causes, Unexplained("+".join(causes), [], ripples=extended.ripples()))
+    removed = 1.0 - extended.block_excess / base.block_excess if base.block_excess > 0 else 0.0
     left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples())
     if removed >= EXPLAINED_SHARE:
         return Verdict(causes[0], causes, left)
