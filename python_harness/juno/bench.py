@@ -327,7 +327,7 @@ STEP_SETTINGS = (
 BASELINE_PARAMETERS = {"solver.step": 1e-3, "solver.tolerance": 0.0}
 #: bench_fmu's trace columns: the time, then the FMU's Outputs in the order of fmu_src/model.h.
 TRACE_COLUMNS = (["time", "x", "y", "z", "roll", "pitch", "yaw", "vx", "omegaLeft", "omegaRight",
-                  "torqueLeftApplied", "torqueRightApplied", "rocker"]
+                  "torqueLeftApplied", "torqueRightApplied", "rocker", "spinAngleLeft", "spinAngleRight"]
                  + [f"{w}.{q}" for w in ("FL", "RL", "FR", "RR")
                     for q in ("sinkage", "slip", "Fn", "Ft", "Fx", "Fy", "Fz")])
 ACCURACY_SIGNALS = ([f"{w}.slip" for w in ("FL", "RL", "FR", "RR")] + [f"{w}.sinkage" for w in ("FL", "RL", "FR", "RR")]
@@ -358,7 +358,13 @@ def _traces(exe: Path, fmu_dir: Path, grid: Path, args: list[str], prefix: Path,
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0 or "FAILED" in proc.stdout:
         raise RuntimeError(f"bench_fmu trace failed: {proc.stdout[-2000:]}{proc.stderr[-2000:]}")
-    return {name: np.loadtxt(f"{prefix}_{name}.txt") for name in ("drawbar", "terrain")}
+    traces = {name: np.loadtxt(f"{prefix}_{name}.txt", ndmin=2) for name in ("drawbar", "terrain")}
+    for name, trace in traces.items():
+        # the columns are read by position: a trace of another layout would compare other signals
+        if trace.shape[1] != len(TRACE_COLUMNS):
+            raise RuntimeError(f"bench_fmu's {name} trace has {trace.shape[1]} columns, TRACE_COLUMNS names "
+                               f"{len(TRACE_COLUMNS)}: the FMU's outputs changed (fmu_src/model.h); update both")
+    return traces
 
 
 def bench_fmu_c(rep: Report, exe: Path, fmu_dir: Path, grid: Path, repeats: int, say) -> float:
