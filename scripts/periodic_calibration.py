@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT / "python_harness"))
 
 from juno.campaign import load_campaign, read_run  # noqa: E402
 from juno.identify import prepare_run, run_residuals  # noqa: E402
+from juno.residual_structure import residual_labels  # noqa: E402
 from juno.periodic_structure import MATERIAL_FRACTION, PeriodicStructure, periodic_structure, \
     series_of_residuals  # noqa: E402
 from juno.simulator import JunoFMU  # noqa: E402
@@ -42,16 +43,10 @@ def periodic_at(fmu: JunoFMU, root: Path, params: dict[str, float]) -> PeriodicS
     parameters ``params`` (soil and extensions)."""
     campaign = load_campaign(root)
     prepared = [prepare_run(campaign, run) for run in campaign.runs_of_kind("drawbar")]
-    runs, signals, times = [], [], []
     for p in prepared:
         p.params["solver.step"] = STEP
-        for column, (ts, *_rest) in p.targets.items():
-            runs += [p.run_id] * len(ts)
-            signals += [column] * len(ts)
-            times.append(ts)
-    t = np.concatenate(times)
-    block = np.floor(t / BLOCK).astype(int)
-    meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
+    meta = residual_labels(prepared, BLOCK)
+    block = meta["block"]
     soil = {k: v for k, v in params.items() if k.startswith("soil.")}
     extra = {k: v for k, v in params.items() if not k.startswith("soil.")}
     r = np.concatenate([run_residuals(fmu, p, soil, extra, 0.05) for p in prepared])

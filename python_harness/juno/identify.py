@@ -913,7 +913,7 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
     ``workers``: local processes for the structure test's replays (1: this process), or
     ``pool``: the open pool to run them on; ``data``: the measured runs (run id -> RunData),
     when already read."""
-    from .residual_structure import residual_structure
+    from .residual_structure import residual_labels, residual_structure
     doubts = []
     x = to_search(result.params)
     for i, name in enumerate(SOIL_PARAMETERS):
@@ -922,15 +922,8 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
                 value = from_search(np.where(np.arange(4) == i, bound, x))[name]
                 doubts.append(f"{name} = {result.params[name]:.4g} is at the {word} bound of the search "
                               f"({value:.3g}): the data push it as far as the fit allows")
-    runs, signals, times = [], [], []
-    for p in prepared:
-        for column, (ts, *_rest) in p.targets.items():
-            runs += [p.run_id] * len(ts)
-            signals += [column] * len(ts)
-            times.append(ts)
-    t = np.concatenate(times)
-    meta = {"run": np.array(runs), "signal": np.array(signals), "time": t,
-            "block": np.floor(t / STRUCTURE_BLOCK).astype(int)}
+    meta = residual_labels(prepared, STRUCTURE_BLOCK)
+    t = meta["time"]
     try:
         r = residuals if residuals is not None else \
             np.concatenate([run_residuals(fmu, p, result.params, extra) for p in prepared])

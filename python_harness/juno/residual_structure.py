@@ -83,6 +83,21 @@ FOLLOWS_SHARE = 0.5
 OUTPUT_INTERVAL = 0.05
 
 
+def residual_labels(prepared: Sequence[PreparedRun], block: float) -> dict[str, np.ndarray]:
+    """The labels of the residuals of ``prepared`` concatenated in run_residuals' order: for every
+    compared sample its ``run``, ``signal``, ``time`` (s from the run's start) and ``block`` (the
+    number of the ``block``-second interval it falls in)."""
+    runs, signals, times = [], [], []
+    for p in prepared:
+        for column, (ts, *_rest) in p.targets.items():
+            runs += [p.run_id] * len(ts)
+            signals += [column] * len(ts)
+            times.append(ts)
+    t = np.concatenate(times) if times else np.zeros(0)
+    return {"run": np.array(runs), "signal": np.array(signals), "time": t,
+            "block": np.floor(t / block).astype(int)}
+
+
 def column_noise(times: np.ndarray, values: np.ndarray) -> float:
     """Sensor noise (1 sigma, the column's units) of one measured column: the median absolute
     second difference of its samples over 0.6745 sqrt(6) (white noise's second differences

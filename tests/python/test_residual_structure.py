@@ -16,7 +16,7 @@ import pytest
 
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
-from juno.residual_structure import MATERIAL_FRACTION, REPLICAS, column_noise, residual_structure
+from juno.residual_structure import MATERIAL_FRACTION, REPLICAS, column_noise, residual_labels, residual_structure
 from juno.rover_model import SOIL_PARAMETERS
 
 from harness_fixtures import NOISY_SEED, NOISY_TIME_SCALE, make_campaign
@@ -52,17 +52,10 @@ def _structure_at_truth(root: Path, fmu, soil: dict[str, float], seed: int = 3, 
     diagnosis uses, its ``replicas`` simulated in ``workers`` processes."""
     campaign = load_campaign(root)
     prepared = [prepare_run(campaign, run) for run in campaign.runs_of_kind("drawbar")]
-    runs, signals, times = [], [], []
     for p in prepared:
         p.params["solver.step"] = STEP
-        for column, (ts, *_rest) in p.targets.items():
-            runs += [p.run_id] * len(ts)
-            signals += [column] * len(ts)
-            times.append(ts)
-    t = np.concatenate(times)
-    block = np.floor(t / BLOCK).astype(int)
-    meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
-    train = block % 2 == 0
+    meta = residual_labels(prepared, BLOCK)
+    train = meta["block"] % 2 == 0
     r = np.concatenate([run_residuals(fmu, p, soil, {}, 0.05) for p in prepared])
     return residual_structure(campaign, fmu, prepared, meta, train, r, dict(soil), seed=seed, workers=workers,
                               replicas=replicas)
