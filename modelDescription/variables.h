@@ -28,6 +28,7 @@
 #ifndef NOLIM
 #define NOLIM HUGE_VAL
 #endif
+#include "contact_variables.h"   /* the rows the rig's table shares */
 #define WHEEL_OUTPUTS(w, W, base) \
     REAL(base + 0, "wheel" W ".sinkage", OUTPUT, "m",   0, -NOLIM, NOLIM, out.wheel[w].sinkage, "Sinkage of the lowest rim point below the local soil surface") \
     REAL(base + 1, "wheel" W ".slip",    OUTPUT, "1",   0, -NOLIM, NOLIM, out.wheel[w].slip,    "Longitudinal slip (omega R - v_x) / max(|omega R|, |v_x|, eps)") \
@@ -38,16 +39,8 @@
     REAL(base + 6, "wheel" W ".Fz",      OUTPUT, "N",   0, -NOLIM, NOLIM, out.wheel[w].Fz,      "Force along the surface normal, Fn cos(alpha) + Ft sin(alpha) (Eqn 9)")
 
 #define JUNO_VARIABLES \
-    /* ---- soil: the four identified parameters (paper Table 2) ---- */ \
-    REAL(100, "soil.kh",        PARAM, "N/m^(2+eta)", 1.58e5, 1e-3, 1e8, p.soil_kh,    "Hyperelastic foundation stiffness k_h (> 0)") \
-    REAL(101, "soil.eta",       PARAM, "1",      0.501,  1e-3, 2, p.soil_eta,      "Nonlinearity exponent eta (> 0)") \
-    REAL(102, "soil.gamma",     PARAM, "1",      0.0813, 0, 1,     p.soil_gamma,    "Soil rebound as a fraction of the maximum sinkage") \
-    REAL(103, "soil.Kvx",       PARAM, "1",      0.819,  1e-6, 100, p.soil_Kvx,      "Traction (shear velocity) modulus K_vx of Eqn 5 (> 0)") \
-    REAL(104, "soil.KvyRatio",  PARAM, "1",      1.0,    1e-6, 100, p.soil_KvyRatio, "Lateral modulus as a multiple of K_vx (> 0; assumption: isotropic = 1)") \
-    REAL(105, "soil.cohesion",  PARAM, "Pa",     1000.0, 0, 1e7, p.soil_cohesion, "Mohr-Coulomb cohesion C (assumed: dry sand)") \
-    REAL(106, "soil.phi",       PARAM, "rad",    0.5236, 0, 1.5707, p.soil_phi,     "Internal friction angle (assumed: 30 deg, dry sand)") \
-    REAL(110, "soil.A1",        CALC,  "1",      0.6667, -NOLIM, NOLIM, d.contact.A1,   "Eqn 3 exponent factor, fitted at initialisation") \
-    REAL(111, "soil.Vint",      CALC,  "m3",     1e-3,   -NOLIM, NOLIM, d.contact.Vint, "Eqn 3 reference volume, fitted at initialisation") \
+    /* ---- soil (contact_variables.h) ---- */ \
+    JUNO_SOIL_VARIABLES \
     /* ---- wheel ---- */ \
     REAL(120, "wheel.radius",   PARAM, "m",      0.2794, 0.01, 5, p.wheel_radius,  "Wheel radius including lugs (22 in diameter)") \
     REAL(121, "wheel.width",    PARAM, "m",      0.254,  0.01, 1, p.wheel_width,   "Wheel width (assumed: ARGO 22x10.00-8); less than rover.track") \
@@ -77,25 +70,15 @@
     REAL(157, "motor.resistance",  PARAM, "Ohm", 0.2,    1e-6, NOLIM, p.motor_resistance, "Armature resistance (assumed)") \
     REAL(158, "motor.gearRatio",   PARAM, "1",   129.0,  1e-3, NOLIM, p.motor_gearRatio,  "Gear ratio motor:wheel (low gear 1:129)") \
     REAL(159, "motor.efficiency",  PARAM, "1",   0.85,   0, 1,     p.motor_efficiency, "Gear and chain efficiency (assumed)") \
-    /* ---- Wong-Reece/Ishigami contact law (contact.model = 1; fmu_src/wong_reece.h).  Defaults: the dry \
-     * sand set (Wong, Land Locomotion Lab); cohesion and phi are soil.cohesion and soil.phi (defaults \
-     * 1 kPa, 30 deg; the set has 1.04 kPa, 28 deg), the rear rebound lambda is soil.gamma ---- */ \
-    REAL(160, "wongReece.n",    PARAM, "1",          1.1,     0.01, 5,    p.wr_n,    "Wong-Reece (contact.model 1): Bekker sinkage exponent n (> 0); default dry sand 1.1") \
-    REAL(161, "wongReece.kc",   PARAM, "N/m^(n+1)",  990.0, -3.8e5, 1e8,  p.wr_kc,   "Wong-Reece (contact.model 1): Bekker cohesive modulus k_c (fitted sets may be < 0; kc / wheel.width + kphi must be > 0); default dry sand 0.99e3") \
-    REAL(162, "wongReece.kphi", PARAM, "N/m^(n+2)",  1.528e6, 0, 1e10,    p.wr_kphi, "Wong-Reece (contact.model 1): Bekker frictional modulus k_phi (kc / wheel.width + kphi must be > 0); default dry sand 1.528e6") \
-    REAL(163, "wongReece.K",    PARAM, "m",          0.010,   1e-6, 10,   p.wr_K,    "Wong-Reece (contact.model 1): Janosi-Hanamoto shear deformation modulus K (> 0); default dry sand 10 mm") \
-    REAL(164, "wongReece.a0",   PARAM, "1",          0.40,    0.15, 0.84, p.wr_a0,   "Wong-Reece (contact.model 1): peak stress angle theta_m = (a0 + a1 slip) theta_f, |a1| <= a0 < 1 - |a1|; default 0.40 (Ishigami 2007)") \
-    REAL(165, "wongReece.a1",   PARAM, "1",          0.15,   -0.4, 0.4,   p.wr_a1,   "Wong-Reece (contact.model 1): slip coefficient a1 of the peak angle, |a1| <= a0 and |a1| < 1 - a0; default 0.15 (Ishigami 2007)") \
-    INT (166, "wongReece.points", PARAM, 100, 6, 1000000, p.wr_points, "Wong-Reece (contact.model 1): integrand evaluations per contact (Simpson, front and rear regions)") \
+    /* ---- Wong-Reece/Ishigami contact law (contact_variables.h) ---- */ \
+    JUNO_WONG_REECE_VARIABLES \
     /* ---- initial state ---- */ \
     REAL(170, "init.x",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_x,   "Initial x of the chassis reference point") \
     REAL(171, "init.y",   PARAM, "m",   0.0, -NOLIM, NOLIM, p.init_y,   "Initial y of the chassis reference point") \
     REAL(172, "init.yaw", PARAM, "rad", 0.0, -NOLIM, NOLIM, p.init_yaw, "Initial heading") \
     REAL(173, "init.vx",  PARAM, "m/s", 0.0, -NOLIM, NOLIM, p.init_vx,  "Initial forward speed (wheels rolling without slip)") \
-    /* ---- numerics ---- */ \
-    INT (180, "contact.method",    PARAM, 0, 0, 1, p.contact_method, "0 = closed form Eqn 3; 1 = direct quadrature of the hypervolume (reference)") \
-    REAL(181, "contact.slipVelocityEps", PARAM, "m/s", 0.05, 1e-6, NOLIM, p.contact_slipVelocityEps, "Slip denominator floor (> 0): below this speed the shear law is viscous") \
-    INT (183, "contact.model",     PARAM, 0, 0, 1, p.contact_model, "Contact law: 0 = volumetric (Petersen-McPhee, the paper); 1 = Wong-Reece/Ishigami integrated rim stresses (wongReece.*, soil.cohesion, soil.phi, rebound soil.gamma)") \
+    /* ---- numerics: the contact law's (contact_variables.h) and the integrator's ---- */ \
+    JUNO_CONTACT_NUMERICS_VARIABLES \
     REAL(182, "solver.step",       PARAM, "s",   0.02, 1e-6, 0.1, p.solver_step, "Largest internal integration step of the automatic step (solver.tolerance > 0), or the fixed step when solver.tolerance = 0") \
     REAL(184, "solver.tolerance",  PARAM, "m/s", 1e-4, 0, 1, p.solver_tolerance, "0 = fixed internal steps of solver.step; > 0: automatic steps of at most solver.step, each one step and two half steps extrapolated, its length chosen so that their velocities (angular rates as speeds at wheel.radius or half rover.wheelbase) differ by at most this") \
     /* ---- model extensions: effects real data shows and the paper's model leaves out; each is off at its default ---- */ \
@@ -106,9 +89,7 @@
     REAL(194, "soilPatch.strengthFactor", PARAM, "1", 1.0, 0.05, 20, p.patch_strengthFactor, "Shear strength (C, tan phi) at the patch centre relative to elsewhere (1 = homogeneous)") \
     REAL(195, "multipass.rutFraction", PARAM, "1", 0.0, 0, 1, p.multipass_rutFraction, "Fraction of the front wheel's residual rut (1-gamma) z_max that the rear wheel on the same side rolls in (0 = off)") \
     REAL(196, "multipass.khFactor", PARAM, "1",  1.0, 0.05, 20, p.multipass_khFactor, "k_h of soil compacted by the front wheel, relative to virgin soil (1 = off)") \
-    REAL(197, "slipSinkage.coefficient", PARAM, "1", 0.0, 0, 50, p.slipSinkage_coefficient, "Slip-sinkage: k_h / (1 + c |slip|) (0 = off)") \
-    REAL(198, "grouser.thrustGain", PARAM, "1", 0.0, 0, 5, p.grouser_thrustGain, "Grouser/lug thrust beyond Mohr-Coulomb: F_taumax (1 + g) (0 = off)") \
-    REAL(189, "grouser.lugHeight", PARAM, "m", 0.0, 0, 0.1, p.grouser_lugHeight, "Grouser/lug height: the lugs shear the soil at R + h, h beyond the rim the normal law presses on (0 = off; volumetric law only)") \
+    JUNO_CONTACT_EXTENSION_VARIABLES /* slip-sinkage, grouser thrust and lugs (contact_variables.h) */ \
     REAL(199, "drive.lossFraction", PARAM, "1", 0.0, 0, 0.9, p.drive_lossFraction, "Fraction of the drive torque (motor side, as measured from the current) lost in gears and chain") \
     REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
     REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
@@ -121,8 +102,6 @@
     REAL(504, "soilStrip.halfWidth", PARAM, "m", 0.5, 0.01, NOLIM, p.strip_halfWidth, "Soil strip half width along x (edges smoothed over about 5 cm)") \
     REAL(505, "soilStrip.khFactor", PARAM, "1", 1.0, 0.05, 20, p.strip_khFactor, "k_h inside the soil strip relative to outside (1 = off)") \
     REAL(506, "soilStrip.strengthFactor", PARAM, "1", 1.0, 0.05, 20, p.strip_strengthFactor, "Shear strength (C, tan phi) inside the soil strip relative to outside (1 = off)") \
-    REAL(507, "slipSinkage.exponent", PARAM, "1", 1.0, 0.25, 4, p.slipSinkage_exponent, "Slip-sinkage exponent p: k_h / (1 + c |slip|^p) (1 = the linear law)") \
-    REAL(508, "grouser.thrustSlip", PARAM, "1", 0.0, 0, 1, p.grouser_thrustSlip, "Slip s_g over which the grouser thrust builds up: F_taumax (1 + g (1 - exp(-|slip| / s_g))) (0 = the full gain at any slip)") \
     REAL(509, "multipass.compactionDepth", PARAM, "m", 0.002, 1e-4, 0.5, p.multipass_compactionDepth, "Rut depth d at which the compaction reaches half its effect: k_h (1 + (multipass.khFactor - 1) rut / (rut + d))") \
     INT (510, "grouser.lugCount", PARAM, 0, 0, 100, p.grouser_lugCount, "Lugs per wheel N of the lug ripple: the traction limit pulses N times per revolution (0 = no ripple)") \
     REAL(511, "grouser.rippleAmplitude", PARAM, "1", 0.0, 0, 1, p.grouser_rippleAmplitude, "Lug ripple: F_taumax (1 + a cos(N theta + phi)), theta the side's spinAngle, phi 0 on the front wheels and pi on the rear (assumed half a lug pitch behind) (0 = off)") \

@@ -29,6 +29,8 @@ from test_fmu_ranges import PHYSICAL_OUTCOMES, _try, _values, _walked_variables
 
 RIG_FMU = BUILD / "WheelRig.fmu"
 TABLE = REPO / "modelDescription" / "wheel_rig_variables.h"
+#: The contact law's rows, which the rig's table and the rover's both include.
+SHARED_TABLE = REPO / "modelDescription" / "contact_variables.h"
 H = 0.05
 CAUSALITY = {"PARAM": "parameter", "CALC": "calculatedParameter", "INPUT": "input", "OUTPUT": "output"}
 
@@ -48,8 +50,9 @@ def rig_dir(rig_path, tmp_path_factory) -> str:
 
 
 def _table() -> dict[str, tuple[int, str, str]]:
-    """name -> (value reference, type, causality) from the X-macro table, read as text."""
-    text = TABLE.read_text()
+    """name -> (value reference, type, causality) from the X-macro table and the shared contact rows
+    it includes, read as text."""
+    text = TABLE.read_text() + SHARED_TABLE.read_text()
     rows = re.findall(r'\b(REAL|INT |STR)\(\s*(\d+),\s*"([^"]+)",\s*(PARAM|CALC|INPUT|OUTPUT)\b', text)
     types = {"REAL": "Real", "INT ": "Integer", "STR": "String"}
     return {name: (int(vr), types[kind], CAUSALITY[causality]) for kind, vr, name, causality in rows}
