@@ -22,6 +22,7 @@ import pytest
 
 from harness_fixtures import run_juno
 from juno.campaign import format_run_csv, load_campaign, read_run_csv
+from juno.effects import ALTERNATIVE_FORMS, EFFECTS
 from juno.plausibility import (Finding, PlausibilityError, check_campaign, enforce_plausibility,
                                outlier_threshold_k, rover_limits)
 from juno.pointcloud import GRID_MARGIN, format_xyz, gross_outliers, read_xyz
@@ -325,9 +326,11 @@ def test_limits_follow_from_the_motor_constants() -> None:
 
 # ----------------------------------------------------------------- synthetic data is clean
 
-EFFECTS = ("none", "soil_patch", "multipass", "slip_sinkage", "grouser", "drivetrain_loss", "terrain_offset")
+#: Every catalog effect (with "none"), twice with sensor noise and once without for three of them,
+#: and every alternative form once: each is physics a rover could meet, so none may raise a finding.
 SYNTHETIC = ([(e, 4101 + 10 * i + k, 1.0) for i, e in enumerate(EFFECTS) for k in (0, 1)]
-             + [(e, 4201 + 10 * i, 0.0) for i, e in enumerate(EFFECTS) if e in ("none", "soil_patch", "terrain_offset")])
+             + [(e, 4201 + 10 * i, 0.0) for i, e in enumerate(EFFECTS) if e in ("none", "soil_patch", "terrain_offset")]
+             + [(e, 4401 + 10 * i, 1.0) for i, e in enumerate(ALTERNATIVE_FORMS)])
 
 
 @pytest.mark.parametrize("effect,seed,noise", SYNTHETIC, ids=[f"{e}-{s}-noise{n:g}" for e, s, n in SYNTHETIC])
