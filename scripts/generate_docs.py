@@ -404,11 +404,16 @@ def detection_summary(data: Optional[dict[str, Any]]) -> str:
     catalog = {e: cs for e, cs in single.items() if cs[0].get("kind", "catalog") == "catalog"}
     parts = [f"{e} {sum(c['correct'] for c in cs)}/{len(cs)}" for e, cs in catalog.items()]
     text = "named correctly (blind): " + ", ".join(parts)
-    for kind, what in (("form", "alternative forms named as their mechanism"),
-                       ("decoy", "decoys outside the catalog naming no catalog cause")):
-        cases = [c for cs in single.values() for c in cs if c.get("kind") == kind]
-        if cases:
-            text += f"; {what} {sum(c['correct'] for c in cases)}/{len(cases)}"
+    forms = [c for cs in single.values() for c in cs if c.get("kind") == "form"]
+    if forms:
+        text += f"; alternative forms named as their mechanism {sum(c['correct'] for c in forms)}/{len(forms)}"
+    decoys = [c for cs in single.values() for c in cs if c.get("kind") == "decoy"]
+    if decoys:
+        # A decoy is handled right only when no catalog cause is named and it is reported as
+        # unexplained; "none" (no catalog cause, but no discrepancy either) is counted apart.
+        text += (f"; decoys outside the catalog naming no catalog cause {sum(c['correct'] for c in decoys)}"
+                 f"/{len(decoys)}, reported unexplained {sum(bool(c.get('unexplained')) for c in decoys)}"
+                 f"/{len(decoys)}")
     return text + f" (commit {data['provenance']['commit']})"
 
 
@@ -417,21 +422,29 @@ def detection_summary(data: Optional[dict[str, Any]]) -> str:
 def headline(bench: Optional[dict[str, Any]], detection: Optional[dict[str, Any]], with_detection: bool = True,
              results: str = "docs/results") -> str:
     """The README's table of headline figures (``results``: the results folder relative to the page)."""
+    # Each row: its label and the figure (or the pair of figures, drawbar / terrain run) it shows.
+    # The real-time factors are at the FMU's default step, which the speed targets are for.
     rows = [("contact law: closed form against Wong-Reece (forces only, matching sinkage)",
-             "contact_speedup_forces", "speed-up"),
-            ("FMU from C, 60 s terrain run, the default (automatic) step", "rtf_c_terrain_direct_auto", "real time"),
-            ("FMU from C, 60 s terrain run, fixed solver.step 1 ms", "rtf_c_terrain_direct", "real time"),
-            ("FMU through fmpy, 30 s drawbar run, fixed solver.step 1 ms", "rtf_fmpy_drawbar", "real time"),
-            ("joint identification of three drawbar runs", "joint_s", "wall time")]
+             ("contact_speedup_forces",)),
+            ("FMU from C at its default (automatic) step: 30 s drawbar / 60 s terrain run",
+             ("rtf_c_drawbar_direct_auto", "rtf_c_terrain_direct_auto")),
+            ("FMU through fmpy at its default step: drawbar / terrain run",
+             ("rtf_fmpy_drawbar_auto", "rtf_fmpy_terrain_auto")),
+            ("CPU per fixed 1 ms internal step: drawbar / terrain run", ("us_per_step_drawbar", "us_per_step_terrain")),
+            ("Wong-Reece law against the volumetric law, whole runs: drawbar / terrain", ("wr_ratio_drawbar", "wr_ratio_terrain")),
+            ("joint identification of three drawbar runs", ("joint_s",))]
     lines = ["| figure | measured | CPU share | target |", "|---|---|---|---|"]
-    for label, key, _ in rows:
-        f = _figure(bench, key)
-        if f is None:
+    for label, keys in rows:
+        figs = [_figure(bench, key) for key in keys]
+        if any(f is None for f in figs):
             lines.append(f"| {label} | not measured: `.venv/bin/python scripts/generate_docs.py --bench` | | |")
-        else:
-            share = re.search(r"CPU (\d+)%( of \d+ cores)?", f.get("note", ""))
-            lines.append(f"| {label} | {_fmt(f['value'])} {f['unit']} | {share.group(0)[4:] if share else ''} | "
-                         f"{_cell(_verdict(f))} |")
+            continue
+        shares = [re.search(r"CPU (\d+)%( of \d+ cores)?", f.get("note", "")) for f in figs]
+        share = " / ".join(s.group(0)[4:] for s in shares if s)
+        measured = " / ".join(_fmt(f["value"]) for f in figs) + f" {figs[0]['unit']}"
+        target = figs[0].get("target")
+        verdict = f"{target}: " + ("met" if all(f.get("met") for f in figs) else "missed") if target else ""
+        lines.append(f"| {label} | {measured} | {share} | {_cell(verdict)} |")
     if with_detection:
         lines.append(f"| diagnosis: hidden effect named | {detection_summary(detection)} | | |")
     lines.append("")
