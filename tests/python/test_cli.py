@@ -229,3 +229,45 @@ def test_validate_params_without_soil_exits_2_naming_the_parameter(tmp_path, sma
     params = tmp_path / "params.json"
     params.write_text(json.dumps({"params": {k: 1.0 for k in SOIL_PARAMETERS if k != "soil.Kvx"}}))
     one_line_error(run_juno("validate", c.path, "--params", params, "--quiet"), "soil.Kvx")
+
+
+# ------------------------------------------------------------- what a paper-style fit prints
+
+def _paper_fit(rank: int, converged: bool, status: str = "ok"):
+    from juno.identify import PaperResult, SteadyAverages
+    soil = dict.fromkeys(SOIL_PARAMETERS, 1.0)
+    avg = SteadyAverages("dbp1", (3.0, 6.5), 700.0, 170.0, 170.0, 0.07, 0.65, 0.65, 0.2794)
+    return PaperResult("dbp1", soil, soil, 0.3, 600, converged, avg, rank, status=status)
+
+
+def test_a_paper_fit_that_pins_every_parameter_and_converged_needs_no_caveat():
+    from juno.commands.identify import paper_fit_caveats
+    assert paper_fit_caveats(_paper_fit(rank=4, converged=True)) == []
+
+
+def test_a_paper_fit_says_when_it_did_not_converge_and_which_directions_the_data_leave_open():
+    from juno.commands.identify import paper_fit_caveats
+    caveats = paper_fit_caveats(_paper_fit(rank=2, converged=False))
+    assert len(caveats) == 2
+    assert caveats[0].startswith("not converged within 600 evaluations")
+    assert "rank 2/4" in caveats[1] and "only 2 combinations of the 4 parameters" in caveats[1]
+
+
+def test_a_paper_fit_that_did_not_move_is_said_to_be_no_estimate():
+    from juno.commands.identify import paper_fit_caveats
+    caveats = paper_fit_caveats(_paper_fit(rank=0, converged=False, status="not identified"))
+    assert caveats == ["not identified: the fit did not move from its start or the averages see no parameter; "
+                       "these values are not an estimate"]
+
+
+def test_juno_identify_paper_prints_the_caveats_of_the_fits_it_reports(tmp_path, small_campaign):
+    """On a short synthetic campaign: every fit the JSON calls unconverged or rank-deficient gets its
+    caveat printed under its values."""
+    c = small_campaign(11)
+    out = tmp_path / "identify.json"
+    proc = run_juno("identify", str(c.path), "--method", "paper", "--json", str(out))
+    assert proc.returncode == 0, proc.stderr
+    for fit in json.loads(out.read_text())["paper"]:
+        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(fit["run_id"] + ": ")]
+        assert (not fit["converged"]) == any("not converged" in ln or "not an estimate" in ln for ln in lines), lines
+        assert (fit["jacobian_rank"] < 4) == any(f"rank {fit['jacobian_rank']}/4:" in ln for ln in lines), lines

@@ -65,6 +65,11 @@ def run(args: argparse.Namespace) -> int:
             for p in out["paper"]:
                 print(f"{p.run_id}: " + ", ".join(f"{k} = {v:.4g}" for k, v in p.final.items()) +
                       f" (cost {p.cost:.3g}, {p.evaluations} evaluations, rank {p.jacobian_rank}/4)")
+                for caveat in paper_fit_caveats(p):
+                    print(f"{p.run_id}: {caveat}")
+            if any(p.jacobian_rank < len(p.final) for p in out["paper"]):
+                print("paper: each run's steady averages are three numbers; the joint fit (--method joint) "
+                      "gives every parameter with its uncertainty and says which are identifiable")
         if args.method in ("joint", "both"):
             with tempfile.TemporaryDirectory() as tmp:
                 grid = terrain_grids(campaign, tmp, "identify --with-terrain") if args.with_terrain else None
@@ -92,6 +97,25 @@ def run(args: argparse.Namespace) -> int:
                 print(f"joint: doubtful: {doubt}")
     write_json(args.json, out, "identify")
     return 0
+
+
+def paper_fit_caveats(fit) -> list[str]:
+    """What a reader of one paper-style fit (identify.PaperResult) must know before using its
+    values: a fit that did not converge, or whose run determines fewer parameter combinations
+    than there are parameters (the rest of the values are wherever the simplex stopped)."""
+    caveats = []
+    if fit.status != "ok":
+        caveats.append(f"{fit.status}: the fit did not move from its start or the averages see no "
+                       "parameter; these values are not an estimate")
+    elif not fit.converged:
+        caveats.append(f"not converged within {fit.evaluations} evaluations; the values are where the "
+                       "search stopped")
+    n = len(fit.final)
+    if fit.status == "ok" and fit.jacobian_rank < n:
+        caveats.append(f"rank {fit.jacobian_rank}/{n}: the run's averages determine only {fit.jacobian_rank} "
+                       f"combination{'s' if fit.jacobian_rank != 1 else ''} of the {n} parameters; "
+                       "along the others the values are not determined by the data")
+    return caveats
 
 
 def _rig_fits(campaign, args: argparse.Namespace, say) -> dict[str, Any]:
