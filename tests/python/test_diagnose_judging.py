@@ -398,3 +398,65 @@ def test_of_a_candidates_two_fits_the_drawbar_runs_choose_unless_their_choice_lo
     failed = FitResult("multipass", {}, np.inf, np.inf, np.zeros(0), 0, 0.0, error="diverged")
     assert diagnose.better_of_two_fits(problem, run_kind, failed, kept) is kept
     assert diagnose.better_of_two_fits(problem, run_kind, lost, failed) is lost
+
+
+# ------------------------------------------------------------------ a soil pushed to a bound of the search
+
+def _pitch_bias_absorbed(rng: np.random.Generator) -> tuple[Problem, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """As measured on a synthetic campaign (alternative design) whose IMU reads every pitch 25 mrad
+    off: the base model leaves the pitch 5.7 sigma off in every held-out block of the drawbar
+    runs, and the torques 1.4 sigma off (its soil bent part of the way towards the pitch); a
+    drivetrain loss fitted with the soil gains 41 % by bending the soil until the rover pitches
+    (k_h 1e8, eta at the search's bound of 2), which removes most of the pitch offset and spoils
+    the torques, which the loss then repairs.  Switched off on that soil, the loss leaves the
+    torques 10 sigma off, so the ablation passes.  Returns (problem, run kind per residual, the
+    base model's, the fit's and its switched-off fit's residuals)."""
+    names = ("torque_left", "torque_right", "pos_z", "pitch")
+    problem, run_kind = _problem(names)
+    signal = problem.meta["signal"]
+    pitch, torque = signal == "pitch", np.isin(signal, ("torque_left", "torque_right"))
+    drawbar = run_kind == "drawbar"
+    noise = rng.standard_normal(len(run_kind))
+    base = noise + np.where(pitch & drawbar, 5.7, 0.0) + np.where(torque & drawbar, 1.4, 0.0)
+    fitted = noise + np.where(pitch & drawbar, 2.0, 0.0) + np.where(torque & drawbar, 0.3, 0.0)
+    switched_off = fitted + np.where(torque, 10.0, 0.0)
+    return problem, run_kind, base, fitted, switched_off
+
+
+def test_a_cause_whose_soil_the_fit_pushed_to_a_bound_of_the_search_is_not_named():
+    """A candidate whose fitted soil sits at a bound of the search (wide of any real soil) is no
+    evidence for its cause, however large and significant its gain: the data push the soil
+    beyond any real one, and the extension only repairs what that soil spoils."""
+    problem, run_kind, base, fitted, switched_off = _pitch_bias_absorbed(np.random.default_rng(3))
+    bent = {"soil.kh": 9.6e7, "soil.eta": 2.0, "soil.gamma": 0.023, "soil.Kvx": 1.05}
+    loss = {"drive.lossFraction": 0.155}
+
+    def fit(residuals: np.ndarray, soil: dict[str, float], **extension: float) -> FitResult:
+        return FitResult("drivetrain_loss", {**soil, **extension}, 1.0, 1.0, residuals, 1, 0.0)
+    verdict = judge(problem, run_kind, _fit("base", base), fit(fitted, bent, **loss),
+                    fit(switched_off, bent, **{"drive.lossFraction": 0.0}))
+    assert verdict.gain > 0.3 and verdict.z > z_threshold(2) and verdict.acts
+    assert verdict.ablation.gain > 0.3
+    assert verdict.soil_at_bounds == ["soil.eta = 2 (upper bound)"]
+    assert not verdict.significant
+    assert verdict.to_json()["soil_at_bounds"] == verdict.soil_at_bounds
+    # The same residuals from a fit whose soil is a real one name the cause.
+    real = {"soil.kh": 1.9e5, "soil.eta": 0.55, "soil.gamma": 0.06, "soil.Kvx": 0.8}
+    verdict = judge(problem, run_kind, _fit("base", base), fit(fitted, real, **loss),
+                    fit(switched_off, real, **{"drive.lossFraction": 0.0}))
+    assert verdict.soil_at_bounds == [] and verdict.significant
+
+
+def test_every_bound_of_the_soil_search_counts_and_a_soil_just_inside_does_not():
+    """soil_at_bounds: each soil parameter at its lower or upper bound of the search (within 1 %
+    of the value), named with the bound; 2 % inside a bound is inside."""
+    from juno.diagnose.judging import soil_at_bounds
+    inside = {"soil.kh": 1.6e5, "soil.eta": 0.5, "soil.gamma": 0.08, "soil.Kvx": 0.8}
+    assert soil_at_bounds(inside) == []
+    for name, value, word in (("soil.kh", 1e8, "upper"), ("soil.kh", 1e3, "lower"), ("soil.eta", 0.05, "lower"),
+                              ("soil.eta", 1.995, "upper"), ("soil.Kvx", 100.0, "upper"),
+                              ("soil.Kvx", 0.01, "lower"), ("soil.gamma", 0.01, "lower"),
+                              ("soil.gamma", 0.99, "upper")):
+        found = soil_at_bounds({**inside, name: value})
+        assert len(found) == 1 and found[0].startswith(f"{name} = ") and found[0].endswith(f"({word} bound)")
+    assert soil_at_bounds({**inside, "soil.eta": 2.0 / 1.02, "soil.kh": 1e8 / 1.02}) == []

@@ -10,6 +10,7 @@ from typing import Sequence, TypeVar
 
 import numpy as np
 
+from ..identify import AT_LIMIT, SOIL_SEARCH_BOUNDS, to_search
 from ..registration import HeldOutEvidence
 from ..simulator import SOIL_PARAMETERS
 from .candidates import CANDIDATES, Candidate
@@ -148,16 +149,39 @@ def kinematic_evidence(registration: HeldOutEvidence) -> KinematicEvidence:
                              registration.ratio, registration.gain, registration.significant)
 
 
+def soil_at_bounds(params: dict[str, float]) -> list[str]:
+    """The soil parameters of a fit (``params``) that sit at a bound of the search
+    (identify.SOIL_SEARCH_BOUNDS, within identify.AT_LIMIT in the search's log or logit space),
+    each as "name = value (lower|upper bound)"."""
+    x = to_search(params)
+    found = []
+    for i, name in enumerate(SOIL_PARAMETERS):
+        for bound, word in ((SOIL_SEARCH_BOUNDS[0][i], "lower"), (SOIL_SEARCH_BOUNDS[1][i], "upper")):
+            if abs(x[i] - bound) < AT_LIMIT:
+                found.append(f"{name} = {params[name]:.4g} ({word} bound)")
+    return found
+
+
 def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, float], off: Ablation | None,
-                   registration: HeldOutEvidence | None) -> bool:
+                   registration: HeldOutEvidence | None, at_bounds: Sequence[str] = ()) -> bool:
     """Whether a judged candidate names a cause.  The registration, with its kinematic evidence
     given: that evidence is significant, the extension acts and no kind of run's replay gets
     significantly worse.  Every other candidate: its gain passes (passes), the extension acts,
-    and switching it off loses the gain by the same rule (when the ablation is given)."""
+    switching it off loses the gain by the same rule (when the ablation is given), and the soil
+    fitted with it sits at no bound of the search (``at_bounds``, soil_at_bounds).
+
+    Why the bounds: they lie wide of any soil the paper or the terramechanics literature
+    reports, so a fit that ends at one is a model the data push beyond any real soil, the optimum
+    of the model lying outside it.  A model with the right cause does not need that: with the
+    cause in it the soil comes back to a real soil.  A discrepancy no candidate describes (a
+    pitch sensor's bias) is absorbed instead by bending the soil as far as the search allows and
+    letting the extension repair what the bent soil spoils elsewhere (the torque, for a
+    drivetrain loss): the gain is then the soil's, carried by signals the extension does not act
+    on, and the ablation, which switches the extension off on that same bent soil, cannot see it."""
     if registration is not None and candidate.is_registration:
         return bool(registration.significant and acts and min(zs.values()) > -Z_MIN)
     n = len(candidate.params)
-    return passes(n, gain, zs) and acts and (off is None or passes(n, off.gain, off.z_by_kind))
+    return passes(n, gain, zs) and acts and (off is None or passes(n, off.gain, off.z_by_kind)) and not at_bounds
 
 
 def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
@@ -200,16 +224,19 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
     off = None if switched_off is None else ablation(problem, run_kind, switched_off, res)
     use_pose = registration is not None and candidate.is_registration
     own = {e.name for e in candidate.params}
+    # The registration's soil is its reference's (references.on_reference_soil), not fitted with it.
+    at_bounds = [] if candidate.is_registration else soil_at_bounds(res.params)
     return JudgedCandidate(
         res.name, candidate.cause, float(gain), float(max(zs.values())),
-        is_significant(candidate, acts, gain, zs, off, registration), acts, res.status, res.failed_evaluations,
+        is_significant(candidate, acts, gain, zs, off, registration, at_bounds), acts, res.status,
+        res.failed_evaluations,
         gain_by_kind=gain_by_kind(problem, run_kind, reference.residuals, res.residuals), z_by_kind=zs,
         ablation=off, kinematic=kinematic_evidence(registration) if use_pose else None, judged_on=list(kinds),
         held_out_mse_before=held_out_mse(problem, reference.residuals, everywhere),
         held_out_mse_after=float(np.mean(capped_square(res.residuals[~problem.train & everywhere]))),
         test_mse=res.test_mse, train_mse=res.train_mse, n_params=len(candidate.params),
         soil={k: res.params[k] for k in SOIL_PARAMETERS},
-        extension={k: v for k, v in res.params.items() if k in own},
+        extension={k: v for k, v in res.params.items() if k in own}, soil_at_bounds=at_bounds,
         evaluations=res.evaluations, wall_time=res.wall_time)
 
 

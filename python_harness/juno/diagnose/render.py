@@ -20,6 +20,7 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
     for c in result.candidates:
         mark = "*" if c.significant else " "
         lines.append(f" {mark} {c.name:16s} held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
+        lines += at_bounds_lines(c)
     lines += [duel_sentence(duel) for duel in result.head_to_head]
     if result.equally_good:
         lines.append("equally good: " + ", ".join(result.equally_good))
@@ -29,9 +30,19 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
         for c in result.second_round:
             mark = "*" if c.significant else " "
             lines.append(f" {mark} {c.name:16s} further held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
+            lines += at_bounds_lines(c)
     if len(result.causes) > 1:
         lines.append("causes, strongest first: " + ", ".join(result.causes))
     return lines
+
+
+def at_bounds_lines(c: JudgedCandidate) -> list[str]:
+    """A line under a candidate whose fitted soil sits at a bound of the search (no evidence for
+    its cause: judging.is_significant), or none."""
+    if not c.soil_at_bounds:
+        return []
+    return [f"      its soil sits at a bound of the search ({', '.join(c.soil_at_bounds)}): the data push the "
+            "soil beyond any real one, so its gain is no evidence for the cause"]
 
 
 def by_kind(c: JudgedCandidate) -> str:

@@ -109,6 +109,9 @@ class JudgedCandidate:
     n_params: int = 0
     soil: dict[str, float] = field(default_factory=dict)
     extension: dict[str, float] = field(default_factory=dict)
+    #: the fitted soil's parameters at a bound of the search (judging.soil_at_bounds): such a fit
+    #: names no cause
+    soil_at_bounds: list[str] = field(default_factory=list)
     evaluations: int = 0
     wall_time: float = 0.0
 
@@ -124,7 +127,7 @@ class JudgedCandidate:
                 "held_out_mse_before": self.held_out_mse_before, "held_out_mse_after": self.held_out_mse_after,
                 "significant": self.significant, "test_mse": self.test_mse, "train_mse": self.train_mse,
                 "n_params": self.n_params, "soil": self.soil, "extension": self.extension,
-                "evaluations": self.evaluations, "failed_evaluations": self.failed_evaluations,
+                "soil_at_bounds": self.soil_at_bounds, "evaluations": self.evaluations, "failed_evaluations": self.failed_evaluations,
                 "status": self.status, "wall_time": self.wall_time}
 
 

@@ -26,7 +26,7 @@ from .candidates import CANDIDATES, Candidate, combined
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, judge, leader_after_head_to_head,
-                      penalised_gain, ranked, relative_gain)
+                      penalised_gain, ranked, relative_gain, soil_at_bounds)
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
@@ -528,4 +528,19 @@ def refit_from_paper_soil(search: Search, first: Candidate, both_fit: FitResult)
     kept, other = (fit_objective(search.problem, search.run_kind, both_fit),
                    fit_objective(search.problem, search.run_kind, again))
     search.say(f"  training objective {kept:.4g} from the first cause's optimum, {other:.4g} from the paper's soil")
+    if other < kept and not names_its_causes(first, second, again):
+        why = [f"{c.name} is switched off in it" for c in (first, second) if not c.acts(again.params)]
+        bounded = soil_at_bounds(again.params)
+        why += [f"its soil sits at a bound of the search ({', '.join(bounded)})"] if bounded else []
+        search.say(f"  the fit from the paper's soil is not kept: {'; '.join(why)}")
+        return both_fit
     return again if other < kept else both_fit
+
+
+def names_its_causes(first: Candidate, second: Candidate, fit: FitResult) -> bool:
+    """Whether ``fit``, a model with both extensions, is one that could have named both causes:
+    each extension acts (Candidate.acts) and the soil sits at no bound of the search
+    (judging.soil_at_bounds).  The reported model must be such a one: a refit that switched the
+    second extension off, or pushed the soil to a bound, is not the model the causes were named
+    for, however well it fits."""
+    return first.acts(fit.params) and second.acts(fit.params) and not soil_at_bounds(fit.params)
