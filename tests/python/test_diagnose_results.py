@@ -21,7 +21,7 @@ from juno.identify import PAPER_INITIAL
 
 JUDGED_KEYS = ["name", "cause", "gain", "z", "gain_by_kind", "z_by_kind", "acts", "ablation", "kinematic", "judged_on",
                "held_out_mse_before", "held_out_mse_after", "significant", "test_mse", "train_mse", "n_params", "soil",
-               "extension", "evaluations", "failed_evaluations", "status", "wall_time"]
+               "extension", "soil_at_bounds", "evaluations", "failed_evaluations", "status", "wall_time"]
 RESULT_KEYS = ["cause", "causes", "explanation", "equally_good", "telling_apart", "head_to_head", "candidates",
                "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time",
                "unexplained", "structure"]
