@@ -1,6 +1,7 @@
-/* Accessors by value reference, generated from modelDescription/variables.h,
- * and what the FMI layer needs of the variables: string values, resource
- * paths, the checks of a state from elsewhere. */
+/* Accessors by value reference, generated from the FMU's variable table
+ * (modelDescription/variables.h or wheel_rig_variables.h), and what the FMI
+ * layer needs of the variables and state: string values, resource paths,
+ * the time, the checks of a state from elsewhere. */
 #if !defined(_WIN32) && !defined(_POSIX_C_SOURCE)
 #define _POSIX_C_SOURCE 200809L   /* stat under -std=c11 */
 #endif
@@ -261,6 +262,21 @@ void model_resolve_resources(Model *m, const char *resource_dir)
 #undef REAL
 #undef INT
 #undef STR
+}
+
+/* Both models keep the time in State and step at most solver.step at a time. */
+double model_get_time(const Model *m) { return m->s.time; }
+
+void model_set_time(Model *m, double time) { m->s.time = time; }
+
+/* The model takes ceil(h / solver.step) internal steps (at least, with the rover's automatic
+ * step): that must stay an affordable int. */
+int model_check_step_size(const Model *m, double h, char *why, size_t n)
+{
+    if (h / m->p.solver_step <= 1e7) return 0;
+    snprintf(why, n, "needs %.3g internal steps of solver.step = %g s (at most 1e7)", h / m->p.solver_step,
+             m->p.solver_step);
+    return -1;
 }
 
 void model_get_state(const Model *m, ModelState *st)

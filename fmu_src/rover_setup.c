@@ -334,20 +334,6 @@ void model_reset(Model *m)
     terrain_init_flat(&m->terrain);
 }
 
-double model_get_time(const Model *m) { return m->s.time; }
-
-void model_set_time(Model *m, double time) { m->s.time = time; }
-
-/* The model takes ceil(h / solver.step) internal steps (at least, with
- * solver.tolerance > 0): that must stay an affordable int. */
-int model_check_step_size(const Model *m, double h, char *why, size_t n)
-{
-    if (h / m->p.solver_step <= 1e7) return 0;
-    snprintf(why, n, "needs %.3g internal steps of solver.step = %g s (at most 1e7)", h / m->p.solver_step,
-             m->p.solver_step);
-    return -1;
-}
-
 void model_describe(const Model *m, char *buf, size_t n)
 {
     snprintf(buf, n, "A1 = %.4f, Vint = %.4g m3, static sinkage FL %.4f m, chassis z %.4f m", m->d.contact.A1,

@@ -249,20 +249,6 @@ void model_reset(Model *m)
     model_set_defaults(m);
 }
 
-double model_get_time(const Model *m) { return m->s.time; }
-
-void model_set_time(Model *m, double time) { m->s.time = time; }
-
-/* The model takes ceil(h / solver.step) internal steps: that must stay an
- * affordable int. */
-int model_check_step_size(const Model *m, double h, char *why, size_t n)
-{
-    if (h / m->p.solver_step <= 1e7) return 0;
-    snprintf(why, n, "needs %.3g internal steps of solver.step = %g s (at most 1e7)", h / m->p.solver_step,
-             m->p.solver_step);
-    return -1;
-}
-
 void model_describe(const Model *m, char *buf, size_t n)
 {
     snprintf(buf, n, "%s law, static sinkage %.4f m under rig.load = %g N, moving mass %g kg, A1 = %.4f",
