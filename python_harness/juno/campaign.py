@@ -580,23 +580,31 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
     if kind not in TIME_SERIES_KINDS:
         raise ValueError(f"kind must be 'drawbar' or 'terrain' (a wheel_rig table: read_rig_csv), got {kind!r}")
     p = Path(path)
-    text = decode_input_text(p, read_input_bytes(p))
-    names, rows, lines = _read_table(p, text, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind,
-                                                                                     KNOWN_COLUMNS))
-    columns: dict[str, FloatArray] = {}
-    extra: dict[str, np.ndarray] = {}
-    for j, name in enumerate(names):
-        cells = [row[j] for row in rows]
-        if name in KNOWN_COLUMNS:
-            columns[name] = _parse_column(p, name, cells, lines)
-        else:
-            extra[name] = _parse_extra(cells)
+    columns, extra, lines = _read_columns(p, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind,
+                                                                         KNOWN_COLUMNS), KNOWN_COLUMNS)
     line_arr = np.asarray(lines, dtype=np.int64)
     _check_time(p, columns["time"], line_arr)
     for name in REQUIRED_COLUMNS[kind]:
         if np.all(np.isnan(columns[name])):
             raise InputError(f"required column {name!r} has no samples (every cell is empty)", p, 1, name)
     return RunData(path=p, kind=kind, columns=columns, extra=extra, lines=line_arr, run_id=run_id)
+
+
+def _read_columns(p: Path, check_header: Callable[[list[str]], None], known: Sequence[str]
+                  ) -> tuple[dict[str, FloatArray], dict[str, np.ndarray], list[int]]:
+    """The columns of the CSV file ``p`` (header checked by ``check_header`` first): the ``known``
+    ones as checked numbers, the others as they are (``extra``), and the data rows' 1-based lines."""
+    text = decode_input_text(p, read_input_bytes(p))
+    names, rows, lines = _read_table(p, text, check_header)
+    columns: dict[str, FloatArray] = {}
+    extra: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        cells = [row[j] for row in rows]
+        if name in known:
+            columns[name] = _parse_column(p, name, cells, lines)
+        else:
+            extra[name] = _parse_extra(cells)
+    return columns, extra, lines
 
 
 def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
@@ -697,16 +705,7 @@ def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
         slip < 1) are checked with the units by :mod:`juno.plausibility`.
     """
     p = Path(path)
-    text = decode_input_text(p, read_input_bytes(p))
-    names, rows, lines = _read_table(p, text, lambda names: _check_rig_header(p, names))
-    columns: dict[str, FloatArray] = {}
-    extra: dict[str, np.ndarray] = {}
-    for j, name in enumerate(names):
-        cells = [row[j] for row in rows]
-        if name in RIG_COLUMNS:
-            columns[name] = _parse_column(p, name, cells, lines)
-        else:
-            extra[name] = _parse_extra(cells)
+    columns, extra, lines = _read_columns(p, lambda names: _check_rig_header(p, names), RIG_COLUMNS)
     for name in RIG_INPUTS:
         if name in columns:
             empty = np.flatnonzero(np.isnan(columns[name]))
