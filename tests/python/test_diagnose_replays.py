@@ -7,6 +7,10 @@
 * A soil patch's coarse search split into tasks (one per start, then the refinement from the
   best) is the fit made in one session, bit for bit: the same optimum, residuals, evaluations
   and failures, and a batch of fits reports them in the order of its jobs.
+* A fit simulates each run only as far as its last training sample, and its residuals there are
+  the whole replay's, bit for bit (drawbar runs, and a terrain run replayed in segments).
+* The Jacobian SciPy asks for at the point it accepts with the budget spent is not simulated,
+  and the fit is the same as the one that simulates it.
 """
 
 from __future__ import annotations
@@ -15,12 +19,14 @@ import numpy as np
 
 from dataclasses import replace
 
+from juno.diagnose import fitting
 from juno.diagnose.candidates import CANDIDATES
 from juno.diagnose.fitting import (_coarse_points, _coarse_start_job, _refined_job, _split, fit_candidate,
                                    run_jobs)
 from juno.diagnose.starts import patch_on_the_ground
-from juno.diagnose.problem import ReplayCache, build_problem, residuals_or_failure
-from juno.identify import PAPER_INITIAL
+from juno.diagnose.problem import (OUTPUT_INTERVAL, ReplayCache, build_problem, residuals_or_failure, run_kinds,
+                                   training_part)
+from juno.identify import PAPER_INITIAL, gridded_scans
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -116,3 +122,51 @@ def test_a_batch_with_a_split_patch_search_gives_the_serial_batch_in_order(small
         assert same_fits(a, b) == []
     assert [m.split(":")[0] for m in said_split] == [m.split(":")[0] for m in said_serial] == \
         ["  soil_patch", "  drivetrain_loss"]
+
+
+def test_a_fit_simulates_each_run_only_as_far_as_its_training_samples(small_campaign, harness_fmu, fmu_path,
+                                                                      tmp_path):
+    """The runs as a fit replays them (training_part) compare the training samples only, and
+    give the numbers the whole replay gives there; a run whose last block is held out is
+    simulated only to its last training sample (the short campaign's first drawbar run, 5.5 s,
+    ends in its held-out block 4-8 s).  A terrain run replayed in segments keeps its segments up
+    to its last training sample."""
+    campaign = small_campaign(SEED).campaign
+    grids = {run_id: path for run_id, (path, _grid) in gridded_scans(campaign, tmp_path, "validate").items()}
+    params = dict(PAPER_INITIAL)
+    for problem, kinds in ((build_problem(campaign, fmu_path, None), ("drawbar",)),
+                           (build_problem(campaign, fmu_path, grids, terrain_segment=3.0), ("terrain",))):
+        part = training_part(problem, kinds)
+        whole, failure = residuals_or_failure(harness_fmu, problem, params, kinds)
+        assert failure is None
+        trained, failure = residuals_or_failure(harness_fmu, part, params, kinds)
+        assert failure is None and part.train.all()
+        np.testing.assert_array_equal(trained, whole[problem.train[np.isin(run_kinds(problem), kinds)]])
+        for full, short in zip([p for p in problem.prepared if p.kind in kinds], part.prepared):
+            last = max(ts[-1] for ts, *_ in short.targets.values() if len(ts))
+            stop = (short.segments[-1].stop if short.segments else short.duration)
+            assert last <= stop < last + 2 * OUTPUT_INTERVAL or stop == full.duration, (full.run_id, last, stop)
+    first = build_problem(campaign, fmu_path, None).prepared[0]
+    short = training_part(build_problem(campaign, fmu_path, None), ("drawbar",)).prepared[0]
+    assert first.duration > 4.5 and short.duration < 4.2, (first.duration, short.duration)
+
+
+def test_the_jacobian_asked_for_with_the_budget_spent_is_not_simulated(small_campaign, fmu_path, monkeypatch):
+    """SciPy's trust-region loop computes the Jacobian at each point it accepts, then stops when
+    ``max_nfev`` evaluations are spent: that last Jacobian (one evaluation per free parameter:
+    four soil parameters and the loss fraction here) is never used, and the fit with it skipped
+    is the fit that simulates it, bit for bit.  Here both steps of a two-evaluation budget are
+    accepted: the start, its Jacobian, the step, and no second Jacobian (7 evaluations, not 12)."""
+    problem = build_problem(small_campaign(SEED, "drivetrain_loss").campaign, fmu_path, None)
+    candidate = CANDIDATES["drivetrain_loss"]
+    lean = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=2)
+    init = fitting._TrainingResiduals.__init__
+
+    def every_jacobian(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.max_nfev = None
+    monkeypatch.setattr(fitting._TrainingResiduals, "__init__", every_jacobian)
+    full = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=2)
+    assert lean.error is None and full.error is None
+    assert same_fits(lean, full) == [f"evaluations: {lean.evaluations!r} != {full.evaluations!r}"]
+    assert (lean.evaluations, full.evaluations) == (1 + 5 + 1, 1 + 5 + 1 + 5)

@@ -17,7 +17,8 @@ from ..identify import SOIL_SEARCH_BOUNDS, EvaluationLog, from_search, to_search
 from ..parallel import Task, TaskPool, local_fmu, map_tasks, resolve_workers
 from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
-from .problem import Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds
+from .problem import (Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds,
+                      training_part)
 
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
@@ -129,23 +130,29 @@ class _FitSession:
         self.fitted_kinds: set[str] = set()
         kinds = {p.kind for p in problem.prepared}
         self.has_drawbar, self.has_terrain = "drawbar" in kinds, "terrain" in kinds
+        self._training: dict[tuple[str, ...], Problem] = {}
 
-    def training_mask(self, kinds: tuple[str, ...]) -> np.ndarray:
-        """The training samples among the residuals of the runs of ``kinds``."""
-        return self.problem.train[np.isin(self.run_kind, kinds)]
+    def training_problem(self, kinds: tuple[str, ...]) -> Problem:
+        """The runs of ``kinds`` with their training samples only, each simulated no further than
+        its last one (problem.training_part): what a fit on them evaluates.  Made once per
+        kinds, so that its replays are remembered (ReplayCache keys a run by its object)."""
+        if kinds not in self._training:
+            self._training[kinds] = training_part(self.problem, kinds)
+        return self._training[kinds]
 
     def fit(self, x_start: np.ndarray, kinds: tuple[str, ...], free: np.ndarray, iterations: int) -> np.ndarray:
         """Least squares (soft L1 at FIT_LOSS_SCALE) over the ``free`` entries of the search vector
         on the training residuals of the runs of ``kinds``, from ``x_start``, at most
         ``iterations`` evaluations; returns the fitted search vector.  With a parallel pool, the
-        finite-difference Jacobian's points are evaluated as its tasks (the same numbers)."""
+        finite-difference Jacobian's points are evaluated as its tasks (the same numbers).
+        Only the fitted vector is used: a Jacobian the fit asks for once its ``iterations``
+        evaluations are spent is not simulated (_TrainingResiduals.map)."""
         self.fitted_kinds.update(kinds)
-        fun = _TrainingResiduals(self, x_start, free, kinds)
+        fun = _TrainingResiduals(self, x_start, free, kinds, iterations)
         lo, hi = self.space.bounds(free)
         robust = {"loss": "soft_l1", "f_scale": FIT_LOSS_SCALE} if FIT_LOSS_SCALE else {}
-        parallel = {"workers": fun.map} if self.pool is not None and self.pool.parallel else {}
         ls = least_squares(fun, np.clip(x_start[free], lo, hi), method="trf", diff_step=1e-3,
-                           bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8, **robust, **parallel)
+                           bounds=(lo, hi), max_nfev=iterations, xtol=1e-6, ftol=1e-8, workers=fun.map, **robust)
         x = x_start.copy()
         x[free] = ls.x
         return x
@@ -154,8 +161,8 @@ class _FitSession:
         """fit_loss of the training residuals of the runs of ``kinds`` at ``x`` (one evaluation;
         infinite if a run fails)."""
         self.evaluations += 1
-        r = residuals_for(self.fmu, self.problem, self.space.params(x), kinds, self.replays)
-        return np.inf if r is None else fit_loss(r[self.training_mask(kinds)])
+        r = residuals_for(self.fmu, self.training_problem(kinds), self.space.params(x), kinds, self.replays)
+        return np.inf if r is None else fit_loss(r)
 
 
 class _TrainingResiduals:
@@ -163,19 +170,26 @@ class _TrainingResiduals:
     search vector (the others as in ``x_start``) -> the training residuals of the runs of
     ``kinds``, FAILED_TRIAL_RESIDUAL on every sample when a run fails.
 
+    The runs are simulated only as far as their training samples go (_FitSession.training_problem).
     In the process that made it, each call is one evaluation of the session (counted, logged,
     its replays remembered).  Pickled, it carries only what a worker process needs to evaluate
     a point with that process's FMU (juno.parallel.local_fmu): the runs of ``kinds`` and the
-    search space; :meth:`map` evaluates the Jacobian's points there and logs them here."""
+    search space; :meth:`map` evaluates the Jacobian's points there and logs them here.
 
-    def __init__(self, session: _FitSession, x_start: np.ndarray, free: np.ndarray, kinds: tuple[str, ...]):
+    ``max_nfev``: the fit's budget of evaluations (SciPy's ``max_nfev``, which does not count a
+    Jacobian's points).  The trust-region loop computes the Jacobian at every point it accepts,
+    then stops if the budget is spent; that last Jacobian is never used (:meth:`map`)."""
+
+    def __init__(self, session: _FitSession, x_start: np.ndarray, free: np.ndarray, kinds: tuple[str, ...],
+                 max_nfev: int | None = None):
         self.session: _FitSession | None = session
-        problem = session.problem
-        self.problem = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path,
-                               [p for p in problem.prepared if p.kind in kinds])
+        self.problem = session.training_problem(kinds)
         self.space, self.x_start, self.free, self.kinds = session.space, x_start.copy(), free, kinds
-        self.train = session.training_mask(kinds)
-        self.n_train = int(np.sum(self.train))
+        self.n_train = int(np.sum(self.problem.train))
+        self.max_nfev = max_nfev
+        self.steps = 0                     # evaluations SciPy counts (not a Jacobian's points)
+        self._last: np.ndarray | None = None
+        self._in_jacobian = False
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -194,22 +208,40 @@ class _TrainingResiduals:
             r, failure = residuals_or_failure(session.fmu, self.problem, self.space.params(x), self.kinds,
                                               session.replays)
             session.log.record(failure)
-        return np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r[self.train]
+        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r
+        if session is not None and not self._in_jacobian:
+            self.steps += 1
+            self._last = out
+        return out
 
     def map(self, fn: Callable[[np.ndarray], np.ndarray], points) -> list[np.ndarray]:
-        """SciPy's ``workers``: ``fn`` (SciPy's wrapper of this object) at each point, as tasks of
-        the session's pool, each logged here as one evaluation in order.  A point that failed
-        there is evaluated again here (the model is deterministic), which logs why it failed."""
-        session = self.session
+        """SciPy's ``workers`` (the points of a finite-difference Jacobian): ``fn`` (SciPy's
+        wrapper of this object) at each point, as tasks of the session's pool when it is
+        parallel (each logged here as one evaluation, in order; a point that failed there is
+        evaluated again here, the model being deterministic, which logs why it failed), else here.
+
+        Once the fit's ``max_nfev`` evaluations are spent, the Jacobian asked for is the one
+        SciPy's trust-region loop computes at the point it has just accepted before it stops:
+        the fit's result is that point, whatever the Jacobian, so its points are not simulated
+        (each is given the residuals at that point: a zero Jacobian, never used)."""
         points = list(points)
-        results = session.pool.map(fn, points)
-        for x, r in zip(points, results):
-            if np.all(np.asarray(r) == FAILED_TRIAL_RESIDUAL):
-                self(x)
-            else:
-                session.evaluations += 1
-                session.log.record(None)
-        return results
+        if self.max_nfev is not None and self.steps >= self.max_nfev and self._last is not None:
+            return [self._last.copy() for _ in points]
+        session = self.session
+        self._in_jacobian = True
+        try:
+            if session.pool is None or not session.pool.parallel:
+                return [fn(x) for x in points]
+            results = session.pool.map(fn, points)
+            for x, r in zip(points, results):
+                if np.all(np.asarray(r) == FAILED_TRIAL_RESIDUAL):
+                    self(x)
+                else:
+                    session.evaluations += 1
+                    session.log.record(None)
+            return results
+        finally:
+            self._in_jacobian = False
 
 
 # ------------------------------------------------------------------ one model's fit

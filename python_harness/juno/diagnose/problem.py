@@ -4,12 +4,12 @@ model on it."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..campaign import Campaign
-from ..identify import PreparedRun, prepare_run, run_residuals
+from ..identify import PreparedRun, Segment, prepare_run, run_residuals
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
@@ -74,6 +74,48 @@ def _prepared_runs(campaign: Campaign, grid_file: str | dict[str, str] | None, t
         prepared.append(prepare_run(campaign, run, terrain_file=grid if terrain else None,
                                     segment=terrain_segment, drive=terrain_drive if terrain else "spin"))
     return prepared
+
+
+def training_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
+    """The runs of ``kinds`` with only their training samples to compare, each simulated no
+    further than its last training sample (training_run); the residuals on it are the training
+    residuals of those runs, in the same order.
+
+    Why: a fit sees only the training blocks, and a replay's samples depend only on what came
+    before them, so the simulation past a run's last training sample (a held-out block at its
+    end: 2 s of a 22 s run, 4 s of a 32 s one) is work no fit uses.  The samples it does
+    compare are the same numbers as on the whole replay."""
+    runs, start = [], 0
+    for p in problem.prepared:
+        n = sum(len(v[0]) for v in p.targets.values())
+        if p.kind in kinds:
+            runs.append(training_run(p, problem.train[start:start + n]))
+        start += n
+    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs)
+    part.train = np.ones(sum(sum(len(v[0]) for v in p.targets.values()) for p in runs), bool)
+    return part
+
+
+def training_run(p: PreparedRun, train: np.ndarray) -> PreparedRun:
+    """The prepared run ``p`` comparing only the samples where ``train`` (over its residuals, in
+    order) holds, and simulated to the first output sample (OUTPUT_INTERVAL) at or after the
+    last of them: the same communication points as the whole replay, so the same numbers.
+    Segments after that sample are left out."""
+    targets, start, last = {}, 0, 0.0
+    for column, (ts, vs, out, sigma, lag) in p.targets.items():
+        keep = train[start:start + len(ts)]
+        start += len(ts)
+        targets[column] = (ts[keep], vs[keep], out, sigma, lag)
+        if np.any(keep):
+            last = max(last, float(ts[keep][-1]))
+    pieces = p.segments or [Segment(0.0, p.duration, {})]
+    kept = [s for s in pieces if s.start <= last] or pieces[:1]
+    final = kept[-1]
+    whole = int(round((final.stop - final.start) / OUTPUT_INTERVAL))
+    needed = min(whole, int(np.ceil((last - final.start) / OUTPUT_INTERVAL - 1e-9)) + 1)
+    stop = final.stop if needed >= whole else final.start + OUTPUT_INTERVAL * needed
+    segments = kept[:-1] + [replace(final, stop=stop)] if p.segments else []
+    return replace(p, duration=stop if not p.segments else p.duration, targets=targets, segments=segments)
 
 
 class ReplayCache:
