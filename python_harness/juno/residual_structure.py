@@ -28,9 +28,11 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    the model is right, T / k over the null's mean square is F(k, d)-distributed (k blocks, d
    the replicas' degrees of freedom).  A signal has structure when its p-value is below
    FALSE_ALARM / (number of signals) (Bonferroni: at most FALSE_ALARM false reports per
-   campaign) *and* the structure is material: its RMS beyond the null is at least
-   MATERIAL_FRACTION of the signal's sensor noise, a floor calibrated on campaigns with nothing
-   hidden (the replay leaves small structure the bootstrap does not reproduce).
+   campaign) *and* the structure is material: its RMS beyond the null is at least a floor,
+   a fraction of the signal's sensor noise calibrated on campaigns with nothing hidden (the
+   replay leaves small structure the bootstrap does not reproduce): MATERIAL_FRACTION for the
+   positions and height, which integrate the replay's drift, MATERIAL_FRACTION_CONTACT for the
+   torques and the pitch, which do not.
 5. **What it follows.** For a signal with structure, the block means are set against the
    covariates an engineer would look at: a constant offset, time in the run, position x and y,
    the drive torque, the wheel spin, the slip, the run, and for the paired left/right signals
@@ -64,14 +66,26 @@ from .simulator import JunoFMU, SimulationError
 #: At most this many false "structure" reports per campaign (Bonferroni over the signals).
 FALSE_ALARM = 0.01
 #: A structure smaller than this fraction of the sensor noise (RMS of the block means beyond the
-#: null, over the per-sample sigma) is not attributed to any cause.  Calibrated by simulation
-#: (scripts/structure_calibration.py, docs/results/structure-calibration.md): on campaigns with
-#: nothing hidden, of both synthetic designs, the fitted right model leaves structure of up to
-#: about half the noise in the positions (the replay's heading drifts a little from the
-#: measured one) that the bootstrap's input noise does not reproduce; the floor, one sensor
-#: sigma, lies above that and below the smallest discrepancy of a sensor or drivetrain decoy
-#: measured (a 7-10 N m drag on one side: 1.6 of the torque's noise).
+#: null, over the per-sample sigma) in a signal of the replayed path (positions and height) is
+#: not attributed to any cause.  Calibrated by simulation (scripts/structure_calibration.py,
+#: docs/results/structure-calibration.md): on campaigns with nothing hidden, of both synthetic
+#: designs, the fitted right model leaves structure of up to about half the noise in the
+#: positions (the replay's heading drifts a little from the measured one, and the path
+#: integrates the drift) that the bootstrap's input noise does not reproduce; the floor, one
+#: sensor sigma, lies above that.
 MATERIAL_FRACTION = 1.0
+#: The floor (fraction of the sensor noise, as MATERIAL_FRACTION) for the signals the replay does
+#: not integrate along its path: the drive torques and the pitch, which follow the wheels'
+#: contact where the rover is, not where its replayed heading has taken it.  The same
+#: calibration finds a right model leaving at most 0.15 of the noise in them (0.10 in the
+#: pitch), so the positions' floor would hide there what the test resolves: a drag of 9 N m on
+#: one side, with the alternative design's torque sensor (5.5 N m of noise), leaves 0.75-0.78 of
+#: it in each torque at p below 1e-150.  The floor lies over three times above the most a right
+#: model left.
+MATERIAL_FRACTION_CONTACT = 0.5
+#: The signals MATERIAL_FRACTION_CONTACT applies to (the calibrated ones: the drawbar runs compare
+#: no roll).
+CONTACT_SIGNALS = ("torque_left", "torque_right", "pitch")
 #: Bootstrap replicas of the null (each one replay of every drawbar run).
 REPLICAS = 20
 #: Which measured column feeds which replay input (the spin-following drawbar replay).
@@ -96,6 +110,12 @@ def residual_labels(prepared: Sequence[PreparedRun], block: float) -> dict[str, 
     t = np.concatenate(times) if times else np.zeros(0)
     return {"run": np.array(runs), "signal": np.array(signals), "time": t,
             "block": np.floor(t / block).astype(int)}
+
+
+def material_fraction(signal: str) -> float:
+    """The materiality floor of ``signal`` (fraction of its sensor noise): MATERIAL_FRACTION_CONTACT
+    for the torques and the pitch, MATERIAL_FRACTION for the replayed path."""
+    return MATERIAL_FRACTION_CONTACT if signal in CONTACT_SIGNALS else MATERIAL_FRACTION
 
 
 def column_noise(times: np.ndarray, values: np.ndarray) -> float:
@@ -135,7 +155,7 @@ class SignalStructure:
     structure_rms: float          # RMS of the block means beyond the null, signal units
     ratio: float                  # structure_rms / noise
     p_value: float
-    significant: bool             # p below the Bonferroni level and ratio >= MATERIAL_FRACTION
+    significant: bool             # p below the Bonferroni level and ratio >= material_fraction(signal)
     follows: list[Covariate] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
@@ -185,7 +205,8 @@ class ResidualStructure:
 
     def to_json(self) -> dict[str, Any]:
         return {"significant": self.significant, "false_alarm": FALSE_ALARM, "level": self.level,
-                "material_fraction": MATERIAL_FRACTION, "replicas": self.replicas, "runs": self.runs,
+                "material_fraction": MATERIAL_FRACTION, "material_fraction_contact": MATERIAL_FRACTION_CONTACT,
+                "contact_signals": list(CONTACT_SIGNALS), "replicas": self.replicas, "runs": self.runs,
                 "signals": [s.to_json() for s in self.signals],
                 "periodic": self.periodic.to_json() if self.periodic else None}
 
@@ -465,12 +486,13 @@ def _test_signal(sig: str, units: _Units, observed: np.ndarray, null_means: np.n
     rms = float(np.sqrt(excess)) * scale
     ratio = rms / sensor if sensor > 0 else float("inf")
     level = FALSE_ALARM / max(n_signals, 1)
-    significant = bool(p < level and ratio >= MATERIAL_FRACTION)
+    floor = material_fraction(sig)
+    significant = bool(p < level and ratio >= floor)
     unit = UNITS.get(sig, "")
     follows: list[Covariate] = []
     if significant:
         cov = {name: (x[mine], u) for name, (x, u) in covariates.items()}
-        varying = float(np.var(means)) - float(np.mean(ref)) >= (MATERIAL_FRACTION * sensor / scale) ** 2
+        varying = float(np.var(means)) - float(np.mean(ref)) >= (floor * sensor / scale) ** 2
         follows = _what_it_follows(means, scale, unit, cov, runs, varying)
         side = _side_covariate(sig, means_by_signal, {s: sigma_of[s] for s in means_by_signal}, unit)
         if side is not None and side.share >= FOLLOWS_SHARE:
