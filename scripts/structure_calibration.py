@@ -29,7 +29,7 @@ from generate_docs import _now, _write, commit_description, machine_description 
 
 from juno.campaign import load_campaign  # noqa: E402
 from juno.identify import identify_joint  # noqa: E402
-from juno.residual_structure import MATERIAL_FRACTION  # noqa: E402
+from juno.residual_structure import CONTACT_SIGNALS, MATERIAL_FRACTION, MATERIAL_FRACTION_CONTACT  # noqa: E402
 from juno.simulator import JunoFMU  # noqa: E402
 from juno.synthesize import synthesize  # noqa: E402
 
@@ -57,8 +57,8 @@ def page(cases: list[dict], started: str) -> str:
              f"- machine: {machine_description()}", "",
              "Campaigns with nothing hidden, the soil fitted jointly, and the residual structure test "
              "([diagnosis.md](../diagnosis.md#what-no-candidate-explains)) run on the fit's residuals. "
-             f"The materiality floor is {MATERIAL_FRACTION:g} x the sensor noise; a right model must stay "
-             "below it.", "",
+             f"The materiality floor is {MATERIAL_FRACTION:g} x the sensor noise, {MATERIAL_FRACTION_CONTACT:g} x "
+             f"in {', '.join(CONTACT_SIGNALS)}; a right model must stay below it.", "",
              "| design | time scale | seeds | " + " | ".join(signals) + " | reported structure |",
              "|---|---|---|" + "---|" * len(signals) + "---|"]
     groups = sorted({(c["design"], c["time_scale"]) for c in cases})
