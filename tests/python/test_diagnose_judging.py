@@ -460,3 +460,21 @@ def test_every_bound_of_the_soil_search_counts_and_a_soil_just_inside_does_not()
         found = soil_at_bounds({**inside, name: value})
         assert len(found) == 1 and found[0].startswith(f"{name} = ") and found[0].endswith(f"({word} bound)")
     assert soil_at_bounds({**inside, "soil.eta": 2.0 / 1.02, "soil.kh": 1e8 / 1.02}) == []
+
+
+def test_the_reported_two_cause_model_is_one_its_causes_were_named_for():
+    """search.names_its_causes: the refit of a model with two causes from the paper's soil is
+    reported only if both extensions still act and its soil sits inside the search.  As measured
+    on a pitch-biased campaign: the refit kept a rut of 1.4 % of the front wheels' sinkage,
+    below the 2 % at which the multi-pass counts as switched on, and eta at 1.995."""
+    from juno.diagnose.candidates import CANDIDATES
+    from juno.diagnose.search import names_its_causes
+    loss, multipass = CANDIDATES["drivetrain_loss"], CANDIDATES["multipass"]
+    real = {"soil.kh": 1.9e5, "soil.eta": 0.55, "soil.gamma": 0.06, "soil.Kvx": 0.8}
+
+    def fit(soil: dict[str, float], rut: float) -> FitResult:
+        params = {**soil, "drive.lossFraction": 0.11, "multipass.rutFraction": rut, "multipass.khFactor": 9.25}
+        return FitResult("multipass", params, 1.0, 1.0, np.zeros(1), 1, 0.0)
+    assert names_its_causes(loss, multipass, fit(real, 0.5))
+    assert not names_its_causes(loss, multipass, fit(real, 0.014))
+    assert not names_its_causes(loss, multipass, fit({**real, "soil.eta": 1.995}, 0.5))
