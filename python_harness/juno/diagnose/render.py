@@ -45,6 +45,13 @@ def at_bounds_lines(c: JudgedCandidate) -> list[str]:
             "soil beyond any real one, so its gain is no evidence for the cause"]
 
 
+def significance(c: JudgedCandidate) -> str:
+    """A report table's cell: "yes", "no", or "no: soil at a bound of the search (...)"."""
+    if c.significant:
+        return "yes"
+    return f"no: soil at a bound of the search ({', '.join(c.soil_at_bounds)})" if c.soil_at_bounds else "no"
+
+
 def by_kind(c: JudgedCandidate) -> str:
     """A candidate's held-out gain and z on each kind of run, e.g. 'drawbar +12.0 % (z 3.1)'."""
     gains, zs = c.gain_by_kind, c.z_by_kind
@@ -211,7 +218,7 @@ def _candidates_table(result: DiagnosisResult) -> list[str]:
     lines = ["| candidate extension | physical cause | held-out gain | per kind of run | significant |",
              "|---|---|---|---|---|"]
     for c in result.candidates:
-        lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {'yes' if c.significant else 'no'} |")
+        lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {significance(c)} |")
     lines.append("")
     for c in result.candidates:
         if c.kinematic:
@@ -238,7 +245,7 @@ def _cause_lines(result: DiagnosisResult) -> list[str]:
                   "| candidate extension | further held-out gain | per kind of run | significant |",
                   "|---|---|---|---|"]
         for c in result.second_round:
-            lines.append(f"| {c.name} | {c.gain:+.1%} | {by_kind(c)} | {'yes' if c.significant else 'no'} |")
+            lines.append(f"| {c.name} | {c.gain:+.1%} | {by_kind(c)} | {significance(c)} |")
         lines.append("")
         if len(result.causes) > 1:
             lines += [f"**Second cause: {result.causes[1]}** - {CANDIDATES[result.causes[1]].cause}. "
