@@ -7,7 +7,7 @@ import numpy as np
 
 from juno.campaign import read_run
 from juno.diagnose.candidates import CANDIDATES
-from juno.diagnose.starts import patch_grid, patch_on_the_ground
+from juno.diagnose.starts import PATCH_CONVERGES, patch_grid, patch_on_the_ground
 from juno.rover_model import rover
 
 pytest_plugins = ["harness_fixtures"]
@@ -47,3 +47,18 @@ def test_the_patch_grid_starts_lie_inside_the_bounds(noisy_campaign, fmu_path):
         values = dict(point)
         for name in ("soilPatch.x", "soilPatch.y"):
             assert bounds[name][0] <= values[name] <= bounds[name][1]
+
+
+def test_every_place_along_the_drawbar_track_is_within_reach_of_a_patch_start(noisy_campaign):
+    """The patch's fit converges from PATCH_CONVERGES (0.5 m): every place along the drawbar runs'
+    track, but the half metre at either end, is at most that far from a start, and the starts are
+    no closer together than they need to be for that (closer ones would find the same basins)."""
+    campaign = noisy_campaign.campaign
+    x = np.concatenate([read_run(campaign, r).samples("pos_x")[1] for r in campaign.runs_of_kind("drawbar")])
+    starts = np.array([dict(point)["soilPatch.x"] for point in patch_grid(campaign)])
+    places = np.linspace(np.min(x) + 0.5, np.max(x) - 0.5, 200)
+    assert len(starts) >= 2
+    assert np.max(np.min(np.abs(places[:, None] - starts[None, :]), axis=1)) <= PATCH_CONVERGES + 1e-9
+    gaps = np.diff(starts)
+    assert np.all(gaps > 0) and np.allclose(gaps, gaps[0]) and gaps[0] <= 2 * PATCH_CONVERGES + 1e-9
+    assert len(starts) == 1 + int(np.ceil((starts[-1] - starts[0]) / (2 * PATCH_CONVERGES) - 1e-9))

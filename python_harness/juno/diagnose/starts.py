@@ -17,6 +17,9 @@ from .problem import BLOCK, Problem
 #: Bins along x (m) over which patch_start averages the squared residuals: the distance from which
 #: the patch's least-squares fit converges (patch_grid), so a start in the worst bin is in its basin.
 PATCH_BIN = 0.5
+#: Distance (m) from which the least-squares fit of a patch converges to it (measured: from 0.5 m
+#: off, to the truth within 2 cm): patch_grid's starts are twice this apart.
+PATCH_CONVERGES = 0.5
 #: A bin with no more torque samples than this (a quarter of a second of both drive torques at
 #: 20 Hz) is too thin an average to be the worst.
 PATCH_MIN_SAMPLES = 10
@@ -66,13 +69,19 @@ def _torque_residuals_along_path(campaign: Campaign, problem: Problem, r: np.nda
     return np.concatenate(xs), np.concatenate(ys), np.concatenate(ws)
 
 
-def patch_grid(campaign: Campaign, spacing: float = 0.5) -> tuple[tuple[tuple[str, float], ...], ...]:
-    """Starts for the soil-patch search: a somewhat weaker patch of 0.7 m radius centred every
-    ``spacing`` m along the ground the drawbar runs covered (from the measured positions).
-    The least-squares fit of a patch converges from about half a metre (measured: from 0.5 m
-    off, to the truth within 2 cm), but from the wrong side of the track it settles on a patch
-    that explains little, and the cost at a start with the base soil does not tell which start
-    is in the right basin: so each start gets a short fit (Candidate.short_fits)."""
+def patch_grid(campaign: Campaign, spacing: float = PATCH_CONVERGES * 2) -> tuple[tuple[tuple[str, float], ...], ...]:
+    """Starts for the soil-patch search: a somewhat weaker patch of 0.7 m radius centred at
+    evenly spaced places at most ``spacing`` m apart along the ground the drawbar runs covered
+    (from the measured positions), from 0.5 m after its start to 0.5 m before its end.
+    The least-squares fit of a patch converges from PATCH_CONVERGES, but from the wrong side of
+    the track it settles on a patch that explains little, and the cost at a start with the
+    base soil does not tell which start is in the right basin: so each start gets a short fit
+    (Candidate.short_fits).  Starts twice PATCH_CONVERGES apart put every place along the track
+    within that distance of one: closer starts are short fits that find the same basin.
+    Measured on three fresh soil-patch draws (strength 0.74-0.94, the soil patch the only
+    candidate): from starts about 1 m apart the fitted patch was the one found from starts
+    0.5 m apart (its centre within 0.3 mm, the held-out gain within 0.1 %), and the diagnosis
+    took 22-25 CPU seconds instead of 28-36."""
     xs, ys = [], []
     for run in campaign.runs_of_kind("drawbar"):
         data = read_run(campaign, run)
@@ -82,9 +91,12 @@ def patch_grid(campaign: Campaign, spacing: float = 0.5) -> tuple[tuple[tuple[st
         return ()
     x, y = np.concatenate(xs), np.concatenate(ys)
     y_mid = float(np.median(y))
+    first, last = float(np.min(x)) + 0.5, float(np.max(x)) - 0.5
+    if last < first:
+        return ()
+    places = np.linspace(first, last, int(np.ceil((last - first) / spacing - 1e-9)) + 1)
     return tuple((("soilPatch.x", float(cx)), ("soilPatch.y", y_mid), ("soilPatch.radius", 0.7),
-                  ("soilPatch.khFactor", 0.8), ("soilPatch.strengthFactor", 0.8))
-                 for cx in np.arange(np.min(x) + 0.5, np.max(x) - 0.5 + 1e-9, spacing))
+                  ("soilPatch.khFactor", 0.8), ("soilPatch.strengthFactor", 0.8)) for cx in places)
 
 
 def patch_on_the_ground(campaign: Campaign, fmu_path: str) -> Candidate:
