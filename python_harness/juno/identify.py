@@ -47,6 +47,7 @@ from .campaign import Campaign, RunData, RunSpec, forward_speed, read_run, stead
 from .errors import InputError
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .rover_model import SOIL_PARAMETERS, rover
+from .sensor_noise import residual_scale
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: The paper's initial guess (Tables 1-3).
@@ -418,7 +419,9 @@ def identify_paper_runs(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec
 
 # ------------------------------------------------------------- joint fit
 
-#: Signals compared in the joint fit, with the scale (1 sigma) each residual is divided by.
+#: Signals compared in the joint fit, with each residual's nominal scale (1 sigma, about the
+#: paper's instruments' noise): a residual is divided by the larger of it and the sensor noise
+#: estimated from the run (_targets, sensor_noise.residual_scale).
 #: The model follows the measured wheel spins, so the spins are inputs and the
 #: drive torque it needs is compared with the torque from the motor current.
 #: Positions enter as increments over ``POSITION_LAG`` (a speed without smoothing lag),
@@ -634,14 +637,16 @@ def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Seq
     """The comparison targets of a run: measured column -> (times s from the run's start, values,
     FMU output, sigma, lag s), every ``stride``-th sample after SETTLING_TIME, leaving out
     SEGMENT_SETTLE s after each restart of a segmented replay; a position column becomes its
-    increments over POSITION_LAG."""
+    increments over POSITION_LAG.  sigma is the compared quantity's sensor noise estimated from
+    the run, never below the signal's nominal scale (sensor_noise.residual_scale)."""
     targets = {}
-    for column, (output, sigma) in signals.items():
+    for column, (output, nominal) in signals.items():
         if not data.has(column):
             continue
         ts, vs = data.samples(column)
         ts = ts - data.time[0]
         lag = POSITION_LAG if column in INCREMENT_SIGNALS else 0.0
+        sigma = residual_scale(ts, vs, nominal, increment=lag > 0)
         if lag > 0:
             vs = vs - np.interp(ts - lag, ts, vs)
         keep = ts >= max(SETTLING_TIME, lag + ts[0])

@@ -53,6 +53,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .sensor_noise import column_noise
+
 #: At most this many false ripple reports per campaign (Sidak over the N's, Bonferroni over signals).
 FALSE_ALARM = 0.01
 #: Whole lug counts tested (see the module docstring).
@@ -296,8 +298,7 @@ def series_of_residuals(prepared: Sequence[Any], meta: Mapping[str, np.ndarray],
     (identify.PreparedRun; ``residuals`` scaled as identify.run_residuals gives them, labelled by
     ``meta``, training samples ``train``), in N m, with each side's wheel angle from the measured
     run (``data``: run id -> campaign.RunData).  ``noise``: the sensor noise of (run, column)
-    when known (residual_structure.column_noise is used otherwise)."""
-    from .residual_structure import column_noise
+    when known (sensor_noise.column_noise is used otherwise)."""
     out = []
     start = 0
     for p in prepared:

@@ -60,6 +60,7 @@ from .campaign import Campaign, RunData, read_run
 from .identify import PreparedRun, run_residuals
 from .periodic_structure import PeriodicSignal, PeriodicStructure, periodic_structure, series_of_residuals
 from .rover_model import SOIL_PARAMETERS
+from .sensor_noise import column_noise
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import JunoFMU, SimulationError
 
@@ -116,20 +117,6 @@ def material_fraction(signal: str) -> float:
     """The materiality floor of ``signal`` (fraction of its sensor noise): MATERIAL_FRACTION_CONTACT
     for the torques and the pitch, MATERIAL_FRACTION for the replayed path."""
     return MATERIAL_FRACTION_CONTACT if signal in CONTACT_SIGNALS else MATERIAL_FRACTION
-
-
-def column_noise(times: np.ndarray, values: np.ndarray) -> float:
-    """Sensor noise (1 sigma, the column's units) of one measured column: the median absolute
-    second difference of its samples over 0.6745 sqrt(6) (white noise's second differences
-    have variance 6 sigma^2; a signal that is smooth at the sample rate adds little, and the
-    median ignores the few steps and glitches)."""
-    order = np.argsort(times)
-    v = np.asarray(values, float)[order]
-    v = v[np.isfinite(v)]
-    if len(v) < 5:
-        return float("nan")
-    d2 = np.diff(v, 2)
-    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
 
 
 @dataclass

@@ -18,7 +18,7 @@ import numpy as np
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
-from .residual_structure import column_noise
+from .sensor_noise import column_noise
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: Default terrain grid resolution (m).
@@ -69,7 +69,7 @@ class ValidationResult:
     simulated: dict[str, np.ndarray]
     rms: dict[str, float] = field(default_factory=dict)
     #: Each measured column's sensor noise (1 sigma, SI units) estimated from the column itself
-    #: (:func:`juno.residual_structure.column_noise`); NaN for a derived signal (speed).  An RMS
+    #: (:func:`juno.sensor_noise.column_noise`); NaN for a derived signal (speed).  An RMS
     #: error near it is agreement to within the sensor's noise; many times it is model error.
     noise: dict[str, float] = field(default_factory=dict)
 

@@ -16,7 +16,8 @@ import pytest
 
 from juno.campaign import load_campaign
 from juno.identify import prepare_run, run_residuals
-from juno.residual_structure import MATERIAL_FRACTION, REPLICAS, column_noise, residual_labels, residual_structure
+from juno.residual_structure import MATERIAL_FRACTION, REPLICAS, residual_labels, residual_structure
+from juno.sensor_noise import column_noise
 from juno.rover_model import SOIL_PARAMETERS
 
 from harness_fixtures import NOISY_SEED, NOISY_TIME_SCALE, make_campaign

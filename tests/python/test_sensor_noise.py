@@ -1,0 +1,97 @@
+"""Residual scales from the data (juno.sensor_noise): a user's instruments are not the paper's.
+
+* The noise of a measured column is estimated from the column itself, within a few % of the
+  truth, on a signal that moves as a rover's do.
+* A residual's scale is that noise (an increment's: sqrt(2) times it), never below the
+  signal's nominal scale.
+* A campaign whose total station is ten times noisier than the paper's gets its positions
+  weighed down accordingly, and the joint fit's uncertainty still covers the truth.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+
+import numpy as np
+import pytest
+
+from harness_fixtures import say
+from juno.campaign import load_campaign
+from juno.identify import INCREMENT_SIGNALS, JOINT_SIGNALS, identify_joint, prepare_run
+from juno.sensor_noise import column_noise, residual_scale
+
+pytest_plugins = ["harness_fixtures"]
+
+#: The added total-station noise (m, 1 sigma): a GNSS receiver's, ten times the paper's station.
+STATION_NOISE = 0.02
+
+
+def _signal(seed: int, sigma: float, n: int = 2000, rate: float = 50.0) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth rover-like signal (a ramp, a slow wave) with white noise of ``sigma``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / rate
+    return t, 150.0 + 2.0 * t + 20.0 * np.sin(0.4 * t) + sigma * rng.standard_normal(n)
+
+
+@pytest.mark.parametrize("sigma", [0.5, 3.0, 12.0])
+def test_the_noise_of_a_column_is_estimated_from_the_column(sigma):
+    t, v = _signal(1, sigma)
+    assert column_noise(t, v) == pytest.approx(sigma, rel=0.08)
+
+
+def test_a_residual_is_scaled_by_the_sensor_noise_and_never_below_the_nominal_scale():
+    t, v = _signal(2, 6.0)
+    assert residual_scale(t, v, nominal=3.0, increment=False) == pytest.approx(6.0, rel=0.08)
+    assert residual_scale(t, v, nominal=3.0, increment=True) == pytest.approx(6.0 * np.sqrt(2.0), rel=0.08)
+    assert residual_scale(t, v, nominal=20.0, increment=False) == 20.0
+    assert residual_scale(t[:4], v[:4], nominal=3.0, increment=False) == 3.0   # too few samples to tell
+
+
+def _with_station_noise(src, dst, sigma: float, seed: int):
+    """A copy of the campaign at ``src`` whose pos_x, pos_y and pos_z get white noise of ``sigma``."""
+    shutil.copytree(src, dst)
+    rng = np.random.default_rng(seed)
+    for path in sorted((dst / "runs").glob("*.csv")):
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+        for col in ("pos_x", "pos_y", "pos_z"):
+            j = rows[0].index(col)
+            for row in rows[1:]:
+                if row[j]:
+                    row[j] = repr(float(row[j]) + sigma * rng.standard_normal())
+        with open(path, "w", newline="") as f:
+            csv.writer(f).writerows(rows)
+    return load_campaign(dst)
+
+
+@pytest.fixture(scope="module")
+def gnss_campaign(noisy_campaign, tmp_path_factory):
+    return _with_station_noise(noisy_campaign.path, tmp_path_factory.mktemp("gnss") / "campaign", STATION_NOISE, 17)
+
+
+def test_positions_from_a_noisier_station_are_weighed_by_its_noise(gnss_campaign):
+    """Each run's scale is estimated from that run alone (a run of this short campaign has 55-88
+    station samples, so one estimate scatters by about 20 %); over the runs and the three
+    position columns they centre on the station's noise."""
+    ratios = []
+    for run in gnss_campaign.runs_of_kind("drawbar"):
+        targets = prepare_run(gnss_campaign, run).targets
+        for column in ("pos_x", "pos_y", "pos_z"):
+            expected = STATION_NOISE * (np.sqrt(2.0) if column in INCREMENT_SIGNALS else 1.0)
+            ratios.append(targets[column][3] / expected)
+        for column in ("torque_left", "torque_right"):     # the motor current is the paper's
+            assert targets[column][3] < 1.3 * JOINT_SIGNALS[column][1], (run.id, column)
+    say("estimated over nominal station noise: " + ", ".join(f"{r:.2f}" for r in ratios))
+    assert np.median(ratios) == pytest.approx(1.0, rel=0.15)
+    assert all(0.5 < r < 2.0 for r in ratios)
+
+
+def test_the_joint_fit_of_a_campaign_with_a_noisier_station_still_covers_the_truth(harness_fmu, gnss_campaign,
+                                                                                    noisy_campaign):
+    result = identify_joint(harness_fmu, gnss_campaign)
+    for k, truth in noisy_campaign.soil.items():
+        z = (result.params[k] - truth) / result.std[k]
+        say(f"{k}: fitted {result.params[k]:.5g} +- {result.std[k]:.2g}, truth {truth:.5g}, z {z:+.2f}")
+        assert abs(z) <= 3.0, f"{k}: the truth is {z:+.1f} reported sigmas from the estimate"
+    assert result.cost == pytest.approx(1.0, abs=0.25), "scaled by the sensors' noise, the residuals are about 1"
