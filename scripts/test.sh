@@ -10,5 +10,9 @@ echo "== C unit tests (ctest)"
 echo "== Python tests (pytest)"
 # One worker per core (pytest-xdist), a test file per worker: a diagnose test keeps
 # both cores busy only part of the time (its base fit and judging are serial), and the other files
-# fill the gaps.
-.venv/bin/python -m pytest tests/python -q -p no:cacheprovider --durations=25 -n auto --dist loadfile "$@"
+# fill the gaps.  The two files of blind diagnoses take about eight minutes each, most of the
+# suite: they start first, one per worker, and the short files fill in behind them (longest
+# first, not xdist's default of the files with the most tests first).
+LONGEST_FIRST=(tests/python/test_diagnose.py tests/python/test_diagnose_how_many_causes.py)
+.venv/bin/python -m pytest "${LONGEST_FIRST[@]}" tests/python -q -p no:cacheprovider --durations=25 -n auto \
+  --dist loadfile --no-loadscope-reorder "$@"
