@@ -553,7 +553,7 @@ def restart_segments(data: RunData, duration: float, length: float) -> list[Segm
 
 def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
                 terrain_file: str | None = None, stride: int = 1, segment: float | None = None,
-                drive: str = "spin") -> PreparedRun:
+                drive: str = "spin", scales: str = "data") -> PreparedRun:
     """Inputs and comparison targets of a measured run.
 
     Why the spins drive the model: with both drive torque and drawbar force
@@ -574,6 +574,11 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     a mound; measured, at the true parameters the 30 s replay of some
     synthetic campaigns ended 0.3-0.5 m off the measured path
     (docs/diagnosis.md, ``--terrain-segments``).
+
+    ``scales``: what each residual is divided by: ``"data"``, the sensor noise estimated from
+    the run, never below the nominal scale (_targets), or ``"nominal"``, the nominal scales of
+    JOINT_SIGNALS and TERRAIN_SIGNALS alone (the diagnosis's, whose thresholds are calibrated
+    on them).
 
     ``drive``: ``"spin"`` (the spins imposed, as above) or ``"torque"`` (the
     measured torque drives the wheels, and a damping towards the measured
@@ -607,7 +612,9 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
             raise ValueError(f"run '{run.id}': a terrain run needs a gridded terrain file")
         params["terrain.file"] = terrain_file
         signals = TERRAIN_SIGNALS
-    targets = _targets(data, signals, segments, stride)
+    if scales not in ("data", "nominal"):
+        raise ValueError(f"run '{run.id}': unknown residual scales '{scales}' (data or nominal)")
+    targets = _targets(data, signals, segments, stride, from_data=scales == "data")
     return PreparedRun(run.id, run.kind, duration, inputs, params, targets, segments, run.file)
 
 
@@ -633,12 +640,13 @@ def _replay_throttles(run: RunSpec, data: RunData, grid: np.ndarray,
 
 
 def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Sequence[Segment],
-             stride: int) -> dict[str, tuple]:
+             stride: int, from_data: bool = True) -> dict[str, tuple]:
     """The comparison targets of a run: measured column -> (times s from the run's start, values,
     FMU output, sigma, lag s), every ``stride``-th sample after SETTLING_TIME, leaving out
     SEGMENT_SETTLE s after each restart of a segmented replay; a position column becomes its
     increments over POSITION_LAG.  sigma is the compared quantity's sensor noise estimated from
-    the run, never below the signal's nominal scale (sensor_noise.residual_scale)."""
+    the run, never below the signal's nominal scale (sensor_noise.residual_scale); the nominal
+    scale alone unless ``from_data``."""
     targets = {}
     for column, (output, nominal) in signals.items():
         if not data.has(column):
@@ -646,7 +654,7 @@ def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Seq
         ts, vs = data.samples(column)
         ts = ts - data.time[0]
         lag = POSITION_LAG if column in INCREMENT_SIGNALS else 0.0
-        sigma = residual_scale(ts, vs, nominal, increment=lag > 0)
+        sigma = residual_scale(ts, vs, nominal, increment=lag > 0) if from_data else nominal
         if lag > 0:
             vs = vs - np.interp(ts - lag, ts, vs)
         keep = ts >= max(SETTLING_TIME, lag + ts[0])

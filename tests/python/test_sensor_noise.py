@@ -95,3 +95,16 @@ def test_the_joint_fit_of_a_campaign_with_a_noisier_station_still_covers_the_tru
         say(f"{k}: fitted {result.params[k]:.5g} +- {result.std[k]:.2g}, truth {truth:.5g}, z {z:+.2f}")
         assert abs(z) <= 3.0, f"{k}: the truth is {z:+.1f} reported sigmas from the estimate"
     assert result.cost == pytest.approx(1.0, abs=0.25), "scaled by the sensors' noise, the residuals are about 1"
+
+
+def test_the_diagnosis_keeps_the_nominal_scales_its_thresholds_are_calibrated_on(gnss_campaign, fmu_path):
+    from juno.diagnose.problem import build_problem
+    problem = build_problem(gnss_campaign, fmu_path, None, None)
+    assert problem.prepared, "the drawbar runs are prepared"
+    for prepared in problem.prepared:
+        for column, target in prepared.targets.items():
+            assert target[3] == JOINT_SIGNALS[column][1], (prepared.run_id, column)
+    nominal = prepare_run(gnss_campaign, gnss_campaign.runs_of_kind("drawbar")[0], scales="nominal")
+    assert nominal.targets["pos_x"][3] == JOINT_SIGNALS["pos_x"][1]
+    with pytest.raises(ValueError, match="unknown residual scales"):
+        prepare_run(gnss_campaign, gnss_campaign.runs_of_kind("drawbar")[0], scales="estimated")

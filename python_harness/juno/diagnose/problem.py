@@ -71,8 +71,11 @@ def _prepared_runs(campaign: Campaign, grid_file: str | dict[str, str] | None, t
         grid = grid_file.get(run.id) if isinstance(grid_file, dict) else grid_file
         if terrain and grid is None:
             continue
+        # The nominal scales: the judging's thresholds and the structure floors are calibrated
+        # on them (docs/diagnosis.md, step 1).
         prepared.append(prepare_run(campaign, run, terrain_file=grid if terrain else None,
-                                    segment=terrain_segment, drive=terrain_drive if terrain else "spin"))
+                                    segment=terrain_segment, drive=terrain_drive if terrain else "spin",
+                                    scales="nominal"))
     return prepared
 
 
