@@ -37,7 +37,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
@@ -911,6 +911,31 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
 AT_LIMIT = 0.01
 
 
+@dataclass(frozen=True)
+class SearchBound:
+    """A soil parameter of a fit that sits at a bound of the search: its name, its value, which
+    bound ("lower" or "upper") and that bound's value (the parameter's units)."""
+    name: str
+    value: float
+    side: str
+    bound: float
+
+
+def soil_at_search_bounds(params: Mapping[str, float]) -> list[SearchBound]:
+    """The soil parameters of ``params`` that sit at a bound of the search (SOIL_SEARCH_BOUNDS),
+    within AT_LIMIT in the search's log or logit space.  Why a bound means doubt: the bounds lie
+    wide of any soil the paper or the terramechanics literature reports, so a fit that ends at
+    one is a model the data push beyond any real soil."""
+    x = to_search(params)
+    found = []
+    for i, name in enumerate(SOIL_PARAMETERS):
+        for bound, side in ((SOIL_SEARCH_BOUNDS[0][i], "lower"), (SOIL_SEARCH_BOUNDS[1][i], "upper")):
+            if abs(x[i] - bound) < AT_LIMIT:
+                at_bound = from_search(np.where(np.arange(len(SOIL_PARAMETERS)) == i, bound, x))[name]
+                found.append(SearchBound(name, float(params[name]), side, float(at_bound)))
+    return found
+
+
 def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun], result: JointResult,
                extra: dict[str, object] | None = None, residuals: np.ndarray | None = None,
                workers: int | None = 1, data: dict[str, RunData] | None = None, pool: TaskPool | None = None
@@ -927,14 +952,8 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
     ``pool``: the open pool to run them on; ``data``: the measured runs (run id -> RunData),
     when already read."""
     from .residual_structure import residual_labels, residual_structure
-    doubts = []
-    x = to_search(result.params)
-    for i, name in enumerate(SOIL_PARAMETERS):
-        for bound, word in ((SOIL_SEARCH_BOUNDS[0][i], "lower"), (SOIL_SEARCH_BOUNDS[1][i], "upper")):
-            if abs(x[i] - bound) < AT_LIMIT:
-                value = from_search(np.where(np.arange(4) == i, bound, x))[name]
-                doubts.append(f"{name} = {result.params[name]:.4g} is at the {word} bound of the search "
-                              f"({value:.3g}): the data push it as far as the fit allows")
+    doubts = [f"{b.name} = {b.value:.4g} is at the {b.side} bound of the search ({b.bound:.3g}): "
+              "the data push it as far as the fit allows" for b in soil_at_search_bounds(result.params)]
     meta = residual_labels(prepared, STRUCTURE_BLOCK)
     t = meta["time"]
     try:

@@ -10,7 +10,7 @@ from typing import Sequence, TypeVar
 
 import numpy as np
 
-from ..identify import AT_LIMIT, SOIL_SEARCH_BOUNDS, to_search
+from ..identify import soil_at_search_bounds
 from ..registration import HeldOutEvidence
 from ..simulator import SOIL_PARAMETERS
 from .candidates import CANDIDATES, Candidate
@@ -151,15 +151,8 @@ def kinematic_evidence(registration: HeldOutEvidence) -> KinematicEvidence:
 
 def soil_at_bounds(params: dict[str, float]) -> list[str]:
     """The soil parameters of a fit (``params``) that sit at a bound of the search
-    (identify.SOIL_SEARCH_BOUNDS, within identify.AT_LIMIT in the search's log or logit space),
-    each as "name = value (lower|upper bound)"."""
-    x = to_search(params)
-    found = []
-    for i, name in enumerate(SOIL_PARAMETERS):
-        for bound, word in ((SOIL_SEARCH_BOUNDS[0][i], "lower"), (SOIL_SEARCH_BOUNDS[1][i], "upper")):
-            if abs(x[i] - bound) < AT_LIMIT:
-                found.append(f"{name} = {params[name]:.4g} ({word} bound)")
-    return found
+    (identify.soil_at_search_bounds), each as "name = value (lower|upper bound)"."""
+    return [f"{b.name} = {b.value:.4g} ({b.side} bound)" for b in soil_at_search_bounds(params)]
 
 
 def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, float], off: Ablation | None,
