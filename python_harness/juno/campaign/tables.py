@@ -1,0 +1,289 @@
+"""Reading and checking a run's CSV: a time series (:func:`read_run_csv`, :func:`read_run`) or
+a single-wheel testbed's table (:func:`read_rig_csv`, :func:`read_rig`), and a terrain run's
+LIDAR points (:func:`read_terrain_points`).  Every refusal names the file, the line and the
+column."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from pathlib import Path
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import NUMBER_RE, InputError, decode_input_text, parse_finite, read_input_bytes
+from ..pointcloud import read_xyz
+from .manifest import _line_of_run
+from .records import (KNOWN_COLUMNS, REQUIRED_COLUMNS, RIG_COLUMNS, RIG_INPUTS, RIG_MEASURED,
+                      RIG_REQUIRED, RIG_STD_SUFFIX, TIME_SERIES_KINDS, Campaign, FloatArray, PathLike,
+                      RigTable, RunData, RunSpec)
+
+def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = None) -> RunData:
+    """Read and check one run CSV.
+
+    Args:
+        path: the CSV file.
+        kind: "drawbar" (``drawbar_force`` required) or "terrain".
+        run_id: stored in the result, for messages.
+
+    Raises:
+        InputError naming file, line (header = line 1) and column: missing header or data,
+        missing required column, duplicate or empty column name, a row with the wrong number
+        of cells, a known-column cell that is not a finite number, an empty time cell, time
+        not strictly increasing ("time goes backwards"), a required column without samples.
+    """
+    if kind not in TIME_SERIES_KINDS:
+        raise ValueError(f"kind must be 'drawbar' or 'terrain' (a wheel_rig table: read_rig_csv), got {kind!r}")
+    p = Path(path)
+    columns, extra, lines = _read_columns(p, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind,
+                                                                         KNOWN_COLUMNS), KNOWN_COLUMNS)
+    line_arr = np.asarray(lines, dtype=np.int64)
+    _check_time(p, columns["time"], line_arr)
+    for name in REQUIRED_COLUMNS[kind]:
+        if np.all(np.isnan(columns[name])):
+            raise InputError(f"required column {name!r} has no samples (every cell is empty)", p, 1, name)
+    return RunData(path=p, kind=kind, columns=columns, extra=extra, lines=line_arr, run_id=run_id)
+
+
+def _read_columns(p: Path, check_header: Callable[[list[str]], None], known: Sequence[str]
+                  ) -> tuple[dict[str, FloatArray], dict[str, np.ndarray], list[int]]:
+    """The columns of the CSV file ``p`` (header checked by ``check_header`` first): the ``known``
+    ones as checked numbers, the others as they are (``extra``), and the data rows' 1-based lines."""
+    text = decode_input_text(p, read_input_bytes(p))
+    names, rows, lines = _read_table(p, text, check_header)
+    columns: dict[str, FloatArray] = {}
+    extra: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        cells = [row[j] for row in rows]
+        if name in known:
+            columns[name] = _parse_column(p, name, cells, lines)
+        else:
+            extra[name] = _parse_extra(cells)
+    return columns, extra, lines
+
+
+def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
+                ) -> tuple[list[str], list[list[str]], list[int]]:
+    """(header names, data rows, their 1-based lines) of a CSV text; the header is checked by
+    ``check_header`` before any row is read."""
+    if not text.strip():
+        raise InputError("empty file: a header line and data rows are required", p, 1)
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    try:
+        header = next(reader)
+        names = [h.strip() for h in header]
+        check_header(names)
+        ncols = len(names)
+        rows: list[list[str]] = []
+        lines: list[int] = []
+        blank_at: Optional[int] = None
+        for row in reader:
+            lineno = reader.line_num
+            if not row or (len(row) == 1 and not row[0].strip()):
+                blank_at = blank_at or lineno
+                continue
+            if blank_at is not None:
+                raise InputError("empty line inside the data", p, blank_at)
+            if len(row) != ncols:
+                raise InputError(f"row has {len(row)} cells, the header has {ncols}", p, lineno)
+            rows.append(row)
+            lines.append(lineno)
+    except csv.Error as e:
+        raise InputError(f"malformed CSV: {e}", p, reader.line_num) from None
+    if not rows:
+        raise InputError("no data rows: the file holds only a header", p, 1)
+    return names, rows, lines
+
+
+def _check_header(path: Path, names: list[str], required: Sequence[str], kind: str,
+                  known: Sequence[str]) -> None:
+    """Column names: present, unique, the ``required`` ones there.  A name that is a ``known``
+    column written with its unit or in another case is refused, not kept as an extra column the
+    harness would silently leave out."""
+    if all(NUMBER_RE.fullmatch(n) for n in names if n) and any(names):
+        raise InputError("the first line must be a header of column names; it holds numbers", path, 1)
+    seen: set[str] = set()
+    for j, name in enumerate(names):
+        if not name:
+            raise InputError(f"header cell {j + 1} is an empty column name", path, 1)
+        if name in seen:
+            raise InputError("duplicate column name in the header", path, 1, name)
+        seen.add(name)
+    for name in required:
+        if name not in seen:
+            raise InputError(
+                f"missing required column (a {kind} run needs {', '.join(required)})"
+                + _missing_column_hint(names, name), path, 1, name
+            )
+    for name in known:
+        hint = "" if name in seen else _missing_column_hint(names, name)
+        if hint:
+            raise InputError(f"column {name!r} is not read{hint}", path, 1, name)
+
+
+#: A unit written into a column name: "time [s]", "pos_x (m)", "torque_left/Nm".
+_UNIT_SUFFIX_RE = re.compile(r"\s*(\[[^\]]*\]|\([^)]*\)|/\s*\S+)\s*$")
+
+
+def _missing_column_hint(names: Sequence[str], wanted: str) -> str:
+    """Why ``wanted`` may be missing from a header ``names`` that has something like it: the
+    file is not comma-separated, a column name carries its unit, or differs in case."""
+    if len(names) == 1:
+        for sep, what in ((";", "semicolons"), ("\t", "tabs"), ("|", "vertical bars")):
+            if sep in names[0]:
+                return (f"; the header is one cell, separated by {what}: the format is comma-separated with "
+                        f"'.' as the decimal point (docs/campaign-format.md)")
+    for name in names:
+        bare = _UNIT_SUFFIX_RE.sub("", name)
+        if bare != name and bare.strip().lower() == wanted:
+            return (f"; column {name!r} looks like {wanted!r} with its unit: the format fixes every unit (SI) and "
+                    f"names the column {wanted!r} alone (docs/campaign-format.md)")
+        if name.lower() == wanted:
+            return f"; column {name!r} differs only in case: column names are lower case ({wanted!r})"
+    return ""
+
+
+def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
+    """Read and check a wheel_rig table: one row per steady point of a single-wheel testbed.
+
+    Columns (SI units, any order): ``vertical_load`` (N), ``slip`` (-), ``drawbar_pull`` (N),
+    optional ``torque`` (N m), ``sinkage`` (m), ``slip_angle`` (rad), ``lateral_force`` (N), and
+    ``<measured column>_std`` (same unit) for any measured column present. Unknown columns are
+    kept in :attr:`RigTable.extra`.
+
+    Raises:
+        InputError naming file, line (header = line 1) and column: the format errors of
+        :func:`read_run_csv`; an empty cell of a set-point column (``vertical_load``, ``slip``,
+        ``slip_angle``); a ``_std`` column without its measured column; a measured value without
+        its standard deviation when the file has that ``_std`` column, or a standard deviation
+        that is not > 0; a measured column without any value. Physical ranges (a load > 0, a
+        slip < 1) are checked with the units by :mod:`juno.plausibility`.
+    """
+    p = Path(path)
+    columns, extra, lines = _read_columns(p, lambda names: _check_rig_header(p, names), RIG_COLUMNS)
+    for name in RIG_INPUTS:
+        if name in columns:
+            empty = np.flatnonzero(np.isnan(columns[name]))
+            if empty.size:
+                raise InputError(f"{name} is empty: it is the testbed's set point, every row needs one", p,
+                                 lines[int(empty[0])], name)
+    for name in RIG_MEASURED:
+        if name not in columns:
+            continue
+        if np.all(np.isnan(columns[name])):
+            raise InputError(f"column {name!r} has no values (every cell is empty)", p, 1, name)
+        std = columns.get(name + RIG_STD_SUFFIX)
+        if std is None:
+            continue
+        missing = np.flatnonzero(~np.isnan(columns[name]) & np.isnan(std))
+        if missing.size:
+            raise InputError(f"{name} is measured here but its standard deviation is empty (a file with a "
+                             f"{name}{RIG_STD_SUFFIX} column gives one for every {name} value)", p,
+                             lines[int(missing[0])], name + RIG_STD_SUFFIX)
+        bad = np.flatnonzero(std <= 0)
+        if bad.size:
+            raise InputError(f"a standard deviation must be > 0, got {std[bad[0]]!r}", p, lines[int(bad[0])],
+                             name + RIG_STD_SUFFIX)
+    return RigTable(path=p, columns=columns, extra=extra, lines=np.asarray(lines, dtype=np.int64), run_id=run_id)
+
+
+def _check_rig_header(path: Path, names: list[str]) -> None:
+    _check_header(path, names, RIG_REQUIRED, "wheel_rig", RIG_COLUMNS)
+    present = set(names)
+    for name in names:
+        if name.endswith(RIG_STD_SUFFIX) and name in RIG_COLUMNS and name[: -len(RIG_STD_SUFFIX)] not in present:
+            raise InputError(f"a standard deviation column without its measured column "
+                             f"{name[: -len(RIG_STD_SUFFIX)]!r}", path, 1, name)
+
+
+def _parse_column(path: Path, name: str, cells: list[str], lines: list[int]) -> FloatArray:
+    out = np.full(len(cells), np.nan)
+    for i, cell in enumerate(cells):
+        s = cell.strip()
+        if s:
+            out[i] = parse_finite(cell, path, lines[i], name)
+    return out
+
+
+def _parse_extra(cells: list[str]) -> np.ndarray:
+    stripped = [c.strip() for c in cells]
+    if all(not s or NUMBER_RE.fullmatch(s) for s in stripped):
+        vals = np.array([float(s) if s else np.nan for s in stripped])
+        if not np.any(np.isinf(vals)):
+            return vals
+    return np.array(stripped, dtype=str)
+
+
+def _check_time(path: Path, t: FloatArray, lines: NDArray[np.int64]) -> None:
+    empty = np.flatnonzero(np.isnan(t))
+    if empty.size:
+        raise InputError("time is empty: every row needs a time", path, int(lines[empty[0]]), "time")
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        what = "time goes backwards" if t[i] < t[i - 1] else "time repeats"
+        raise InputError(f"{what}: {t[i]!r} s after {t[i - 1]!r} s (line {lines[i - 1]})", path, int(lines[i]), "time")
+
+
+def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
+    """Read a run of a loaded campaign (by :class:`RunSpec` or id) and check it.
+
+    Besides :func:`read_run_csv`'s checks, a ``steady_window`` must overlap the run's time.
+    A wheel_rig run is a table, not a time series: an InputError says so (:func:`read_rig`).
+    """
+    spec = campaign.run(run) if isinstance(run, str) else run
+    if spec.kind not in TIME_SERIES_KINDS:
+        raise InputError(f"run {spec.id!r} is a {spec.kind} table of steady points, not a time series: "
+                         "'juno identify' fits it", campaign.manifest_path,
+                         _line_of_run(decode_input_text(campaign.manifest_path,
+                                                        read_input_bytes(campaign.manifest_path)), spec.id))
+    data = read_run_csv(campaign.run_path(spec), spec.kind, run_id=spec.id)
+    if spec.steady_window is not None:
+        a, b = spec.steady_window
+        t = data.time
+        if not np.any((t >= a) & (t <= b)):
+            raise InputError(
+                f"run {spec.id!r}: steady_window [{a}, {b}] s holds no samples; the run spans "
+                f"{float(t[0])!r} to {float(t[-1])!r} s" + _steady_window_hint(a, b, float(t[0]), float(t[-1])),
+                campaign.manifest_path,
+                _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
+            )
+    return data
+
+
+def _steady_window_hint(a: float, b: float, t0: float, t1: float) -> str:
+    """The likely mistake behind a steady window [a, b] (s) outside a run spanning [t0, t1] (s):
+    a window counted from the run's start on a clock that does not start at zero, or a time
+    column in milliseconds."""
+    if t0 > 0 and t0 <= a + t0 and b + t0 <= t1:
+        return (f"; the window is on the run's own clock, which starts at {t0!r} s: counted from the "
+                f"start, it is [{a + t0!r}, {b + t0!r}]")
+    if t0 / 1000.0 <= a and b <= t1 / 1000.0:
+        return "; is the time column in milliseconds? The format's time is in seconds"
+    return ""
+
+
+def read_rig(campaign: Campaign, run: Union[RunSpec, str]) -> RigTable:
+    """Read and check the table of a wheel_rig run of a loaded campaign (:func:`read_rig_csv`)."""
+    spec = campaign.run(run) if isinstance(run, str) else run
+    if spec.kind != "wheel_rig":
+        raise ValueError(f"run {spec.id!r} is a {spec.kind} run, not a wheel_rig table")
+    return read_rig_csv(campaign.run_path(spec), run_id=spec.id)
+
+
+def read_any(campaign: Campaign, run: Union[RunSpec, str]) -> Union[RunData, RigTable]:
+    """:func:`read_run` for a time series, :func:`read_rig` for a wheel_rig table."""
+    spec = campaign.run(run) if isinstance(run, str) else run
+    return read_rig(campaign, spec) if spec.kind == "wheel_rig" else read_run(campaign, spec)
+
+
+def read_terrain_points(campaign: Campaign, run: Union[RunSpec, str]) -> FloatArray:
+    """The LIDAR cloud (N, 3) (m) of a terrain run (see :func:`juno.pointcloud.read_xyz`)."""
+    spec = campaign.run(run) if isinstance(run, str) else run
+    path = campaign.terrain_path(spec)
+    if path is None:
+        raise ValueError(f"run {spec.id!r} is a {spec.kind} run and has no terrain")
+    return read_xyz(path)
