@@ -1,0 +1,155 @@
+"""Whether a terrain run's measured pose agrees with its scan, without simulating the rover.
+
+The residual structure test (juno.residual_structure) looks at the drawbar runs only: over the
+3-D terrain the replay drifts from the measured path even at the true soil.  A scan error that
+is not a shift (a scan tilted about a horizontal axis) shows on the terrain run alone, and no
+catalog candidate describes it; without a test there, the diagnosis would call it ``none``.
+
+This test needs no replay.  The rover is posed on the scan at every measured position and
+heading (juno.registration.pose_on_ground: the four wheels resting on the scanned ground, the
+chassis height above flat ground measured on the drawbar runs), and its height, pitch and roll
+are compared with the measured ones, the attitude gains fitted on the training blocks as the
+registration's held-out evidence fits them.  On each held-out 4 s block the mean residual of
+each signal is taken: sensor noise averages away (4 mm over 40 samples is 0.6 mm), what is left
+is the kinematic model's own error (the rover does not rest exactly as posed: its sinkage
+follows the load, and it pitches as it climbs) plus any disagreement between scan and ground.
+
+A signal disagrees when the RMS of its held-out block means exceeds its floor.  The floors
+(FLOORS) are calibrated by simulation (scripts/structure_calibration.py --scan,
+docs/results/scan-calibration.md): on campaigns with nothing hidden, of both synthetic designs,
+each floor lies twice above the largest block-mean RMS the scan as it is left.  There is
+no p-value: what a right scan leaves is model error, not noise, and only simulation gives its
+size.
+
+Assumptions, named: the scan is used as it is (the test reports a scan the diagnosis did not
+register; see verdict.py for when it counts), and the sinkage is about the same everywhere on the
+terrain run (a soft soil patch the rover crosses sinks it deeper, which looks like a lower scan).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: Held-out block length (s): the diagnosis's blocks (diagnose.problem.BLOCK), counted from the
+#: run's first sample, training blocks even, held-out blocks odd.
+BLOCK = 4.0
+#: The floors of the RMS of the held-out block means, per signal (m for the height, rad for the
+#: angles): twice the largest a scan with nothing wrong left on 23 synthetic campaigns with
+#: nothing hidden, of both designs (height 2.8 mm, pitch 11.8 mrad, roll 8.3 mrad: the default
+#: design's mound tilts the rover sideways on its flank, where the downhill wheels sink deeper
+#: than the kinematic pose has them).  At most 1 degree of tilt, which the roll floor nearly
+#: equals, the test sees a scan tilted across the path by its height; tilted about the path
+#: itself, hardly at all (docs/results/scan-calibration.md lists the draws it missed).
+FLOORS = {"height": 0.006, "pitch": 0.024, "roll": 0.017}
+UNITS = {"height": "m", "pitch": "rad", "roll": "rad"}
+
+
+@dataclass
+class ScanSignal:
+    """One compared signal: the RMS of its held-out block means (``rms``, signal units), its
+    floor, and the mean of the block means (``offset``: a constant disagreement)."""
+
+    signal: str
+    unit: str
+    blocks: int
+    rms: float
+    offset: float
+    floor: float
+
+    @property
+    def disagrees(self) -> bool:
+        return bool(self.rms > self.floor)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"signal": self.signal, "unit": self.unit, "blocks": self.blocks, "block_rms": self.rms,
+                "mean": self.offset, "floor": self.floor, "disagrees": self.disagrees}
+
+    def sentence(self) -> str:
+        scale, shown = (1000.0, "mm") if self.unit == "m" else (1000.0, "mrad")
+        return (f"{self.signal} {self.rms * scale:.3g} {shown} RMS over held-out blocks "
+                f"({self.rms / self.floor:.2g} x its floor, mean {self.offset * scale:+.3g} {shown})")
+
+
+@dataclass
+class ScanConsistency:
+    """The scan test of one terrain run (``run``): every signal, and the attitude gains (pitch,
+    roll) fitted on its training blocks."""
+
+    run: str
+    signals: list[ScanSignal] = field(default_factory=list)
+    gains: tuple[float, float] = (1.0, 1.0)
+
+    @property
+    def significant(self) -> bool:
+        return any(s.disagrees for s in self.signals)
+
+    def disagreeing(self) -> list[ScanSignal]:
+        """The signals that disagree, largest relative to their floor first."""
+        return sorted((s for s in self.signals if s.disagrees), key=lambda s: -s.rms / s.floor)
+
+    def summary(self) -> str:
+        found = self.disagreeing()
+        if not found:
+            return f"the measured pose on terrain run {self.run} agrees with its scan"
+        return (f"the measured pose on terrain run {self.run} disagrees with its scan (posed on it kinematically): "
+                + "; ".join(s.sentence() for s in found))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"run": self.run, "significant": self.significant, "gains": list(self.gains),
+                "signals": [s.to_json() for s in self.signals], "summary": self.summary()}
+
+
+def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.ndarray, run: str) -> ScanConsistency:
+    """The test (module docstring) of ``traverse`` (juno.registration.Traverse) on ``grid`` (its
+    gridded scan, as it is), with chassis height ``h0`` (m) above flat ground; ``train`` marks the
+    training samples, ``block`` numbers every sample's block."""
+    from scipy.optimize import least_squares
+
+    from .registration import GAIN_LIMITS, residuals, SIGMA_PITCH, SIGMA_ROLL, SIGMA_Z
+    train = np.asarray(train, bool)
+    fitted = traverse.subset(train)
+    lower, upper = [g[0] for g in GAIN_LIMITS], [g[1] for g in GAIN_LIMITS]
+    fit = least_squares(lambda g: residuals(np.zeros(4), grid, fitted, h0, (g[0], g[1])),
+                        np.clip(np.ones(2), lower, upper), bounds=(lower, upper))
+    gains = (float(fit.x[0]), float(fit.x[1]))
+    r = residuals(np.zeros(4), grid, traverse, h0, gains)
+    n = len(traverse.x)
+    parts = {"height": r[:n] * SIGMA_Z}
+    k = 1
+    if traverse.pitch is not None:
+        parts["pitch"] = r[k * n:(k + 1) * n] * SIGMA_PITCH
+        k += 1
+    if traverse.roll is not None:
+        parts["roll"] = r[k * n:(k + 1) * n] * SIGMA_ROLL
+    held = ~train
+    blocks = np.unique(block[held])
+    signals = []
+    for name, values in parts.items():
+        means = np.array([np.mean(values[held & (block == b)]) for b in blocks])
+        if len(means) == 0:
+            continue
+        signals.append(ScanSignal(name, UNITS[name], len(means), float(np.sqrt(np.mean(means ** 2))),
+                                  float(np.mean(means)), FLOORS[name]))
+    return ScanConsistency(run, signals, gains)
+
+
+def campaign_scan_consistency(campaign, grid) -> ScanConsistency | None:
+    """The test of the first terrain run of ``campaign`` on ``grid``, its gridded scan, with the
+    diagnosis's blocks; None when the campaign has no drawbar run to measure the chassis height
+    on, or the run is too short to have both kinds of block."""
+    from .campaign import read_run
+    from .registration import flat_height, traverse_of
+    run = campaign.runs_of_kind("terrain")[0]
+    h0 = flat_height(campaign)
+    if h0 is None:
+        return None
+    traverse = traverse_of(campaign, run)
+    since_start = traverse.t - read_run(campaign, run).time[0]
+    block = np.floor(since_start / BLOCK).astype(int)
+    train = block % 2 == 0
+    if train.all() or not train.any():
+        return None
+    return scan_consistency(grid, traverse, h0, train, block, run.id)
