@@ -9,6 +9,7 @@ from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_
 from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
 from juno.diagnose.render import _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
+from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal
 
 
 def _structure(**ratios: float) -> ResidualStructure:
@@ -31,6 +32,36 @@ def test_nothing_named_but_structure_left_is_unexplained_with_the_signals():
     assert [s.signal for s in v.unexplained.signals] == ["pitch"]
     assert v.unexplained.model == "base" and v.unexplained.absorbed_by == []
     assert "pitch" in explanation(v, "") and "constant" in explanation(v, "")
+
+
+def _scan(height_mm: float) -> ScanConsistency:
+    """A terrain run's scan test whose held-out block means have ``height_mm`` RMS in the height."""
+    return ScanConsistency("t3d", [ScanSignal("height", "m", 3, height_mm / 1000, -height_mm / 1000,
+                                              FLOORS["height"]),
+                                   ScanSignal("roll", "rad", 3, 0.001, 0.0, FLOORS["roll"])])
+
+
+def test_nothing_named_but_a_scan_that_disagrees_with_the_pose_is_unexplained():
+    """The drawbar runs clean, but the rover posed on the terrain run's scan misses its measured
+    height by several times the floor: not sensor noise, and no catalog cause."""
+    v = verdict([], _structure(torque_left=0.0, pitch=0.0), None, scan=_scan(20.0))
+    assert v.cause == "unexplained" and v.causes == []
+    assert v.unexplained.signals == [] and v.unexplained.scan.significant
+    assert "height" in explanation(v, "") and "scan" in explanation(v, "")
+    assert v.unexplained.to_json()["scan"]["signals"][0]["disagrees"] is True
+
+
+def test_a_scan_within_its_floor_leaves_none_none():
+    v = verdict([], _structure(torque_left=0.0), None, scan=_scan(0.5 * FLOORS["height"] * 1000))
+    assert (v.cause, v.unexplained) == ("none", None)
+
+
+def test_a_named_cause_is_not_judged_by_the_scan_test():
+    """A named catalog cause changes how deep the wheels sink (or, the registration, where the
+    scan lies), which the kinematic pose on the scan as it is does not know: the scan test says
+    nothing about it."""
+    v = verdict(["soil_patch"], _structure(torque_left=2.0), _structure(torque_left=0.0), scan=_scan(20.0))
+    assert (v.cause, v.causes, v.unexplained) == ("soil_patch", ["soil_patch"], None)
 
 
 def test_a_cause_whose_model_leaves_nothing_is_named():

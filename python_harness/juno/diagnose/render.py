@@ -171,6 +171,10 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     """The verdict 'unexplained': what the residuals hold, and the catalog causes that absorb only
     part of it."""
     u = result.unexplained
+    if u is not None and not u.signals and not u.ripples:
+        lines = ["**Cause: unexplained.** No extension in the catalog explains the data, and "
+                 + (u.scan.summary() if u.scan is not None else "structure remains") + ".", ""]
+        return lines + _scan_table(u)
     lines = ["**Cause: unexplained.** The drawbar runs' held-out residuals hold structure beyond sensor noise "
              "that no extension in the catalog explains (a sensor error, or physics the model does not have)."]
     if u is not None and u.absorbed_by:
@@ -178,7 +182,22 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
                      "not named.")
     lines.append("")
     if u is not None:
-        lines += _structure_table(u)
+        lines += _structure_table(u) + _scan_table(u)
+    return lines
+
+
+def _scan_table(u: Unexplained) -> list[str]:
+    """One row per terrain-run signal whose measured pose disagrees with the scan
+    (juno.scan_consistency): the RMS of its held-out block means, against its floor."""
+    if u.scan is None or not u.scan.significant:
+        return []
+    lines = [f"The rover posed on the scan of terrain run {u.scan.run} (no replay), against its measured pose:", "",
+             "| signal | held-out block means (RMS) | floor | mean |", "|---|---|---|---|"]
+    for s in u.scan.disagreeing():
+        scale, unit = (1000.0, "mm") if s.unit == "m" else (1000.0, "mrad")
+        lines.append(f"| {s.signal} | {s.rms * scale:.3g} {unit} | {s.floor * scale:.3g} {unit} | "
+                     f"{s.offset * scale:+.3g} {unit} |")
+    lines.append("")
     return lines
 
 

@@ -33,6 +33,7 @@ from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate
 from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
 from ..parallel import BackgroundTask, TaskPool
 from ..residual_structure import ResidualStructure, residual_structure
+from ..scan_consistency import ScanConsistency, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
 
@@ -159,11 +160,26 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         outcome = further_causes(search, first)
         structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
                                            workers if scheduler is None else None)
+        scan = scan_against_pose(campaign, setting.grid, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
-    judged = verdict([r.name for r in outcome.chosen], *structures)
-    return diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
-                            judged, structures)
+    judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan)
+    result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
+                              judged, structures)
+    if result.structure is not None:
+        result.structure["scan"] = scan.to_json() if scan is not None else None
+    return result
+
+
+def scan_against_pose(campaign: Campaign, grid: Any, say: Callable[[str], None]) -> ScanConsistency | None:
+    """The first terrain run's measured pose against its scan ``grid`` (juno.scan_consistency; no
+    simulation), or None without a scan or a run long enough to test."""
+    if grid is None:
+        return None
+    scan = campaign_scan_consistency(campaign, grid)
+    if scan is not None:
+        say(scan.summary())
+    return scan
 
 
 def _registration_task(args: tuple[Campaign, Any]) -> HeldOutEvidence | None:

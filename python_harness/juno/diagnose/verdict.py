@@ -8,6 +8,13 @@ residual structure test (juno/residual_structure.py) what the models leave:
 - no cause named, but the base model leaves structure: ``unexplained``, with the signals and
   what they follow (a ripple in the drive torques at N per wheel revolution counts as
   structure: no catalog cause models one);
+- no cause named, and the terrain run's measured pose disagrees with its scan
+  (juno.scan_consistency, the rover posed on the scan without a replay): ``unexplained``, with
+  the signals that disagree.  Why only then: the structure test sees the drawbar runs alone, so a
+  scan error that is not a shift (a tilt) would otherwise be called ``none``; once a cause is
+  named, the scan test says nothing about it (the catalog's soil causes change how deep the
+  wheels sink, which the kinematic pose takes as uniform, and the registration moves the scan
+  the test takes as it is);
 - causes named, and their model leaves no structure: the causes;
 - causes named, and their model leaves structure: if it removes at least EXPLAINED_SHARE of
   the base model's structure, the causes, with the remainder reported as ``unexplained``
@@ -29,6 +36,7 @@ from typing import Any
 
 from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
+from ..scan_consistency import ScanConsistency
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -48,11 +56,14 @@ class Unexplained:
     absorbed_by: list[str] = field(default_factory=list)
     share_removed: float | None = None
     ripples: list[PeriodicSignal] = field(default_factory=list)
+    #: the terrain run's pose against its scan (juno.scan_consistency), when it disagrees
+    scan: ScanConsistency | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
                 "ripples": [r.to_json() for r in self.ripples],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
+                "scan": self.scan.to_json() if self.scan is not None else None,
                 "summary": self.summary()}
 
     def summary(self, most: int = 3) -> str:
@@ -62,7 +73,8 @@ class Unexplained:
         parts = [_signal_sentence(s) for s in self.signals[:most]]
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
-        return "; ".join(parts + [r.sentence() for r in self.ripples])
+        scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
+        return "; ".join(parts + [r.sentence() for r in self.ripples] + scan)
 
 
 def _signal_sentence(s: SignalStructure) -> str:
@@ -84,12 +96,16 @@ class Verdict:
     unexplained: Unexplained | None
 
 
-def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None) -> Verdict:
-    """The verdict (module docstring) from the catalog ``causes`` the search named and the structure
-    tests of the base model and of the model with those causes (None when none was named)."""
+def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None,
+            scan: ScanConsistency | None = None) -> Verdict:
+    """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
+    tests of the base model and of the model with those causes (None when none was named), and
+    the terrain run's scan test (None: no terrain run tested; used only when no cause is named)."""
     if not causes:
-        if base.significant:
-            return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples()))
+        disagrees = scan if scan is not None and scan.significant else None
+        if base.significant or disagrees is not None:
+            return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
+                                                          scan=disagrees))
         return Verdict("none", [], None)
     assert extended is not None
     if not extended.significant:
@@ -113,6 +129,8 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     if verdict_.cause == "unexplained":
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
+        if not u.signals and not u.ripples:
+            return f"no extension in the catalog explains the data, and {u.summary()}"
         return ("the drawbar runs' held-out residuals hold structure beyond sensor noise that no extension in the "
                 f"catalog explains: {u.summary()}{absorbed}")
     if u is not None:
