@@ -106,10 +106,16 @@ class ScanConsistency:
 def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.ndarray, run: str) -> ScanConsistency:
     """The test (module docstring) of ``traverse`` (juno.registration.Traverse) on ``grid`` (its
     gridded scan, as it is), with chassis height ``h0`` (m) above flat ground; ``train`` marks the
-    training samples, ``block`` numbers every sample's block."""
+    training samples, ``block`` numbers every sample's block.  ValueError if a residual is not
+    finite (a measured sample missing, or the pose not solved): a test that cannot be computed is
+    not a test passed."""
     from scipy.optimize import least_squares
 
     from .registration import GAIN_LIMITS, residuals, SIGMA_PITCH, SIGMA_ROLL, SIGMA_Z
+    measured = {"x": traverse.x, "y": traverse.y, "yaw": traverse.yaw, "height": traverse.z,
+                "pitch": traverse.pitch, "roll": traverse.roll}
+    for name, values in measured.items():
+        _require_finite(run, f"measured {name}", values, traverse.t)
     train = np.asarray(train, bool)
     fitted = traverse.subset(train)
     lower, upper = [g[0] for g in GAIN_LIMITS], [g[1] for g in GAIN_LIMITS]
@@ -129,12 +135,25 @@ def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.nda
     blocks = np.unique(block[held])
     signals = []
     for name, values in parts.items():
+        _require_finite(run, f"{name} of the rover posed on the scan", values, traverse.t)
         means = np.array([np.mean(values[held & (block == b)]) for b in blocks])
         if len(means) == 0:
             continue
         signals.append(ScanSignal(name, UNITS[name], len(means), float(np.sqrt(np.mean(means ** 2))),
                                   float(np.mean(means)), FLOORS[name]))
     return ScanConsistency(run, signals, gains)
+
+
+def _require_finite(run: str, what: str, values: np.ndarray | None, t: np.ndarray | None) -> None:
+    """ValueError naming the run, the quantity and the first sample's time if ``values`` holds a
+    value that is not finite."""
+    if values is None:
+        return
+    bad = np.flatnonzero(~np.isfinite(values))
+    if len(bad):
+        when = f" (the first at t = {t[bad[0]]:.3f} s)" if t is not None else ""
+        raise ValueError(f"terrain run {run}: the {what} is not finite at {len(bad)} of {len(values)} samples"
+                         f"{when}; the scan test cannot be computed")
 
 
 def campaign_scan_consistency(campaign, grid) -> ScanConsistency | None:

@@ -7,7 +7,7 @@ import numpy as np
 
 from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_structure
 from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
-from juno.diagnose.render import _structure_table
+from juno.diagnose.render import _scan_table, _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal
 
@@ -54,6 +54,13 @@ def test_nothing_named_but_a_scan_that_disagrees_with_the_pose_is_unexplained():
 def test_a_scan_within_its_floor_leaves_none_none():
     v = verdict([], _structure(torque_left=0.0), None, scan=_scan(0.5 * FLOORS["height"] * 1000))
     assert (v.cause, v.unexplained) == ("none", None)
+
+
+def test_the_report_tables_the_scan_signals_that_disagree_in_mm_and_mrad():
+    v = verdict([], _structure(torque_left=0.0), None, scan=_scan(20.0))
+    lines = _scan_table(v.unexplained)
+    assert any(line.startswith("| height | 20 mm | 6 mm |") for line in lines), lines
+    assert not any(line.startswith("| roll") for line in lines)
 
 
 def test_a_named_cause_is_not_judged_by_the_scan_test():

@@ -84,3 +84,10 @@ def test_a_signal_disagrees_only_beyond_its_floor():
     assert not at.disagrees and above.disagrees
     assert ScanConsistency("t3d", [at]).significant is False
     assert ScanConsistency("t3d", [at, above]).disagreeing() == [above]
+
+
+def test_a_pose_that_cannot_be_compared_is_an_error_not_an_agreement():
+    traverse, block = _measured_traverse()
+    traverse.z[7] = np.nan
+    with pytest.raises(ValueError, match=r"terrain run t3d: the measured height is not finite at 1 of \d+ samples \(the first at t = 1.400 s\)"):
+        scan_consistency(_ground(), traverse, H0, block % 2 == 0, block, "t3d")
