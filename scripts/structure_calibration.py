@@ -86,6 +86,7 @@ def page(cases: list[dict], started: str) -> str:
 def one_scan_case(fmu: JunoFMU, seed: int, design: str, effect: str, strength: float) -> dict:
     """The scan test of the first terrain run of a synthesized campaign (``effect`` hidden at
     ``strength``): per signal, the RMS and mean of the held-out block means (m, rad)."""
+    from juno.diagnose.problem import BLOCK
     from juno.scan_consistency import campaign_scan_consistency
     from juno.validate import grid_terrain
     with tempfile.TemporaryDirectory(prefix="juno-scan-calibration-") as tmp:
@@ -94,7 +95,7 @@ def one_scan_case(fmu: JunoFMU, seed: int, design: str, effect: str, strength: f
         campaign = load_campaign(path)
         run = campaign.runs_of_kind("terrain")[0]
         _path, grid = grid_terrain(campaign, run, Path(tmp) / "grid")
-        test = campaign_scan_consistency(campaign, grid)
+        test = campaign_scan_consistency(campaign, grid, BLOCK)
         truth = json.loads((path / "truth.json").read_text())
     return {"seed": seed, "design": design, "effect": effect, "strength": strength,
             "distortion": (truth.get("hidden") or {}).get("distortion", {}),

@@ -17,7 +17,7 @@ follows the load, and it pitches as it climbs) plus any disagreement between sca
 A signal disagrees when the RMS of its held-out block means exceeds its floor.  The floors
 (FLOORS) are calibrated by simulation (scripts/structure_calibration.py --scan,
 docs/results/scan-calibration.md): on campaigns with nothing hidden, of both synthetic designs,
-each floor lies twice above the largest block-mean RMS the scan as it is left.  There is
+each floor lies about twice above the largest block-mean RMS the scan as it is left.  There is
 no p-value: what a right scan leaves is model error, not noise, and only simulation gives its
 size.
 
@@ -33,9 +33,6 @@ from typing import Any
 
 import numpy as np
 
-#: Held-out block length (s): the diagnosis's blocks (diagnose.problem.BLOCK), counted from the
-#: run's first sample, training blocks even, held-out blocks odd.
-BLOCK = 4.0
 #: The floors of the RMS of the held-out block means, per signal (m for the height, rad for the
 #: angles): about twice the largest a scan with nothing wrong left on synthetic campaigns with
 #: nothing hidden, of both designs (the 16 of docs/results/scan-calibration.md: height 2.4 mm,
@@ -156,10 +153,11 @@ def _require_finite(run: str, what: str, values: np.ndarray | None, t: np.ndarra
                          f"{when}; the scan test cannot be computed")
 
 
-def campaign_scan_consistency(campaign, grid) -> ScanConsistency | None:
-    """The test of the first terrain run of ``campaign`` on ``grid``, its gridded scan, with the
-    diagnosis's blocks; None when the campaign has no drawbar run to measure the chassis height
-    on, or the run is too short to have both kinds of block."""
+def campaign_scan_consistency(campaign, grid, block_s: float) -> ScanConsistency | None:
+    """The test of the first terrain run of ``campaign`` on ``grid``, its gridded scan, in blocks of
+    ``block_s`` seconds counted from the run's first sample (the diagnosis's: training blocks
+    even, held-out blocks odd); None when the campaign has no drawbar run to measure the chassis
+    height on, or the run is too short to have both kinds of block."""
     from .campaign import read_run
     from .registration import flat_height, traverse_of
     run = campaign.runs_of_kind("terrain")[0]
@@ -168,7 +166,7 @@ def campaign_scan_consistency(campaign, grid) -> ScanConsistency | None:
         return None
     traverse = traverse_of(campaign, run)
     since_start = traverse.t - read_run(campaign, run).time[0]
-    block = np.floor(since_start / BLOCK).astype(int)
+    block = np.floor(since_start / block_s).astype(int)
     train = block % 2 == 0
     if train.all() or not train.any():
         return None

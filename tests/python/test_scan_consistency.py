@@ -11,7 +11,8 @@ import pytest
 
 from juno.pointcloud import Grid
 from juno.registration import Traverse, pose_on_ground
-from juno.scan_consistency import BLOCK, FLOORS, ScanConsistency, ScanSignal, scan_consistency
+from juno.diagnose.problem import BLOCK
+from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, scan_consistency
 
 #: The rover's geometry (m), fixed here so that the test needs no FMU.
 GEOMETRY = {"wheelbase": 0.9, "track": 1.35, "pivot_height": 0.15, "wheel_radius": 0.28}
@@ -124,7 +125,7 @@ def test_a_synthesized_campaign_whose_scan_is_tilted_across_the_path_disagrees_a
         campaign = load_campaign(synthesize(tmp_path / effect, effect=effect, strength=0.9, seed=seed, design="alt"))
         run = campaign.runs_of_kind("terrain")[0]
         _path, grid = grid_terrain(campaign, run, tmp_path / f"{effect}-grid")
-        results[effect] = campaign_scan_consistency(campaign, grid)
+        results[effect] = campaign_scan_consistency(campaign, grid, BLOCK)
     assert not results["none"].significant, f"seed {seed}: {results['none'].summary()}"
     tilted = results["terrain_tilt"]
     assert tilted.significant and tilted.disagreeing()[0].signal == "height", f"seed {seed}: {tilted.to_json()}"

@@ -176,7 +176,7 @@ def scan_against_pose(campaign: Campaign, grid: Any, say: Callable[[str], None])
     simulation), or None without a scan or a run long enough to test."""
     if grid is None:
         return None
-    scan = campaign_scan_consistency(campaign, grid)
+    scan = campaign_scan_consistency(campaign, grid, BLOCK)
     if scan is not None:
         say(scan.summary())
     return scan
