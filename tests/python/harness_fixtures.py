@@ -12,14 +12,21 @@ shared across files, so each expensive step runs once per session:
   true soil and with the paper's initial guess (``terrain_validation``);
 * a report of the noisy campaign (``noisy_report``).
 
-The end-to-end main job (``bash scripts/main.sh`` in a fresh ``git clone``) takes about two
-minutes, most of it creating the clone's venv and building its FMU.  When test_main_job is
+The end-to-end main job (``bash scripts/main.sh`` in a fresh ``git clone``) takes one to two
+minutes: the clone's venv (about 25 s of CPU), its FMU build, and the report (the fits and the
+diagnosis: most of it).  When test_main_job is
 selected, it is started in the background as soon as collection finishes, so it runs on the
 second core while the other tests run; ``main_job`` waits for it.  Under pytest-xdist (the
 README's test command runs two workers) every worker collects every test, so none starts it at
 collection: the worker that runs test_main_job starts it when the test asks for it, while the
 other worker goes on with its own tests.  It is killed (by its own process group id) if the
 session ends first.
+
+Under pytest-xdist each worker is a process of its own, so a session fixture would be computed once
+per worker that needs it.  The campaigns, fits and short campaigns above are computed once per
+session instead (:func:`computed_once`): the first worker that asks computes them into a folder
+every worker of the session shares, and the others read that result back.  They are deterministic
+(fixed seeds), so which worker computed them does not matter.
 
 Run with ``-s`` to see the measured numbers (estimates against truth, z-scores, RMS errors,
 wall times).  (PYTEST_DONT_REWRITE: no asserts here; the test modules import helpers from this
@@ -28,8 +35,10 @@ module before pytest loads it as a plugin.)
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pickle
 import shutil
 import signal
 import subprocess
@@ -38,7 +47,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, TypeVar
 
 import pytest
 
@@ -65,8 +74,11 @@ PAPER_WINDOWS = {"dbp1": (8.0, 18.0), "dbp2": (15.0, 25.0), "dbp3": (15.0, 25.0)
 #: Run lengths (s) at time_scale 1 (juno.synthesize: about 22, 35 and 32 s; terrain run 30 s).
 RUN_LENGTHS = {"dbp1": 22.0, "dbp2": 35.0, "dbp3": 32.0, "t3d": 30.0}
 
-#: The main job: shortened campaign, generous time limit.
-MAIN_JOB_TIME_SCALE = "0.5"
+#: The main job: shortened campaign, generous time limit.  Its test checks what the job writes
+#: (the report's sections, tables and figures, the summary), not the estimates, so a quarter of
+#: the paper's run lengths serves as well as half; most of the job's CPU time is the report's
+#: fits and diagnosis, which a quarter cuts by about a quarter (65 s to 50 s of CPU, measured).
+MAIN_JOB_TIME_SCALE = "0.25"
 MAIN_JOB_TIMEOUT = 900.0
 MAIN_JOB_FILE = "test_main_job.py"
 
@@ -240,6 +252,44 @@ def main_job() -> MainJob:
     return _start_main_job()
 
 
+# ------------------------------------------------------- results shared by the workers
+
+_T = TypeVar("_T")
+
+
+def shared_root(tmp_path_factory) -> Path:
+    """The folder every pytest-xdist worker of this session shares: the parent of a worker's
+    base temporary folder (``pytest-N/popen-gwK``), or the base folder itself without xdist."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "computed-once"
+    root.mkdir(exist_ok=True)
+    return root
+
+
+def computed_once(tmp_path_factory, key: str, compute: Callable[[Path], _T]) -> _T:
+    """``compute(folder)``, computed once per session whichever worker asks first.
+
+    The first caller holds ``key``'s lock while it computes into ``folder`` (an empty folder
+    named ``key`` in :func:`shared_root`) and pickles the result beside it; a caller that comes
+    later, or waits on the lock, reads the pickled result back.  A computation that raises
+    leaves no result: the next caller computes again (and fails the same way).  ``compute``
+    must not write outside ``folder``, and its result must pickle."""
+    root = shared_root(tmp_path_factory)
+    result = root / f"{key}.pickle"
+    with open(root / f"{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if result.is_file():
+            return pickle.loads(result.read_bytes())
+        folder = root / key
+        shutil.rmtree(folder, ignore_errors=True)   # what a computation that raised left
+        folder.mkdir()
+        value = compute(folder)
+        partial = root / f"{key}.pickle.partial"
+        partial.write_bytes(pickle.dumps(value))
+        partial.replace(result)                     # whole or not at all
+        return value
+
+
 # --------------------------------------------------------------- synthetic campaigns
 
 @dataclass
@@ -284,27 +334,36 @@ def make_campaign(out: Path, fmu, seed: int, noise: float, time_scale: float, ef
 @pytest.fixture(scope="session")
 def clean_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign without sensor noise (noise = 0)."""
-    c = make_campaign(tmp_path_factory.mktemp("clean") / "campaign", harness_fmu, CLEAN_SEED, 0.0, CLEAN_TIME_SCALE)
-    say(f"synthesized the noise-free campaign (seed {CLEAN_SEED}, time_scale {CLEAN_TIME_SCALE}) in {c.seconds:.1f} s")
-    return c
+    def synthesized(folder: Path) -> SynthCampaign:
+        c = make_campaign(folder / "campaign", harness_fmu, CLEAN_SEED, 0.0, CLEAN_TIME_SCALE)
+        say(f"synthesized the noise-free campaign (seed {CLEAN_SEED}, time_scale {CLEAN_TIME_SCALE}) in "
+            f"{c.seconds:.1f} s")
+        return c
+
+    return computed_once(tmp_path_factory, "clean_campaign", synthesized)
 
 
 @pytest.fixture(scope="session")
 def noisy_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign with the documented sensor noise (noise = 1), half length."""
-    c = make_campaign(tmp_path_factory.mktemp("noisy") / "campaign", harness_fmu, NOISY_SEED, 1.0, NOISY_TIME_SCALE)
-    say(f"synthesized the noisy campaign (seed {NOISY_SEED}, time_scale {NOISY_TIME_SCALE}) in {c.seconds:.1f} s")
-    return c
+    def synthesized(folder: Path) -> SynthCampaign:
+        c = make_campaign(folder / "campaign", harness_fmu, NOISY_SEED, 1.0, NOISY_TIME_SCALE)
+        say(f"synthesized the noisy campaign (seed {NOISY_SEED}, time_scale {NOISY_TIME_SCALE}) in {c.seconds:.1f} s")
+        return c
+
+    return computed_once(tmp_path_factory, "noisy_campaign", synthesized)
 
 
 @pytest.fixture(scope="session")
 def terrain_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign with sensor noise, full length, for the terrain validation (no fit)."""
-    c = make_campaign(tmp_path_factory.mktemp("terrain") / "campaign", harness_fmu, TERRAIN_SEED, 1.0,
-                      TERRAIN_TIME_SCALE)
-    say(f"synthesized the terrain campaign (seed {TERRAIN_SEED}, time_scale {TERRAIN_TIME_SCALE}) in "
-        f"{c.seconds:.1f} s")
-    return c
+    def synthesized(folder: Path) -> SynthCampaign:
+        c = make_campaign(folder / "campaign", harness_fmu, TERRAIN_SEED, 1.0, TERRAIN_TIME_SCALE)
+        say(f"synthesized the terrain campaign (seed {TERRAIN_SEED}, time_scale {TERRAIN_TIME_SCALE}) in "
+            f"{c.seconds:.1f} s")
+        return c
+
+    return computed_once(tmp_path_factory, "terrain_campaign", synthesized)
 
 
 #: Short campaigns for structure, determinism and CLI checks (runs of 5.5-8.8 s).
@@ -313,7 +372,8 @@ SMALL_TIME_SCALE = 0.25
 
 @pytest.fixture(scope="session")
 def small_campaign(tmp_path_factory, harness_fmu):
-    """Factory of short synthetic campaigns, cached per (seed, effect, noise, copy).
+    """Factory of short synthetic campaigns, cached per (seed, effect, noise, copy) for the
+    session (computed_once).
 
     Each lives in its own parent folder under the same leaf name ``campaign``, so two of them
     can be compared file by file.  ``copy`` gives a second, independent synthesis.
@@ -323,10 +383,12 @@ def small_campaign(tmp_path_factory, harness_fmu):
     def get(seed: int, effect: str = "none", noise: float = 1.0, copy: int = 0) -> SynthCampaign:
         key = (seed, effect, noise, copy)
         if key not in cache:
-            parent = tmp_path_factory.mktemp(f"small-{seed}-{effect}-{noise:g}-{copy}")
-            cache[key] = make_campaign(parent / "campaign", harness_fmu, seed, noise, SMALL_TIME_SCALE, effect)
-            say(f"synthesized a short campaign (seed {seed}, effect {effect}, noise {noise:g}) "
-                f"in {cache[key].seconds:.1f} s")
+            def synthesized(folder: Path) -> SynthCampaign:
+                c = make_campaign(folder / "campaign", harness_fmu, seed, noise, SMALL_TIME_SCALE, effect)
+                say(f"synthesized a short campaign (seed {seed}, effect {effect}, noise {noise:g}) in {c.seconds:.1f} s")
+                return c
+
+            cache[key] = computed_once(tmp_path_factory, f"small-{seed}-{effect}-{noise:g}-{copy}", synthesized)
         return cache[key]
 
     return get
@@ -346,23 +408,29 @@ def print_joint(label: str, result, truth: dict[str, float]) -> None:
 
 
 @pytest.fixture(scope="session")
-def clean_joint(harness_fmu, clean_campaign):
-    """identify_joint on the noise-free campaign."""
+def clean_joint(tmp_path_factory, harness_fmu, clean_campaign):
+    """identify_joint on the noise-free campaign (computed_once)."""
     from juno.identify import identify_joint
 
-    result = identify_joint(harness_fmu, clean_campaign.campaign)
-    print_joint("joint fit, noise-free campaign", result, clean_campaign.soil)
-    return result
+    def fitted(_folder: Path):
+        result = identify_joint(harness_fmu, clean_campaign.campaign)
+        print_joint("joint fit, noise-free campaign", result, clean_campaign.soil)
+        return result
+
+    return computed_once(tmp_path_factory, "clean_joint", fitted)
 
 
 @pytest.fixture(scope="session")
-def noisy_joint(harness_fmu, noisy_campaign):
-    """identify_joint on the noisy campaign."""
+def noisy_joint(tmp_path_factory, harness_fmu, noisy_campaign):
+    """identify_joint on the noisy campaign (computed_once)."""
     from juno.identify import identify_joint
 
-    result = identify_joint(harness_fmu, noisy_campaign.campaign)
-    print_joint("joint fit, noisy campaign", result, noisy_campaign.soil)
-    return result
+    def fitted(_folder: Path):
+        result = identify_joint(harness_fmu, noisy_campaign.campaign)
+        print_joint("joint fit, noisy campaign", result, noisy_campaign.soil)
+        return result
+
+    return computed_once(tmp_path_factory, "noisy_joint", fitted)
 
 
 @dataclass
@@ -375,24 +443,27 @@ class PaperRun:
 
 
 @pytest.fixture(scope="session")
-def noisy_paper(harness_fmu, noisy_campaign) -> list[PaperRun]:
+def noisy_paper(tmp_path_factory, harness_fmu, noisy_campaign) -> list[PaperRun]:
     """identify_paper on each drawbar run of the noisy campaign, with the costs of the initial guess
-    and of the truth under the same cost function."""
+    and of the truth under the same cost function (computed_once)."""
     from juno.identify import PAPER_INITIAL, base_parameters, identify_paper, paper_cost
 
-    c = noisy_campaign.campaign
-    base = base_parameters(c)
-    out = []
-    for run in c.runs_of_kind("drawbar"):
-        p = identify_paper(harness_fmu, c, run)
-        c0 = paper_cost(harness_fmu, dict(PAPER_INITIAL), p.averages, base)
-        ct = paper_cost(harness_fmu, noisy_campaign.soil, p.averages, base)
-        say(f"paper-style {run.id}: cost {c0:.4g} (initial guess) -> {p.cost:.4g} after {p.evaluations} evaluations "
-            f"in {p.wall_time:.1f} s (scipy converged: {p.converged}; cost at the truth {ct:.4g}; "
-            f"rank {p.jacobian_rank}/4)")
-        say("  " + ", ".join(f"{k} {v:.4g}" for k, v in p.final.items()))
-        out.append(PaperRun(p, c0, ct))
-    return out
+    def fitted(_folder: Path) -> list[PaperRun]:
+        c = noisy_campaign.campaign
+        base = base_parameters(c)
+        out = []
+        for run in c.runs_of_kind("drawbar"):
+            p = identify_paper(harness_fmu, c, run)
+            c0 = paper_cost(harness_fmu, dict(PAPER_INITIAL), p.averages, base)
+            ct = paper_cost(harness_fmu, noisy_campaign.soil, p.averages, base)
+            say(f"paper-style {run.id}: cost {c0:.4g} (initial guess) -> {p.cost:.4g} after {p.evaluations} "
+                f"evaluations in {p.wall_time:.1f} s (scipy converged: {p.converged}; cost at the truth {ct:.4g}; "
+                f"rank {p.jacobian_rank}/4)")
+            say("  " + ", ".join(f"{k} {v:.4g}" for k, v in p.final.items()))
+            out.append(PaperRun(p, c0, ct))
+        return out
+
+    return computed_once(tmp_path_factory, "noisy_paper", fitted)
 
 
 # ------------------------------------------------------------- validation and report

@@ -2,10 +2,10 @@
 
 The repository's committed state is cloned with ``git clone`` into a temporary folder, so only
 committed files count; the clone sets itself up (its own .venv and FMU build), synthesizes the
-demo campaign shortened by ``JUNO_TIME_SCALE=0.5``, and writes ``out/report/report.md``.  The job
-is started in the background when collection finishes (harness_fixtures.py) and takes about two
-minutes, most of it the clone's venv and FMU build; harness_fixtures marks it ``slow`` (it stays in
-the default run and in CI).
+demo campaign shortened by ``JUNO_TIME_SCALE=0.25``, and writes ``out/report/report.md``.  The job
+is started in the background (harness_fixtures.py) and takes one to two minutes, most of it the
+report's fits and diagnosis; harness_fixtures marks it ``slow`` (it stays in the default run and
+in CI).
 """
 
 from __future__ import annotations
