@@ -106,6 +106,27 @@ def run_juno(*args: str, timeout: float = 300.0, cwd: str | os.PathLike | None =
                           cwd=cwd, env=env)
 
 
+def run_juno_here(capsys, *args: str) -> subprocess.CompletedProcess:
+    """Runs ``juno ARGS`` in this process (``juno.cli.main``, the console script's own code),
+    with its exit code, stdout and stderr as :func:`run_juno` returns them.
+
+    For the refusals and short runs the tests make by the dozen: a ``juno`` process spends most
+    of a refusal's CPU time starting Python and importing its libraries (0.7-0.9 s of CPU each),
+    which this leaves out.  What a user types is still covered by :func:`run_juno` (help, the
+    runs end to end).  ``capsys`` is the calling test's fixture; what was printed before is
+    discarded."""
+    from juno.cli import main
+
+    argv = [str(a) for a in args]
+    capsys.readouterr()
+    try:
+        code = main(argv)
+    except SystemExit as exc:          # argparse's refusals exit
+        code = 0 if exc.code is None else exc.code
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(["juno", *argv], code, out.out, out.err)
+
+
 def tree_snapshot(root: Path) -> dict[str, bytes]:
     """Relative path -> content of every file below ``root`` (to prove a folder is unchanged)."""
     return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}

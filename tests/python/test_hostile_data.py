@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from harness_fixtures import run_juno
+from harness_fixtures import run_juno_here
 from juno.campaign import format_run_csv, load_campaign, read_run_csv
 from juno.effects import ALTERNATIVE_FORMS, EFFECTS
 from juno.plausibility import (Finding, PlausibilityError, check_campaign, enforce_plausibility,
@@ -214,12 +214,12 @@ def matching(findings: list[Finding], case: Case) -> list[Finding]:
 # ------------------------------------------------------------------------------- the cases
 
 @pytest.mark.parametrize("case", ERRORS, ids=lambda c: c.name)
-def test_identify_refuses_impossible_data_at_once(base, tmp_path, case) -> None:
+def test_identify_refuses_impossible_data_at_once(base, tmp_path, case, capsys) -> None:
     """``juno identify`` exits 2 within seconds, naming file, column and evidence, files untouched."""
     root = bad_copy(base, tmp_path, case)
     before = checksums(root)
     start = time.perf_counter()
-    proc = run_juno("identify", root, "--quiet", timeout=120)
+    proc = run_juno_here(capsys, "identify", root, "--quiet")
     elapsed = time.perf_counter() - start
     assert proc.returncode == 2, f"exit {proc.returncode}\n{proc.stderr}"
     assert "Traceback" not in proc.stderr
@@ -244,29 +244,29 @@ def test_each_case_is_found_with_its_severity(base, tmp_path, case) -> None:
 
 
 @pytest.mark.parametrize("command", ["validate", "report", "diagnose"])
-def test_every_command_reading_measured_data_refuses(base, tmp_path, command) -> None:
+def test_every_command_reading_measured_data_refuses(base, tmp_path, command, capsys) -> None:
     root = bad_copy(base, tmp_path, ERRORS[0])
     extra = ["--out", str(tmp_path / "report")] if command == "report" else []
-    proc = run_juno(command, root, *extra, "--quiet", timeout=120)
+    proc = run_juno_here(capsys, command, root, *extra, "--quiet")
     assert proc.returncode == 2, proc.stderr
     assert "runs/t3d.csv, column 'pitch'" in proc.stderr
     assert not (tmp_path / "report").exists()
 
 
-def test_simulate_of_a_campaign_refuses_and_force_goes_on(base, tmp_path) -> None:
+def test_simulate_of_a_campaign_refuses_and_force_goes_on(base, tmp_path, capsys) -> None:
     """--force turns the errors into warnings: the run is simulated, the evidence still printed."""
     root = bad_copy(base, tmp_path, ERRORS[0])
-    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", timeout=120)
+    proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet")
     assert proc.returncode == 2 and "runs/t3d.csv, column 'pitch'" in proc.stderr
-    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", "--force", timeout=120)
+    proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet", "--force")
     assert proc.returncode == 0, proc.stderr
     assert "warning (--force): runs/t3d.csv, column 'pitch'" in proc.stderr
     assert "run dbp1" in proc.stdout
 
 
-def test_warnings_print_one_line_each_and_go_on(base, tmp_path) -> None:
+def test_warnings_print_one_line_each_and_go_on(base, tmp_path, capsys) -> None:
     root = bad_copy(base, tmp_path, WARNINGS[2])
-    proc = run_juno("simulate", "--campaign", root, "--run", "dbp1", "--quiet", timeout=120)
+    proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet")
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("warning: runs/t3d.csv, column 'pos_x'"), proc.stderr
