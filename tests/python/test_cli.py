@@ -5,7 +5,9 @@
 * ``juno simulate`` runs each scenario, with a physically sensible end state; ``--json`` writes
   valid JSON and ``--out`` a CSV of the outputs.
 * Errors (missing campaign, bad --param, bad options) exit with code 2 and a one-line message
-  that names what is wrong, never a traceback.
+  that names what is wrong, never a traceback.  The refusals run ``juno.cli.main`` in the test's
+  process (run_juno_here: the console script's code without a Python start-up per case); help,
+  the usage error and the runs go through .venv/bin/juno.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import re
 import numpy as np
 import pytest
 
-from harness_fixtures import run_juno, say
+from harness_fixtures import run_juno, run_juno_here, say
 from juno.scenarios import SCENARIOS
 from juno.simulator import SOIL_PARAMETERS
 
@@ -157,9 +159,9 @@ def test_simulate_a_measured_run_and_validate_with_json(tmp_path, small_campaign
     (("simulate", "--campaign", "{missing}"), ("{missing}",)),
     (("synthesize", "{tmp}/c", "--effect", "bogus_effect"), ("bogus_effect",)),
 ], ids=["identify", "validate", "report", "simulate", "synthesize-effect"])
-def test_missing_campaign_and_bad_arguments_exit_2_with_one_line(tmp_path, args, needles):
+def test_missing_campaign_and_bad_arguments_exit_2_with_one_line(tmp_path, args, needles, capsys):
     subst = {"missing": str(tmp_path / "no-such-campaign"), "tmp": str(tmp_path)}
-    proc = run_juno(*[a.format(**subst) for a in args], "--quiet")
+    proc = run_juno_here(capsys, *[a.format(**subst) for a in args], "--quiet")
     one_line_error(proc, *[n.format(**subst) for n in needles])
     assert not (tmp_path / "report").exists() and not (tmp_path / "c").exists()
 
@@ -171,8 +173,8 @@ def test_missing_campaign_and_bad_arguments_exit_2_with_one_line(tmp_path, args,
     ("soil.gamma=1.5", "soil.gamma"),
     ("soil.kh=abc", "soil.kh"),             # not a number
 ], ids=["no-equals", "unknown-name", "out-of-range", "gamma-above-1", "not-a-number"])
-def test_bad_param_exits_2_naming_it(param, needle):
-    proc = run_juno("simulate", "--scenario", "rest", "--stop-time", "1", "--param", param, "--quiet")
+def test_bad_param_exits_2_naming_it(param, needle, capsys):
+    proc = run_juno_here(capsys, "simulate", "--scenario", "rest", "--stop-time", "1", "--param", param, "--quiet")
     one_line_error(proc, needle)
 
 
@@ -182,7 +184,7 @@ def test_bad_param_exits_2_naming_it(param, needle):
     ({"wheel.width": 254}, ("campaign.json", "wheel.width=254", "out of the FMU's range")),
 ], ids=["misspelt", "in-mm"])
 def test_a_bad_rover_override_in_the_manifest_exits_2_naming_its_line(tmp_path, small_campaign, command, override,
-                                                                      needles):
+                                                                      needles, capsys):
     """The campaign's ``rover`` overrides are checked against the FMU before any simulation:
     the file, the line and the rule, not a worker's KeyError half-way through."""
     import shutil
@@ -194,41 +196,41 @@ def test_a_bad_rover_override_in_the_manifest_exits_2_naming_its_line(tmp_path, 
     doc["rover"] = {**doc.get("rover", {}), **override}
     manifest.write_text(json.dumps(doc, indent=1))
     line = next(i for i, text in enumerate(manifest.read_text().splitlines(), start=1) if next(iter(override)) in text)
-    proc = run_juno(command, root, "--quiet")
+    proc = run_juno_here(capsys, command, root, "--quiet")
     one_line_error(proc, *needles, f"line {line}")
 
 
-def test_missing_params_file_exits_2_naming_it(tmp_path, small_campaign):
+def test_missing_params_file_exits_2_naming_it(tmp_path, small_campaign, capsys):
     c = small_campaign(101)
     missing = tmp_path / "no-such-params.json"
-    one_line_error(run_juno("validate", c.path, "--params", missing, "--quiet"), str(missing))
+    one_line_error(run_juno_here(capsys, "validate", c.path, "--params", missing, "--quiet"), str(missing))
 
 
-def test_unknown_run_exits_2_naming_it(small_campaign):
+def test_unknown_run_exits_2_naming_it(small_campaign, capsys):
     c = small_campaign(101)
-    one_line_error(run_juno("simulate", "--campaign", c.path, "--run", "no_such_run", "--quiet"), "no_such_run")
+    one_line_error(run_juno_here(capsys, "simulate", "--campaign", c.path, "--run", "no_such_run", "--quiet"), "no_such_run")
 
 
-def test_zero_output_interval_exits_2_with_one_line():
-    proc = run_juno("simulate", "--scenario", "rest", "--output-interval", "0", "--quiet")
+def test_zero_output_interval_exits_2_with_one_line(capsys):
+    proc = run_juno_here(capsys, "simulate", "--scenario", "rest", "--output-interval", "0", "--quiet")
     one_line_error(proc, "output")
 
 
-def test_zero_stop_time_is_refused():
-    proc = run_juno("simulate", "--scenario", "drawbar", "--stop-time", "0", "--quiet")
+def test_zero_stop_time_is_refused(capsys):
+    proc = run_juno_here(capsys, "simulate", "--scenario", "drawbar", "--stop-time", "0", "--quiet")
     one_line_error(proc, "stop")
 
 
-def test_negative_stop_time_is_refused():
-    proc = run_juno("simulate", "--scenario", "rest", "--stop-time", "-1", "--quiet")
+def test_negative_stop_time_is_refused(capsys):
+    proc = run_juno_here(capsys, "simulate", "--scenario", "rest", "--stop-time", "-1", "--quiet")
     one_line_error(proc, "stop")
 
 
-def test_validate_params_without_soil_exits_2_naming_the_parameter(tmp_path, small_campaign):
+def test_validate_params_without_soil_exits_2_naming_the_parameter(tmp_path, small_campaign, capsys):
     c = small_campaign(101)
     params = tmp_path / "params.json"
     params.write_text(json.dumps({"params": {k: 1.0 for k in SOIL_PARAMETERS if k != "soil.Kvx"}}))
-    one_line_error(run_juno("validate", c.path, "--params", params, "--quiet"), "soil.Kvx")
+    one_line_error(run_juno_here(capsys, "validate", c.path, "--params", params, "--quiet"), "soil.Kvx")
 
 
 # ------------------------------------------------------------- what a paper-style fit prints
