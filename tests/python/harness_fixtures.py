@@ -406,7 +406,8 @@ def small_campaign(tmp_path_factory, harness_fmu):
         if key not in cache:
             def synthesized(folder: Path) -> SynthCampaign:
                 c = make_campaign(folder / "campaign", harness_fmu, seed, noise, SMALL_TIME_SCALE, effect)
-                say(f"synthesized a short campaign (seed {seed}, effect {effect}, noise {noise:g}) in {c.seconds:.1f} s")
+                say(f"synthesized a short campaign (seed {seed}, effect {effect}, noise {noise:g}) "
+                    f"in {c.seconds:.1f} s")
                 return c
 
             cache[key] = computed_once(tmp_path_factory, f"small-{seed}-{effect}-{noise:g}-{copy}", synthesized)

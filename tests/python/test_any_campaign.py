@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from harness_fixtures import run_juno, say
+from harness_fixtures import run_juno, run_juno_here, say
 from juno.campaign import load_campaign, read_run
 from juno.identify import gridded_scans, identify_joint, prepare_run, run_residuals, steady_averages
 from juno.plausibility import check_campaign
@@ -306,11 +306,11 @@ def test_the_diagnosis_of_drawbar_runs_only_leaves_out_the_candidates_that_need_
     assert any(m.startswith("left out terrain_offset: needs a terrain run") for m in said), said
 
 
-def test_a_diagnosis_left_without_a_candidate_is_refused_before_any_fit(short_campaign, tmp_path):
+def test_a_diagnosis_left_without_a_candidate_is_refused_before_any_fit(short_campaign, tmp_path, capsys):
     """Asked only for candidates that need a terrain run, of a campaign without one: an error
     naming the manifest and why, not a "none" that tried nothing."""
     root = variant(short_campaign, tmp_path / "drawbar-only", manifest_change=_drawbar_only)
-    proc = run_juno("diagnose", root, "--candidates", "terrain_offset", "--workers", "1", "--quiet", timeout=60)
+    proc = run_juno_here(capsys, "diagnose", root, "--candidates", "terrain_offset", "--workers", "1", "--quiet")
     assert proc.returncode != 0
     assert "campaign.json" in proc.stderr and "terrain_offset" in proc.stderr and "terrain run" in proc.stderr, \
         proc.stderr

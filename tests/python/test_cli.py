@@ -208,7 +208,8 @@ def test_missing_params_file_exits_2_naming_it(tmp_path, small_campaign, capsys)
 
 def test_unknown_run_exits_2_naming_it(small_campaign, capsys):
     c = small_campaign(101)
-    one_line_error(run_juno_here(capsys, "simulate", "--campaign", c.path, "--run", "no_such_run", "--quiet"), "no_such_run")
+    proc = run_juno_here(capsys, "simulate", "--campaign", c.path, "--run", "no_such_run", "--quiet")
+    one_line_error(proc, "no_such_run")
 
 
 def test_zero_output_interval_exits_2_with_one_line(capsys):

@@ -126,10 +126,11 @@ def test_in_segments_the_true_registration_beats_the_scan_as_it_is(misregistered
     assert mse["segments"][1] > 2.0 * mse["segments"][0]
 
 
-def test_the_cli_refuses_a_segment_shorter_than_the_settling(misregistered, tmp_path):
-    from harness_fixtures import run_juno
+def test_the_cli_refuses_a_segment_shorter_than_the_settling(misregistered, tmp_path, capsys):
+    from harness_fixtures import run_juno_here
     campaign = misregistered[0]
     out = tmp_path / "diagnosis.json"
-    proc = run_juno("diagnose", str(campaign.root), "--terrain-segments", "1", "--json", str(out), "--quiet")
+    proc = run_juno_here(capsys, "diagnose", str(campaign.root), "--terrain-segments", "1", "--json", str(out),
+                         "--quiet")
     assert proc.returncode == 2, proc.stderr
     assert "longer than" in proc.stderr and not out.exists()
