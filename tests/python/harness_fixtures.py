@@ -444,11 +444,12 @@ def clean_joint(tmp_path_factory, harness_fmu, clean_campaign):
 
 @pytest.fixture(scope="session")
 def noisy_joint(tmp_path_factory, harness_fmu, noisy_campaign):
-    """identify_joint on the noisy campaign (computed_once)."""
+    """identify_joint on the noisy campaign, serial (computed_once).  Serial so that
+    test_identify_speed can compare a two-core fit with it (the two are identical bit for bit)."""
     from juno.identify import identify_joint
 
     def fitted(_folder: Path):
-        result = identify_joint(harness_fmu, noisy_campaign.campaign)
+        result = identify_joint(harness_fmu, noisy_campaign.campaign, workers=1)
         print_joint("joint fit, noisy campaign", result, noisy_campaign.soil)
         return result
 
