@@ -66,8 +66,7 @@ def test_the_slip_sinkage_fit_from_the_papers_soil_reaches_the_truths_basin(slip
         f"({profiled.evaluations} evaluations), {plain_ratio:.3g} without ({unprofiled.evaluations})")
     assert ratio <= SAME_BASIN
     assert plain_ratio > SAME_BASIN
-    coefficient = profiled.params["slipSinkage.coefficient"]
-    true_coefficient = truth["extension"]["slipSinkage.coefficient"]
+    coefficient, true_coefficient = profiled.params["slipSinkage.coefficient"], truth["extension"]["slipSinkage.coefficient"]
     assert abs(coefficient - true_coefficient) <= 0.4 * true_coefficient
 
 
