@@ -92,8 +92,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # slip): where a heavy run's replay starts or stops ringing, the training loss over the soil
     # jumps, and least squares stays on the piece of it where it starts.  Its fit is also made
     # from a profile over the coefficient (the soil fitted with the coefficient held at 0.5, 1
-    # and 2: k_h under a wheel slipping by s is divided by 1 + c s, and these span a factor of
-    # four either side of 1), the lowest training loss kept (fitting._refined_best).
+    # and 2: a factor of four around the strengths a slip of 0.1-0.3 makes visible), the lowest
+    # training loss kept (fitting._refined_best).
     Candidate("slip_sinkage", "sinkage grows with slip as the wheel digs in",
               (ExtParam("slipSinkage.coefficient", 0.0, 0.0, 20.0),),
               active=(("slipSinkage.coefficient", 0.0, 0.02),), soil_restart=True,
