@@ -49,9 +49,6 @@ class Candidate:
     #: there the multi-pass fit found half the true rut and stiffening, with 3.6 times the
     #: drawbar training error of the fit from the paper's start.
     soil_restart: bool = False
-    #: whether the short fits fit the soil alone, the extension held at its grid point (a profile
-    #: of the training loss over the extension's strength), instead of every physical parameter
-    profile: bool = False
 
     @property
     def is_registration(self) -> bool:
@@ -88,16 +85,9 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               grid=tuple((("multipass.rutFraction", r), ("multipass.khFactor", k))
                          for r in (0.5, 1.0) for k in (1.0, 1.5, 2.0, 3.0)),
               soil_restart=True),
-    # Slip-sinkage closes a loop in the replay (more slip, more sinkage, more resistance, more
-    # slip): where a heavy run's replay starts or stops ringing, the training loss over the soil
-    # jumps, and least squares stays on the piece of it where it starts.  Its fit is also made
-    # from a profile over the coefficient (the soil fitted with the coefficient held at 0.5, 1
-    # and 2: a factor of four around the strengths a slip of 0.1-0.3 makes visible), the lowest
-    # training loss kept (fitting._refined_best).
     Candidate("slip_sinkage", "sinkage grows with slip as the wheel digs in",
               (ExtParam("slipSinkage.coefficient", 0.0, 0.0, 20.0),),
-              active=(("slipSinkage.coefficient", 0.0, 0.02),), soil_restart=True,
-              grid=tuple((("slipSinkage.coefficient", c),) for c in (0.5, 1.0, 2.0)), short_fits=4, profile=True),
+              active=(("slipSinkage.coefficient", 0.0, 0.02),), soil_restart=True),
     Candidate("grouser", "lugs shear the soil at a larger radius and add thrust beyond the Mohr-Coulomb limit",
               (ExtParam("grouser.thrustGain", 0.0, 0.0, 3.0), ExtParam("grouser.lugHeight", 0.0, 0.0, 0.1)),
               active=(("grouser.thrustGain", 0.0, 0.01), ("grouser.lugHeight", 0.0, 0.001)), soil_restart=True),
@@ -127,4 +117,4 @@ def combined(first: Candidate, second: Candidate) -> Candidate:
     second round decides that for the pair (search.second_round)."""
     return Candidate(second.name, second.cause, first.params + second.params, first.fixed + second.fixed,
                      first.needs_terrain or second.needs_terrain, second.grid, second.active, second.short_fits,
-                     first.refine_terrain and second.refine_terrain, profile=second.profile)
+                     first.refine_terrain and second.refine_terrain)

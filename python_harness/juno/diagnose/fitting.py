@@ -302,36 +302,9 @@ def _failed_fit(candidate: Candidate | None, error: Exception | str, t0: float, 
 
 def _search(session: _FitSession, candidate: Candidate | None, x0: np.ndarray, max_nfev: int) -> np.ndarray:
     """The fitted search vector from ``x0``: the candidate's coarse grid (if any), then the
-    refinement from its best point (_refine; _refined_best for a grid)."""
-    if candidate is None or not candidate.grid:
-        return _refine(session, candidate, x0, max_nfev)
-    kinds = _coarse_kinds(session, candidate)
-    tried = (_coarse_point(session, candidate, x0, point, kinds) for point in _coarse_points(candidate))
-    return _refined_best(session, candidate, x0, tried, max_nfev)
-
-
-def _refined_best(session: _FitSession, candidate: Candidate, x0: np.ndarray, tried, max_nfev: int) -> np.ndarray:
-    """The refinement (_refine) from the best of the coarse-search points ``tried`` ((search
-    vector, training loss), in grid order).  For a profile candidate (Candidate.profile): that
-    refinement made twice, and the refinement from the start ``x0`` itself; of the two the one
-    with the lower training loss on the drawbar runs (what both minimise).
-
-    Why both for a profile: the profile's points hold the extension while the soil is fitted, so
-    they reach soils the fit from the start does not (the loss over the soil is piecewise smooth,
-    with jumps where a heavy run's replay starts or stops ringing, and least squares stays on the
-    piece it starts on); but where the start is on the right piece, its own fit is as good or
-    better, and the lower training loss is kept.  Why twice: the profile's point has the
-    extension off its optimum, and on that rough loss the first refinement stops on its step
-    tolerance before its budget is spent; a second one, with a fresh trust region, goes on
-    (measured on a blind slip-sinkage draw: drawbar training loss 2.2, then 1.44, where the fit
-    started at the truth ends at 1.26)."""
-    x = _refine(session, candidate, _best_start(x0, tried), max_nfev)
-    if not (candidate.profile and session.has_drawbar):
-        return x
-    x = _refine(session, candidate, x, max_nfev)
-    plain = _refine(session, candidate, x0, max_nfev)
-    kinds = ("drawbar",)
-    return plain if session.training_loss(plain, kinds) <= session.training_loss(x, kinds) else x
+    refinement from its best point (_refine)."""
+    x = _coarse_search(session, candidate, x0) if candidate is not None and candidate.grid else x0.copy()
+    return _refine(session, candidate, x, max_nfev)
 
 
 def _refine(session: _FitSession, candidate: Candidate | None, x: np.ndarray, max_nfev: int) -> np.ndarray:
@@ -352,9 +325,15 @@ def _refine(session: _FitSession, candidate: Candidate | None, x: np.ndarray, ma
 
 
 def _coarse_points(candidate: Candidate) -> tuple[tuple[tuple[str, float], ...], ...]:
-    """The points of the candidate's coarse search: the start itself (no override), then its grid;
-    a profile's grid alone (the start gets a refinement of its own, _refined_best)."""
-    return candidate.grid if candidate.profile else ((),) + candidate.grid
+    """The points of the candidate's coarse search: the start itself (no override), then its grid."""
+    return ((),) + candidate.grid
+
+
+def _coarse_search(session: _FitSession, candidate: Candidate, x0: np.ndarray) -> np.ndarray:
+    """The best of the candidate's grid points and the start ``x0`` (_best_start), each tried
+    by _coarse_point, one after the other in this session."""
+    kinds = _coarse_kinds(session, candidate)
+    return _best_start(x0, (_coarse_point(session, candidate, x0, point, kinds) for point in _coarse_points(candidate)))
 
 
 def _coarse_kinds(session: _FitSession, candidate: Candidate) -> tuple[str, ...]:
@@ -373,30 +352,8 @@ def _coarse_point(session: _FitSession, candidate: Candidate, x0: np.ndarray, po
     for name, value in point:
         trial[session.space.index(name)] = value
     if candidate.short_fits and session.has_drawbar:
-        if candidate.profile:
-            return _profile_point(session, trial, kinds, candidate.short_fits)
         trial = session.fit(trial, kinds, session.space.physical_entries, candidate.short_fits)
     return trial, session.training_loss(trial, kinds)
-
-
-def _profile_point(session: _FitSession, trial: np.ndarray, kinds: tuple[str, ...], budget: int
-                   ) -> tuple[np.ndarray, float]:
-    """(search vector, training loss) of one point of a profile (Candidate.profile): the soil
-    fitted by a short fit of ``budget`` evaluations with the extension held at ``trial``'s.
-
-    A point where the model cannot be simulated is not a start (infinite loss).  The short fit's
-    evaluations stay out of the session's log (EvaluationLog), which judges the refinements'
-    failures: the profile holds the extension at strengths chosen without the data, some of
-    which the soil cannot carry, and a start is ranked by the loss simulated at it, which a
-    failure met on the way cannot make look better than it is."""
-    if not np.isfinite(session.training_loss(trial, kinds)):
-        return trial, np.inf
-    log, session.log = session.log, EvaluationLog()
-    try:
-        fitted = session.fit(trial, kinds, np.arange(N_SOIL), budget)
-    finally:
-        session.log = log
-    return fitted, session.training_loss(fitted, kinds)
 
 
 def _best_start(x0: np.ndarray, tried) -> np.ndarray:
@@ -565,9 +522,8 @@ def _refined_job(args: tuple[FitJob, list[CoarseStart]]) -> FitResult:
 
     def fitted(session: _FitSession) -> FitResult:
         session.evaluations = sum(t.evaluations for t in tried)
-        x0 = session.space.start(start_soil, start_ext)
-        x = _refined_best(session, candidate, x0, [(t.x, t.cost) for t in tried], max_nfev)
-        return _result_at_optimum(session, candidate, x, t0)
+        x = _best_start(session.space.start(start_soil, start_ext), [(t.x, t.cost) for t in tried])
+        return _result_at_optimum(session, candidate, _refine(session, candidate, x, max_nfev), t0)
     return _in_session(problem, candidate, log, fitted, lambda exc: _failed_fit(candidate, exc, t0, log))
 
 
