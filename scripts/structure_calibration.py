@@ -128,9 +128,10 @@ def scan_page(cases: list[dict], started: str) -> str:
                      + f" | {sum(bool(c['disagrees']) for c in mine)} of {len(mine)} |")
     lines += ["", "Campaigns with a tilted scan whose pose agreed with it:", ""]
     missed = [c for c in cases if c["effect"] != "none" and not c["disagrees"]]
+    first = min(c["seed"] for c in cases)
     for c in missed:
         d = c["distortion"]
-        lines.append(f"- {c['design']} seed {c['seed']}: tilt {np.degrees(d.get('scan.tiltAngle', 0.0)):+.2f} deg, "
+        lines.append(f"- {c['design']} design, draw {c['seed'] - first + 1}: tilt {np.degrees(d.get('scan.tiltAngle', 0.0)):+.2f} deg, "
                      f"axis {np.degrees(d.get('scan.tiltAxis', 0.0)):.0f} deg from x; block RMS "
                      + ", ".join(f"{k} {v * 1000:.1f}" for k, v in c["block_rms"].items()))
     if not missed:
