@@ -69,10 +69,18 @@ def test_the_soil_parameters_are_fmu_parameters_whose_defaults_are_the_papers_ta
 
 
 def test_every_module_uses_the_one_tuple_of_soil_parameter_names():
-    """The names the harness fits are one object, not copies typed again."""
-    from juno import diagnose, identify, report, simulator
-    for module in (simulator, identify, report, diagnose):
-        assert module.SOIL_PARAMETERS is SOIL_PARAMETERS, module.__name__
+    """The names the harness fits are one object, not copies typed again: every module of the
+    harness that has a SOIL_PARAMETERS has that one, and the modules that fit the soil have it."""
+    import importlib
+    import pkgutil
+
+    import juno
+    modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(juno.__path__, "juno.")
+               if not m.name.startswith("juno.commands")]
+    having = {m.__name__: m.SOIL_PARAMETERS for m in modules if hasattr(m, "SOIL_PARAMETERS")}
+    assert {"juno.simulator", "juno.identify.base", "juno.identify.joint", "juno.report",
+            "juno.diagnose"} <= set(having), sorted(having)
+    assert [name for name, names in having.items() if names is not SOIL_PARAMETERS] == []
 
 
 def test_a_campaigns_rover_block_overrides_the_fmus_values(fmu_path):
