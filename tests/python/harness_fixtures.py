@@ -352,39 +352,37 @@ def make_campaign(out: Path, fmu, seed: int, noise: float, time_scale: float, ef
     return SynthCampaign(Path(path), load_campaign(path), truth, seed, noise, time_scale, seconds)
 
 
+def _shared_campaign(tmp_path_factory, fmu, key: str, what: str, seed: int, noise: float,
+                     time_scale: float) -> SynthCampaign:
+    """The session's synthetic campaign ``key``, synthesized once for every xdist worker
+    (computed_once) and named ``what`` in the progress line."""
+    def synthesized(folder: Path) -> SynthCampaign:
+        c = make_campaign(folder / "campaign", fmu, seed, noise, time_scale)
+        say(f"synthesized the {what} campaign (seed {seed}, time_scale {time_scale}) in {c.seconds:.1f} s")
+        return c
+
+    return computed_once(tmp_path_factory, key, synthesized)
+
+
 @pytest.fixture(scope="session")
 def clean_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign without sensor noise (noise = 0)."""
-    def synthesized(folder: Path) -> SynthCampaign:
-        c = make_campaign(folder / "campaign", harness_fmu, CLEAN_SEED, 0.0, CLEAN_TIME_SCALE)
-        say(f"synthesized the noise-free campaign (seed {CLEAN_SEED}, time_scale {CLEAN_TIME_SCALE}) in "
-            f"{c.seconds:.1f} s")
-        return c
-
-    return computed_once(tmp_path_factory, "clean_campaign", synthesized)
+    return _shared_campaign(tmp_path_factory, harness_fmu, "clean_campaign", "noise-free", CLEAN_SEED, 0.0,
+                            CLEAN_TIME_SCALE)
 
 
 @pytest.fixture(scope="session")
 def noisy_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign with the documented sensor noise (noise = 1), half length."""
-    def synthesized(folder: Path) -> SynthCampaign:
-        c = make_campaign(folder / "campaign", harness_fmu, NOISY_SEED, 1.0, NOISY_TIME_SCALE)
-        say(f"synthesized the noisy campaign (seed {NOISY_SEED}, time_scale {NOISY_TIME_SCALE}) in {c.seconds:.1f} s")
-        return c
-
-    return computed_once(tmp_path_factory, "noisy_campaign", synthesized)
+    return _shared_campaign(tmp_path_factory, harness_fmu, "noisy_campaign", "noisy", NOISY_SEED, 1.0,
+                            NOISY_TIME_SCALE)
 
 
 @pytest.fixture(scope="session")
 def terrain_campaign(tmp_path_factory, harness_fmu) -> SynthCampaign:
     """Synthetic campaign with sensor noise, full length, for the terrain validation (no fit)."""
-    def synthesized(folder: Path) -> SynthCampaign:
-        c = make_campaign(folder / "campaign", harness_fmu, TERRAIN_SEED, 1.0, TERRAIN_TIME_SCALE)
-        say(f"synthesized the terrain campaign (seed {TERRAIN_SEED}, time_scale {TERRAIN_TIME_SCALE}) in "
-            f"{c.seconds:.1f} s")
-        return c
-
-    return computed_once(tmp_path_factory, "terrain_campaign", synthesized)
+    return _shared_campaign(tmp_path_factory, harness_fmu, "terrain_campaign", "terrain", TERRAIN_SEED, 1.0,
+                            TERRAIN_TIME_SCALE)
 
 
 #: Short campaigns for structure, determinism and CLI checks (runs of 5.5-8.8 s).
