@@ -87,7 +87,7 @@ def one_scan_case(fmu: JunoFMU, seed: int, design: str, effect: str, strength: f
     """The scan test of the first terrain run of a synthesized campaign (``effect`` hidden at
     ``strength``): per signal, the RMS and mean of the held-out block means (m, rad)."""
     from juno.diagnose.problem import BLOCK
-    from juno.scan_consistency import campaign_scan_consistency
+    from juno.scan_consistency import terrain_run_scan_consistency
     from juno.validate import grid_terrain
     with tempfile.TemporaryDirectory(prefix="juno-scan-calibration-") as tmp:
         path = synthesize(Path(tmp) / "campaign", effect=effect, strength=strength, seed=seed, noise=1.0, fmu=fmu,
@@ -95,7 +95,7 @@ def one_scan_case(fmu: JunoFMU, seed: int, design: str, effect: str, strength: f
         campaign = load_campaign(path)
         run = campaign.runs_of_kind("terrain")[0]
         _path, grid = grid_terrain(campaign, run, Path(tmp) / "grid")
-        test = campaign_scan_consistency(campaign, grid, BLOCK)
+        test = terrain_run_scan_consistency(campaign, run, grid, BLOCK)
         truth = json.loads((path / "truth.json").read_text())
     return {"seed": seed, "design": design, "effect": effect, "strength": strength,
             "distortion": (truth.get("hidden") or {}).get("distortion", {}),

@@ -1,9 +1,11 @@
-"""Whether a terrain run's measured pose agrees with its scan, without simulating the rover.
+"""Whether each terrain run's measured pose agrees with its scan, without simulating the rover.
 
 The residual structure test (juno.residual_structure) looks at the drawbar runs only: over the
 3-D terrain the replay drifts from the measured path even at the true soil.  A scan error that
-is not a shift (a scan tilted about a horizontal axis) shows on the terrain run alone, and no
+is not a shift (a scan tilted about a horizontal axis) shows on the terrain runs alone, and no
 catalog candidate describes it; without a test there, the diagnosis would call it ``none``.
+Each terrain run is tested against its own scan (a campaign may hold several, each scanned
+separately), by the same rule and floors.
 
 This test needs no replay.  The rover is posed on the scan at every measured position and
 heading (juno.registration.pose_on_ground: the four wheels resting on the scanned ground, the
@@ -21,6 +23,19 @@ each floor lies about twice above the largest block-mean RMS the scan as it is l
 no p-value: what a right scan leaves is model error, not noise, and only simulation gives its
 size.
 
+The floors apply per run, and are not corrected for the number of terrain runs k.  What the
+calibration bounds is per run: each of its campaigns has one terrain run, and none of the n = 16
+with nothing hidden came within half of a floor.  Without assuming a distribution, a right run
+that is drawn like the calibration's exceeds the largest of those n in a given signal with
+probability at most 1 / (n + 1), and one of k such runs with at most k / (n + k) (the largest of
+n + k lies among the k new ones); a floor lies twice above that largest, so the rate of a false
+report is below these bounds, by a margin the calibration cannot measure.  A campaign of k terrain
+runs is therefore k chances: its bound grows from 1/17 to k/(16 + k) per signal (about k times,
+the union bound over runs, whatever their ground shares).  No correction is applied because none
+follows from the calibration: raising a floor for k runs needs the tail of what a right scan
+leaves beyond the largest run simulated, which 16 runs do not give; a campaign of k runs would be
+bounded as a single run is by a calibration of k x 16 right runs.
+
 Assumptions, named: the scan is used as it is (the test reports a scan the diagnosis did not
 register; see verdict.py for when it counts), and the sinkage is about the same everywhere on the
 terrain run (a soft soil patch the rover crosses sinks it deeper, which looks like a lower scan).
@@ -29,7 +44,7 @@ terrain run (a soft soil patch the rover crosses sinks it deeper, which looks li
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -100,6 +115,46 @@ class ScanConsistency:
                 "signals": [s.to_json() for s in self.signals], "summary": self.summary()}
 
 
+@dataclass
+class ScanTests:
+    """The scan test of every terrain run of a campaign, each against its own scan: the runs
+    tested (in the campaign's order) and the runs that could not be (run id -> why).  The floors
+    apply per run (the module docstring says what that means for a campaign of several)."""
+
+    runs: list[ScanConsistency] = field(default_factory=list)
+    untested: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def significant(self) -> bool:
+        """Whether some terrain run's measured pose disagrees with its scan."""
+        return any(r.significant for r in self.runs)
+
+    def disagreeing(self) -> list[ScanConsistency]:
+        """The terrain runs whose measured pose disagrees with their scan, in the campaign's order."""
+        return [r for r in self.runs if r.significant]
+
+    def summary(self) -> str:
+        """One sentence: the runs that disagree and their signals, or that every run tested agrees."""
+        found = self.disagreeing()
+        if found:
+            text = "; ".join(r.summary() for r in found)
+        elif len(self.runs) == 1:
+            text = self.runs[0].summary()
+        elif self.runs:
+            text = (f"the measured pose on terrain runs {', '.join(r.run for r in self.runs)} agrees with "
+                    "their scans")
+        else:
+            text = "no terrain run could be tested against its scan"
+        untested = [f"terrain run {run} not tested ({why})" for run, why in self.untested.items()]
+        return "; ".join([text] + untested)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"significant": self.significant, "disagreeing": [r.run for r in self.disagreeing()],
+                "runs": [r.to_json() for r in self.runs],
+                "untested": [{"run": run, "reason": why} for run, why in self.untested.items()],
+                "summary": self.summary()}
+
+
 def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.ndarray, run: str) -> ScanConsistency:
     """The test (module docstring) of ``traverse`` (juno.registration.Traverse) on ``grid`` (its
     gridded scan, as it is), with chassis height ``h0`` (m) above flat ground; ``train`` marks the
@@ -153,15 +208,16 @@ def _require_finite(run: str, what: str, values: np.ndarray | None, t: np.ndarra
                          f"{when}; the scan test cannot be computed")
 
 
-def campaign_scan_consistency(campaign, grid, block_s: float) -> ScanConsistency | None:
-    """The test of the first terrain run of ``campaign`` on ``grid``, its gridded scan, in blocks of
-    ``block_s`` seconds counted from the run's first sample (the diagnosis's: training blocks
-    even, held-out blocks odd); None when the campaign has no drawbar run to measure the chassis
-    height on, or the run is too short to have both kinds of block."""
+def terrain_run_scan_consistency(campaign, run, grid, block_s: float, h0: float | None = None
+                                 ) -> ScanConsistency | None:
+    """The test of terrain run ``run`` (juno.campaign.RunSpec) of ``campaign`` on ``grid``, its
+    own gridded scan, in blocks of ``block_s`` seconds counted from the run's first sample (the
+    diagnosis's: training blocks even, held-out blocks odd); ``h0`` (m): the chassis height above
+    flat ground, measured on the drawbar runs when not given.  None when the campaign has no
+    drawbar run to measure it on, or the run is too short to have both kinds of block."""
     from .campaign import read_run
     from .registration import flat_height, traverse_of
-    run = campaign.runs_of_kind("terrain")[0]
-    h0 = flat_height(campaign)
+    h0 = flat_height(campaign) if h0 is None else h0
     if h0 is None:
         return None
     traverse = traverse_of(campaign, run)
@@ -171,3 +227,24 @@ def campaign_scan_consistency(campaign, grid, block_s: float) -> ScanConsistency
     if train.all() or not train.any():
         return None
     return scan_consistency(grid, traverse, h0, train, block, run.id)
+
+
+def campaign_scan_consistency(campaign, grids: Mapping[str, Any], block_s: float) -> ScanTests | None:
+    """The test of every terrain run of ``campaign``, each on its own gridded scan (``grids``: run
+    id -> juno.pointcloud.Grid), in blocks of ``block_s`` seconds (terrain_run_scan_consistency);
+    None when the campaign has no drawbar run to measure the chassis height on.  ValueError if a
+    terrain run has no grid: a run left out would be a run reported as agreeing untested."""
+    from .registration import flat_height
+    h0 = flat_height(campaign)
+    if h0 is None:
+        return None
+    tests = ScanTests()
+    for run in campaign.runs_of_kind("terrain"):
+        if run.id not in grids:
+            raise ValueError(f"terrain run {run.id}: no gridded scan to test its measured pose against")
+        test = terrain_run_scan_consistency(campaign, run, grids[run.id], block_s, h0)
+        if test is None:
+            tests.untested[run.id] = f"shorter than two blocks of {block_s:g} s after settling"
+        else:
+            tests.runs.append(test)
+    return tests

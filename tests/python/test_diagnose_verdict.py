@@ -9,7 +9,7 @@ from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_
 from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
 from juno.diagnose.render import _scan_table, _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
-from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal
+from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, ScanTests
 
 
 def _structure(**ratios: float) -> ResidualStructure:
@@ -34,11 +34,12 @@ def test_nothing_named_but_structure_left_is_unexplained_with_the_signals():
     assert "pitch" in explanation(v, "") and "constant" in explanation(v, "")
 
 
-def _scan(height_mm: float) -> ScanConsistency:
-    """A terrain run's scan test whose held-out block means have ``height_mm`` RMS in the height."""
-    return ScanConsistency("t3d", [ScanSignal("height", "m", 3, height_mm / 1000, -height_mm / 1000,
-                                              FLOORS["height"]),
-                                   ScanSignal("roll", "rad", 3, 0.001, 0.0, FLOORS["roll"])])
+def _scan(height_mm: float) -> ScanTests:
+    """The scan test of a campaign with one terrain run, whose held-out block means have
+    ``height_mm`` RMS in the height."""
+    return ScanTests([ScanConsistency("t3d", [ScanSignal("height", "m", 3, height_mm / 1000, -height_mm / 1000,
+                                                         FLOORS["height"]),
+                                              ScanSignal("roll", "rad", 3, 0.001, 0.0, FLOORS["roll"])])])
 
 
 def test_nothing_named_but_a_scan_that_disagrees_with_the_pose_is_unexplained():
@@ -48,7 +49,7 @@ def test_nothing_named_but_a_scan_that_disagrees_with_the_pose_is_unexplained():
     assert v.cause == "unexplained" and v.causes == []
     assert v.unexplained.signals == [] and v.unexplained.scan.significant
     assert "height" in explanation(v, "") and "scan" in explanation(v, "")
-    assert v.unexplained.to_json()["scan"]["signals"][0]["disagrees"] is True
+    assert v.unexplained.to_json()["scan"]["runs"][0]["signals"][0]["disagrees"] is True
 
 
 def test_a_scan_within_its_floor_leaves_none_none():
@@ -59,8 +60,8 @@ def test_a_scan_within_its_floor_leaves_none_none():
 def test_the_report_tables_the_scan_signals_that_disagree_in_mm_and_mrad():
     v = verdict([], _structure(torque_left=0.0), None, scan=_scan(20.0))
     lines = _scan_table(v.unexplained)
-    assert any(line.startswith("| height | 20 mm | 6 mm |") for line in lines), lines
-    assert not any(line.startswith("| roll") for line in lines)
+    assert any(line.startswith("| t3d | height | 20 mm | 6 mm |") for line in lines), lines
+    assert not any(line.startswith("| t3d | roll") for line in lines)
 
 
 def test_a_named_cause_is_not_judged_by_the_scan_test():

@@ -1,10 +1,16 @@
-"""The terrain run's measured pose against its scan (juno/scan_consistency.py): a scan that is the
-ground agrees, a scan tilted about a horizontal axis disagrees, in the signals the tilt moves.
+"""Each terrain run's measured pose against its own scan (juno/scan_consistency.py): a scan that
+is the ground agrees, a scan tilted about a horizontal axis disagrees, in the signals the tilt
+moves; of several terrain runs, the ones whose scan disagrees are named.
 
-No FMU: the "measured" pose is the rover posed kinematically on the true ground, so the test
-checks the comparison itself, deterministically, in about a second."""
+The unit tests need no FMU: the "measured" pose is the rover posed kinematically on the true
+ground, so they check the comparison itself, deterministically, in about a second.  The tests on
+synthesized campaigns share one pair of twins (tilted_twins), synthesized once."""
 
 from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +18,7 @@ import pytest
 from juno.pointcloud import Grid
 from juno.registration import Traverse, pose_on_ground
 from juno.diagnose.problem import BLOCK
-from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, scan_consistency
+from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, ScanTests, scan_consistency
 
 #: The rover's geometry (m), fixed here so that the test needs no FMU.
 GEOMETRY = {"wheelbase": 0.9, "track": 1.35, "pivot_height": 0.15, "wheel_radius": 0.28}
@@ -109,23 +115,94 @@ def _seed_tilted_across_the_path(key: str, least_deg: float = 30.0) -> int:
             return seed
 
 
-def test_a_synthesized_campaign_whose_scan_is_tilted_across_the_path_disagrees_and_its_untilted_twin_agrees(
-        tmp_path):
+@pytest.fixture(scope="module")
+def tilted_twins(tmp_path_factory) -> dict[str, Path]:
     """Two alternative-design campaigns of one seed (the same soil, path and sensor noise), one
-    with the scan tilted by 0.9 degree about an axis crossing the terrain run's path: the scan
-    test of the diagnosis (the same blocks, the gridded scan) calls the tilted one in height and
-    passes the other."""
-    from juno.campaign import load_campaign
-    from juno.scan_consistency import campaign_scan_consistency
+    with the scan tilted by 0.9 degree about an axis crossing the terrain run's path: effect ->
+    campaign folder."""
     from juno.synthesize import synthesize
-    from juno.validate import grid_terrain
     seed = _seed_tilted_across_the_path("alternative design")
+    root = tmp_path_factory.mktemp("tilted-twins")
+    return {effect: synthesize(root / effect, effect=effect, strength=0.9, seed=seed, design="alt")
+            for effect in ("none", "terrain_tilt")}
+
+
+def test_a_synthesized_campaign_whose_scan_is_tilted_across_the_path_disagrees_and_its_untilted_twin_agrees(
+        tilted_twins, tmp_path):
+    """The scan test of the diagnosis (the same blocks, the gridded scan) calls the tilted twin in
+    height and passes the other."""
+    from juno.campaign import load_campaign
+    from juno.scan_consistency import terrain_run_scan_consistency
+    from juno.validate import grid_terrain
     results = {}
-    for effect in ("none", "terrain_tilt"):
-        campaign = load_campaign(synthesize(tmp_path / effect, effect=effect, strength=0.9, seed=seed, design="alt"))
+    for effect, root in tilted_twins.items():
+        campaign = load_campaign(root)
         run = campaign.runs_of_kind("terrain")[0]
         _path, grid = grid_terrain(campaign, run, tmp_path / f"{effect}-grid")
-        results[effect] = campaign_scan_consistency(campaign, grid, BLOCK)
-    assert not results["none"].significant, f"seed {seed}: {results['none'].summary()}"
+        results[effect] = terrain_run_scan_consistency(campaign, run, grid, BLOCK)
+    assert not results["none"].significant, results["none"].summary()
     tilted = results["terrain_tilt"]
-    assert tilted.significant and tilted.disagreeing()[0].signal == "height", f"seed {seed}: {tilted.to_json()}"
+    assert tilted.significant and tilted.disagreeing()[0].signal == "height", tilted.to_json()
+
+
+def _with_a_second_terrain_run(twins: dict[str, Path], out: Path) -> Path:
+    """The untilted campaign with a second terrain run: the tilted twin's terrain run on its own
+    (tilted) scan, as ``t3d_tilted``."""
+    shutil.copytree(twins["none"], out)
+    manifest = json.loads((out / "campaign.json").read_text())
+    tilted = json.loads((twins["terrain_tilt"] / "campaign.json").read_text())
+    run = next(r for r in tilted["runs"] if r["kind"] == "terrain")
+    second = dict(run, id="t3d_tilted", file="runs/t3d_tilted.csv", terrain="terrain/scan_tilted.xyz")
+    shutil.copyfile(twins["terrain_tilt"] / run["file"], out / second["file"])
+    shutil.copyfile(twins["terrain_tilt"] / run["terrain"], out / second["terrain"])
+    manifest["runs"].append(second)
+    (out / "campaign.json").write_text(json.dumps(manifest, indent=2))
+    return out
+
+
+def test_of_two_terrain_runs_only_the_one_whose_scan_is_tilted_is_named(tilted_twins, tmp_path):
+    """A campaign with two terrain runs, each on its own scan, only the second's tilted: the
+    diagnosis's scan test (search.scan_against_pose) tests both, the first agrees, the second
+    disagrees in height, and with nothing named and the drawbar runs clean the verdict is
+    ``unexplained`` naming the second run alone, in its sentence, its JSON and its table."""
+    from juno.campaign import load_campaign
+    from juno.diagnose.render import _scan_table
+    from juno.diagnose.search import scan_against_pose
+    from juno.diagnose.verdict import verdict
+    from juno.identify import gridded_scans
+    from juno.residual_structure import ResidualStructure
+    campaign = load_campaign(_with_a_second_terrain_run(tilted_twins, tmp_path / "campaign"))
+    assert [r.id for r in campaign.runs_of_kind("terrain")] == ["t3d", "t3d_tilted"]
+    grids = {run_id: grid for run_id, (_path, grid) in gridded_scans(campaign, tmp_path / "grids", "validate").items()}
+    said: list[str] = []
+    scan = scan_against_pose(campaign, grids, said.append)
+    assert [r.run for r in scan.runs] == ["t3d", "t3d_tilted"] and scan.untested == {}
+    assert [r.run for r in scan.disagreeing()] == ["t3d_tilted"], scan.to_json()
+    assert scan.disagreeing()[0].disagreeing()[0].signal == "height"
+    assert said == [scan.summary()] and "terrain run t3d_tilted disagrees" in said[0]
+    assert "terrain run t3d " not in said[0], said[0]
+
+    clean_drawbar_runs = ResidualStructure([], 0.01, 20, ["dbp1", "dbp2", "dbp3"])
+    v = verdict([], clean_drawbar_runs, None, scan=scan)
+    assert v.cause == "unexplained" and v.unexplained.scan is scan
+    as_json = v.unexplained.to_json()["scan"]
+    assert as_json["disagreeing"] == ["t3d_tilted"]
+    assert [(r["run"], r["significant"]) for r in as_json["runs"]] == [("t3d", False), ("t3d_tilted", True)]
+    rows = [line for line in _scan_table(v.unexplained) if line.startswith("| t3d")]
+    assert rows and all(row.startswith("| t3d_tilted | ") for row in rows), rows
+    assert "The measured pose agrees with the scan on terrain run t3d." in _scan_table(v.unexplained)
+
+
+def test_the_scan_tests_of_several_runs_agree_only_when_every_run_agrees():
+    """The campaign's scan test disagrees when any run's does, names only those runs, and says
+    which runs it could not test."""
+    at = ScanSignal("height", "m", 3, 0.5 * FLOORS["height"], 0.0, FLOORS["height"])
+    above = ScanSignal("height", "m", 3, 2.0 * FLOORS["height"], 0.0, FLOORS["height"])
+    agreeing = ScanTests([ScanConsistency("a", [at]), ScanConsistency("b", [at])], {"c": "too short"})
+    assert not agreeing.significant and agreeing.disagreeing() == []
+    assert agreeing.summary() == ("the measured pose on terrain runs a, b agrees with their scans; "
+                                  "terrain run c not tested (too short)")
+    one_off = ScanTests([ScanConsistency("a", [at]), ScanConsistency("b", [above])])
+    assert one_off.significant and [r.run for r in one_off.disagreeing()] == ["b"]
+    assert one_off.to_json()["disagreeing"] == ["b"] and "terrain run b disagrees" in one_off.summary()
+    assert "terrain run a" not in one_off.summary()

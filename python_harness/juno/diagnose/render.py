@@ -187,17 +187,26 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
 
 
 def _scan_table(u: Unexplained) -> list[str]:
-    """One row per terrain-run signal whose measured pose disagrees with the scan
-    (juno.scan_consistency): the RMS of its held-out block means, against its floor."""
+    """One row per signal of a terrain run whose measured pose disagrees with its own scan
+    (juno.scan_consistency): the run, the RMS of the signal's held-out block means, against its
+    floor.  The runs that agree are named beneath (the floors apply per run)."""
     if u.scan is None or not u.scan.significant:
         return []
-    lines = [f"The rover posed on the scan of terrain run {u.scan.run} (no replay), against its measured pose:", "",
-             "| signal | held-out block means (RMS) | floor | mean |", "|---|---|---|---|"]
-    for s in u.scan.disagreeing():
-        scale, unit = (1000.0, "mm") if s.unit == "m" else (1000.0, "mrad")
-        lines.append(f"| {s.signal} | {s.rms * scale:.3g} {unit} | {s.floor * scale:.3g} {unit} | "
-                     f"{s.offset * scale:+.3g} {unit} |")
+    lines = ["The rover posed on each terrain run's own scan (no replay), against its measured pose:", "",
+             "| terrain run | signal | held-out block means (RMS) | floor | mean |", "|---|---|---|---|---|"]
+    for run in u.scan.disagreeing():
+        for s in run.disagreeing():
+            scale, unit = (1000.0, "mm") if s.unit == "m" else (1000.0, "mrad")
+            lines.append(f"| {run.run} | {s.signal} | {s.rms * scale:.3g} {unit} | {s.floor * scale:.3g} {unit} | "
+                         f"{s.offset * scale:+.3g} {unit} |")
     lines.append("")
+    agree = [r.run for r in u.scan.runs if not r.significant]
+    if agree:
+        lines += [f"The measured pose agrees with the scan on terrain run{'s' if len(agree) > 1 else ''} "
+                  f"{', '.join(agree)}.", ""]
+    if u.scan.untested:
+        lines += ["Not tested: " + "; ".join(f"terrain run {run} ({why})" for run, why in u.scan.untested.items())
+                  + ".", ""]
     return lines
 
 

@@ -33,7 +33,7 @@ from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate
 from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
 from ..parallel import BackgroundTask, TaskPool
 from ..residual_structure import ResidualStructure, residual_structure
-from ..scan_consistency import ScanConsistency, campaign_scan_consistency
+from ..scan_consistency import ScanTests, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
 
@@ -83,7 +83,8 @@ class Search:
 class Setting:
     """The campaign prepared: the problem (terrain runs replayed by ``terrain_drive``), the
     problem under every drive, the base model's fit, the training loss of each drive at the base
-    model, the first terrain run's gridded scan and the candidates that can be fitted."""
+    model, the first terrain run's gridded scan (the registration's), the candidates that can be
+    fitted, and every terrain run's gridded scan by run id (each run's scan test is on its own)."""
 
     problem: Problem
     problems: dict[str, Problem]
@@ -92,6 +93,7 @@ class Setting:
     drive_losses: dict[str, float]
     grid: Any
     names: list[str]
+    grids: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -160,7 +162,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         outcome = further_causes(search, first)
         structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
                                            workers if scheduler is None else None)
-        scan = scan_against_pose(campaign, setting.grid, say)
+        scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
     judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan)
@@ -171,12 +173,12 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     return result
 
 
-def scan_against_pose(campaign: Campaign, grid: Any, say: Callable[[str], None]) -> ScanConsistency | None:
-    """The first terrain run's measured pose against its scan ``grid`` (juno.scan_consistency; no
-    simulation), or None without a scan or a run long enough to test."""
-    if grid is None:
+def scan_against_pose(campaign: Campaign, grids: dict[str, Any], say: Callable[[str], None]) -> ScanTests | None:
+    """Every terrain run's measured pose against its own gridded scan (``grids``, by run id;
+    juno.scan_consistency, no simulation), or None without a terrain run."""
+    if not grids:
         return None
-    scan = campaign_scan_consistency(campaign, grid, BLOCK)
+    scan = campaign_scan_consistency(campaign, grids, BLOCK)
     if scan is not None:
         say(scan.summary())
     return scan
@@ -237,10 +239,12 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
     terrain run's gridded scan as soon as it is made."""
     grid_file: dict[str, str] | None = None
     grid = None
+    grids: dict[str, Any] = {}
     if campaign.runs_of_kind("terrain"):
         scans = gridded_scans(campaign, tmp, "validate")
         grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
-        grid = next(iter(scans.values()))[1]
+        grids = {run_id: g for run_id, (_path, g) in scans.items()}
+        grid = next(iter(grids.values()))
         if on_grid is not None:
             on_grid(grid)
     else:
@@ -267,7 +271,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
         say(f"{terrain_runs_named(campaign)} replayed by {terrain_drive} (training fit loss at the base model: "
             + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
     say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
-    return Setting(problem, problems, base, terrain_drive, drive_losses, grid, names)
+    return Setting(problem, problems, base, terrain_drive, drive_losses, grid, names, grids)
 
 
 # ------------------------------------------------------------------ the first round

@@ -8,9 +8,9 @@ residual structure test (juno/residual_structure.py) what the models leave:
 - no cause named, but the base model leaves structure: ``unexplained``, with the signals and
   what they follow (a ripple in the drive torques at N per wheel revolution counts as
   structure: no catalog cause models one);
-- no cause named, and the terrain run's measured pose disagrees with its scan
+- no cause named, and some terrain run's measured pose disagrees with its own scan
   (juno.scan_consistency, the rover posed on the scan without a replay): ``unexplained``, with
-  the signals that disagree.  Why only then: the structure test sees the drawbar runs alone, so a
+  the runs and the signals that disagree.  Why only then: the structure test sees the drawbar runs alone, so a
   scan error that is not a shift (a tilt) would otherwise be called ``none``; once a cause is
   named, the scan test says nothing about it (the catalog's soil causes change how deep the
   wheels sink, which the kinematic pose takes as uniform, and the registration moves the scan
@@ -36,7 +36,7 @@ from typing import Any
 
 from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
-from ..scan_consistency import ScanConsistency
+from ..scan_consistency import ScanTests
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -56,8 +56,8 @@ class Unexplained:
     absorbed_by: list[str] = field(default_factory=list)
     share_removed: float | None = None
     ripples: list[PeriodicSignal] = field(default_factory=list)
-    #: the terrain run's pose against its scan (juno.scan_consistency), when it disagrees
-    scan: ScanConsistency | None = None
+    #: every terrain run's pose against its scan (juno.scan_consistency), when one disagrees
+    scan: ScanTests | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
@@ -97,10 +97,10 @@ class Verdict:
 
 
 def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None,
-            scan: ScanConsistency | None = None) -> Verdict:
+            scan: ScanTests | None = None) -> Verdict:
     """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
     tests of the base model and of the model with those causes (None when none was named), and
-    the terrain run's scan test (None: no terrain run tested; used only when no cause is named)."""
+    the terrain runs' scan tests (None: no terrain run tested; used only when no cause is named)."""
     if not causes:
         disagrees = scan if scan is not None and scan.significant else None
         if base.significant or disagrees is not None:
