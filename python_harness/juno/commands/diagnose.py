@@ -13,12 +13,16 @@ from .options import add_batch_options, positive_float
 HELP = "find what the simulation gets wrong, name the cause, measure the gain"
 OUTPUTS = {"plots": "plots"}
 
+#: The names of the diagnosis's candidates (juno.diagnose.CANDIDATES), sorted: the choices of
+#: --candidates.  Written out so that building the parser, on every ``juno`` start, does not
+#: import the diagnosis (SciPy's optimizers, half a second); a test keeps it equal to the catalogue.
+CANDIDATE_NAMES = ("drivetrain_loss", "grouser", "multipass", "slip_sinkage", "soil_patch", "terrain_offset")
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from ..diagnose import CANDIDATES
     p.add_argument("campaign", metavar="CAMPAIGN")
     add_batch_options(p, "the candidate fits")
-    p.add_argument("--candidates", nargs="+", choices=sorted(CANDIDATES), help="only these candidates")
+    p.add_argument("--candidates", nargs="+", choices=CANDIDATE_NAMES, help="only these candidates")
     p.add_argument("--plots", metavar="DIR",
                    help="write residual plots to DIR (new, empty, or written by diagnose --plots before)")
     p.add_argument("--terrain-segments", type=positive_float, metavar="SECONDS",
