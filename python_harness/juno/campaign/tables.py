@@ -56,8 +56,7 @@ def _read_columns(p: Path, check_header: Callable[[list[str]], None], known: Seq
     names, rows, lines = _read_table(p, text, check_header)
     columns: dict[str, FloatArray] = {}
     extra: dict[str, np.ndarray] = {}
-    for j, name in enumerate(names):
-        cells = [row[j] for row in rows]
+    for name, cells in zip(names, map(list, zip(*rows))):
         if name in known:
             columns[name] = _parse_column(p, name, cells, lines)
         else:
@@ -199,11 +198,25 @@ def _check_rig_header(path: Path, names: list[str]) -> None:
                              f"{name[: -len(RIG_STD_SUFFIX)]!r}", path, 1, name)
 
 
+# A whole column of plain decimal numbers or empty cells, one per line: one regex call checks a
+# column, where a call per cell would cost more than the rest of reading the file.
+_COLUMN_RE = re.compile(rf"(?:{NUMBER_RE.pattern})?(?:\n(?:{NUMBER_RE.pattern})?)*")
+
+
 def _parse_column(path: Path, name: str, cells: list[str], lines: list[int]) -> FloatArray:
+    """A known column's cells as numbers (NaN for an empty cell).  A column that is not plain
+    decimal numbers throughout is read cell by cell, so the error names the first bad cell."""
+    stripped = [c.strip() for c in cells]
+    joined = "\n".join(stripped)
+    if joined.count("\n") == len(stripped) - 1 and _COLUMN_RE.fullmatch(joined) is not None:
+        out = np.full(len(stripped), np.nan)
+        filled = np.fromiter((bool(s) for s in stripped), dtype=bool, count=len(stripped))
+        out[filled] = np.fromiter(map(float, (s for s in stripped if s)), dtype=float, count=int(filled.sum()))
+        if np.all(np.isfinite(out[filled])):
+            return out
     out = np.full(len(cells), np.nan)
     for i, cell in enumerate(cells):
-        s = cell.strip()
-        if s:
+        if cell.strip():
             out[i] = parse_finite(cell, path, lines[i], name)
     return out
 
