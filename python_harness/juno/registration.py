@@ -48,6 +48,11 @@ better than the scan as it is.  held_out_evidence() fits it on training samples 
 measures how much better it explains the held-out ones (HELD_OUT_RATIO): that is how the
 diagnosis judges a misregistration.  No FMU is needed.
 
+A registration belongs to a scan: each scan was taken and registered on its own, with its own
+error.  scans_of() groups a campaign's terrain runs by the scan file they name; the runs on one
+scan share its registration, fitted on all of them at once (their traverses joined), and no
+other scan's data enters it (ScanEvidence, ScanRegistrations).
+
 Assumptions, named: the sinkage is the same everywhere (it changes by millimetres with the
 load transfer, which the attitude gains absorb); each wheel is a rigid circle in the vertical
 plane of the chassis heading (the tyre's width and the wheel's lean with the chassis roll are
@@ -311,6 +316,8 @@ class HeldOutEvidence:
     held_out_ms_as_scanned: float
     held_out_ms_registered: float
     offsets_all: dict[str, float] | None = None
+    #: how many held-out samples (each a height, pitch and roll) the mean squares are over
+    held_out_samples: int = 0
 
     @property
     def ratio(self) -> float:
@@ -349,7 +356,8 @@ def held_out_evidence(grid: Grid, tr: Traverse, h0: float | None, train: np.ndar
             r[:len(held_out.z)] -= np.mean(r[:len(held_out.z)])
         return float(np.mean(r ** 2))
 
-    evidence = HeldOutEvidence(_offsets(x), mean_square(np.zeros(4), gains), mean_square(x[:4], x[4:]))
+    evidence = HeldOutEvidence(_offsets(x), mean_square(np.zeros(4), gains), mean_square(x[:4], x[4:]),
+                               held_out_samples=len(held_out.x))
     if not evidence.significant:
         return evidence
     # Where the scan is, once it is known to be misregistered, is measured on the whole run:
@@ -395,3 +403,105 @@ def flat_height(campaign) -> float | None:
         t, z = data.samples("pos_z")
         heights.append(z[t >= t[0] + SETTLING])
     return float(np.mean(np.concatenate(heights))) if heights else None
+
+
+def joined(traverses: list[Traverse]) -> Traverse:
+    """The traverses of several runs over one scan as one (their samples one after another): the
+    registration poses the rover at every sample on its own, so runs join without a seam.  Pitch
+    and roll are kept only where every run measured them (the residuals are one block per
+    signal); the geometry is the first run's (one rover per campaign)."""
+    if not traverses:
+        raise ValueError("joined: no traverse to join")
+    first = traverses[0]
+    if len(traverses) == 1:
+        return first
+
+    def cat(name: str) -> np.ndarray | None:
+        parts = [getattr(tr, name) for tr in traverses]
+        return None if any(a is None for a in parts) else np.concatenate(parts)
+    return replace(first, x=cat("x"), y=cat("y"), z=cat("z"), yaw=cat("yaw"), pitch=cat("pitch"),
+                   roll=cat("roll"), t=cat("t"))
+
+
+def scans_of(campaign) -> list[tuple[str, list]]:
+    """The campaign's scans, each with the terrain runs on it (juno.campaign RunSpec, manifest
+    order), in the order of their first run: runs naming one file (the same file however the
+    manifest spells its path) share one scan.  Each scan is named as the manifest names it for its
+    first run."""
+    scans: dict[str, tuple[str, list]] = {}
+    for run in campaign.runs_of_kind("terrain"):
+        key = str(campaign.terrain_path(run).resolve())
+        scans.setdefault(key, (run.terrain, []))[1].append(run)
+    return list(scans.values())
+
+
+@dataclass(frozen=True)
+class ScanEvidence:
+    """One scan's registration: the scan file (as the campaign's manifest names it), the terrain
+    runs on it, and the held-out evidence of the registration fitted on their training samples
+    (None when the runs are too short to hold both training and held-out samples)."""
+
+    scan: str
+    runs: tuple[str, ...]
+    evidence: HeldOutEvidence | None
+
+    @property
+    def significant(self) -> bool:
+        """Whether the pose shows this scan misregistered (HELD_OUT_RATIO on its own held-out
+        samples)."""
+        return self.evidence is not None and self.evidence.significant
+
+    @property
+    def offsets(self) -> dict[str, float]:
+        """The registration applied to this scan: the one fitted on every sample of its runs once
+        the evidence is significant, else the scan as it is (all 0)."""
+        if self.significant:
+            return dict(self.evidence.offsets_all)
+        return _offsets(np.zeros(4))
+
+
+@dataclass(frozen=True)
+class ScanRegistrations:
+    """Every scan's registration (ScanEvidence, the campaign's scans in order), at least one with
+    evidence.  The scans are judged one by one, each on its own held-out samples; the campaign's
+    figures pool them: the held-out mean squared scaled residual over every scan's held-out
+    samples, as scanned and with each scan registered as fitted on its training samples (for one
+    scan, that scan's own figures)."""
+
+    scans: tuple[ScanEvidence, ...]
+
+    def _tested(self) -> list[HeldOutEvidence]:
+        return [s.evidence for s in self.scans if s.evidence is not None]
+
+    def _pooled(self, name: str) -> float:
+        tested = self._tested()
+        total = sum(e.held_out_samples for e in tested)
+        if len(tested) == 1 or total == 0:
+            return float(np.mean([getattr(e, name) for e in tested]))
+        return float(sum(e.held_out_samples / total * getattr(e, name) for e in tested))
+
+    @property
+    def held_out_ms_as_scanned(self) -> float:
+        return self._pooled("held_out_ms_as_scanned")
+
+    @property
+    def held_out_ms_registered(self) -> float:
+        return self._pooled("held_out_ms_registered")
+
+    @property
+    def ratio(self) -> float:
+        return self.held_out_ms_as_scanned / max(self.held_out_ms_registered, 1e-300)
+
+    @property
+    def gain(self) -> float:
+        """Relative pooled held-out gain of the registrations over the scans as they are."""
+        return 1.0 - self.held_out_ms_registered / self.held_out_ms_as_scanned
+
+    @property
+    def significant(self) -> bool:
+        """Whether some scan is misregistered (its own evidence significant)."""
+        return any(s.significant for s in self.scans)
+
+    def misregistered(self) -> list[ScanEvidence]:
+        """The scans whose evidence is significant, in order."""
+        return [s for s in self.scans if s.significant]

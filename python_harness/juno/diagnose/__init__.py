@@ -26,9 +26,10 @@
    base model or a candidate, fit its training blocks best; settle_terrain_drive).
    The registration is measured
    kinematically (juno.registration: the rover posed on the scan against the
-   measured height, pitch and roll) on the terrain run's training blocks, and in
-   the first round judged the same way on its held-out blocks (registration_evidence,
-   HELD_OUT_RATIO); on top of another cause it is judged like the others, since
+   measured height, pitch and roll), one per scan on the training blocks of the
+   terrain runs on that scan, and in the first round judged the same way on their
+   held-out blocks (registration_evidence, HELD_OUT_RATIO; a scan whose evidence
+   passes is moved by its own offsets, applied to its runs only: registration_candidate); on top of another cause it is judged like the others, since
    the kinematic model does not know that cause.  A gain counts as significant only when
    a paired test over held-out units (run, block, signal; Wilcoxon on the
    units' mean squared-residual change, so time correlation inside a block is
@@ -95,8 +96,8 @@ from .references import best_reference, on_reference_soil
 from .render import apart_sentence, by_kind, duel_sentence, report_section, residual_figures, summary_lines
 from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, DiagnosisResult, Duel, ExtendedModel,
                       GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, PlotData, Ranked, ResidualAnalysis,
-                      SignalGain, TiedPair, public_json)
+                      ScanRegistration, SignalGain, TiedPair, public_json)
 from .search import (choose_branch, diagnose, first_cause_branches, refit_from_paper_soil, second_round,
                      tied_models_apart)
-from .starts import patch_grid, patch_start, registration_evidence, registration_start
+from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

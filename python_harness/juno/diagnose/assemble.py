@@ -95,6 +95,17 @@ def no_cause_gain(base: FitResult, candidates: list[JudgedCandidate]) -> NoCause
                        candidates[0].gain if candidates else 0.0)
 
 
+def _cause_named(name: str, outcome: Outcome) -> str:
+    """A named cause's physical explanation; for the registration of a campaign with several
+    scans, with the scans it moves and the runs on each (the scans the pose shows misregistered)."""
+    cause = CANDIDATES[name].cause
+    pose = next((c.kinematic for c in outcome.candidates if c.name == name and c.kinematic), None)
+    if pose is None or not pose.scans or len(pose.scans) < 2 or not pose.misregistered():
+        return cause
+    return cause + " (" + "; ".join(f"scan {s.scan}, " + ("run " if len(s.runs) == 1 else "runs ") + ", ".join(s.runs)
+                                    for s in pose.misregistered()) + ")"
+
+
 def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, duels: list[Duel], outcome: Outcome,
                      criteria: Criteria, t_start: float, judged: Verdict,
                      structures: tuple[ResidualStructure, ResidualStructure | None]) -> DiagnosisResult:
@@ -109,7 +120,7 @@ def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, du
         gain: CauseGain | NoCauseGain = cause_gain(problem, run_kind, base, outcome)
     else:
         extended, gain = ExtendedModel(None, []), no_cause_gain(base, outcome.candidates)
-    catalog = "; then ".join(CANDIDATES[c].cause for c in causes)
+    catalog = "; then ".join(_cause_named(c, outcome) for c in causes)
     plot_data = PlotData(problem.meta, problem.train, base.residuals,
                          outcome.chosen[-1].residuals if outcome.chosen else None)
     structure = {"base": structures[0].to_json(),

@@ -7,6 +7,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Separates a parameter's FMU name from the runs it applies to: ``NAME@RUN,RUN`` is given to
+#: those runs as NAME and to no other run (problem.residuals_or_failure).  Run ids cannot hold
+#: either character (juno.campaign's manifest check).
+RUNS_MARK, RUNS_SEPARATOR = "@", ","
+
+
+def for_runs(name: str, runs: tuple[str, ...] | list[str]) -> str:
+    """The name of FMU parameter ``name`` applied to ``runs`` only (RUNS_MARK)."""
+    return name + RUNS_MARK + RUNS_SEPARATOR.join(runs)
+
+
+def unqualified(name: str) -> str:
+    """The FMU name of a parameter (``name`` without the runs it is applied to, for_runs)."""
+    return name.split(RUNS_MARK, 1)[0]
+
+
+def run_parameters(params: dict[str, object], run_id: str) -> dict[str, object]:
+    """The FMU parameters run ``run_id`` is replayed with: the unqualified ones, overridden by
+    those applied to that run (for_runs); parameters applied to other runs only are left out."""
+    out: dict[str, object] = {}
+    own: dict[str, object] = {}
+    for k, v in params.items():
+        if RUNS_MARK not in k:
+            out[k] = v
+        else:
+            name, runs = k.split(RUNS_MARK, 1)
+            if run_id in runs.split(RUNS_SEPARATOR):
+                own[name] = v
+    return {**out, **own}
+
 
 @dataclass(frozen=True)
 class ExtParam:
@@ -57,12 +87,31 @@ class Candidate:
         return all(e.name.startswith("terrain.") for e in self.params)
 
     def acts(self, params: dict[str, float]) -> bool:
-        """Whether the extension is switched on at ``params``."""
-        return any(abs(params.get(n, v) - v) > tol for n, v, tol in self.active)
+        """Whether the extension is switched on at ``params`` (where it is applied to some runs
+        only, for_runs: on any of them)."""
+        return any(abs(params.get(k, v) - v) > tol for n, v, tol in self.active for k in self._named(params, n))
 
     def switched_off(self, params: dict[str, float]) -> dict[str, float]:
         """``params`` with this extension at its neutral setting (everything else kept)."""
-        return {**params, **{n: v for n, v, _tol in self.active}}
+        return {**params, **{k: v for n, v, _tol in self.active for k in self._named(params, n)}}
+
+    def parameters_in(self, params: dict[str, float]) -> int:
+        """How many parameters the extension adds in the fit ``params``: each of its parameters
+        once for every group of runs ``params`` applies it to (for_runs), and once where it is
+        applied to every run (or not set)."""
+        names = {unqualified(e.name) for e in self.params}
+        return sum(max(1, sum(1 for k in params if unqualified(k) == n)) for n in names)
+
+    def owns(self, name: str) -> bool:
+        """Whether ``name`` (an FMU name, or one applied to some runs) is one of the extension's."""
+        return any(unqualified(name) == unqualified(e.name) for e in self.params)
+
+    @staticmethod
+    def _named(params: dict[str, float], name: str) -> list[str]:
+        """The entries of ``params`` that set FMU parameter ``name`` (for every run, or for some,
+        for_runs); [name] when none does (it is then at its neutral setting)."""
+        found = [k for k in params if unqualified(k) == name]
+        return found or [name]
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
@@ -95,8 +144,10 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               (ExtParam("drive.lossFraction", 0.0, 0.0, 0.9),),
               active=(("drive.lossFraction", 0.0, 0.005),), soil_restart=True),
     # The registration is kinematic (juno.registration: the scan against the measured height,
-    # pitch and roll on the terrain run's training blocks, no simulation) and judged on the
-    # held-out blocks the same way (starts.registration_evidence, judging.judge).  Refined by
+    # pitch and roll on the terrain runs' training blocks, no simulation) and judged on the
+    # held-out blocks the same way (starts.registration_evidence, judging.judge).  These four
+    # parameters move every terrain run's scan; a campaign with several scans gets them once per
+    # scan it moves, applied to that scan's runs (starts.registration_candidate).  Refined by
     # simulation, it would also fit what the soil model gets wrong on the terrain run (a turn of
     # the scan can mimic a grouser's extra climbing thrust), so it is not refined; nor is it
     # rejected by the replay's training error, which also carries the soil model's error.

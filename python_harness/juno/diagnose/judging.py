@@ -11,12 +11,12 @@ from typing import Sequence, TypeVar
 import numpy as np
 
 from ..identify import soil_at_search_bounds
-from ..registration import HeldOutEvidence
+from ..registration import HeldOutEvidence, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS
 from .candidates import CANDIDATES, Candidate
 from .fitting import FitResult
 from .problem import Problem
-from .results import Ablation, Duel, JudgedCandidate, KinematicEvidence, Ranked
+from .results import Ablation, Duel, JudgedCandidate, KinematicEvidence, Ranked, ScanRegistration
 
 Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
 GAIN_MIN = 0.03      # and at least 3 % less held-out mean squared residual (per parameter added)
@@ -143,10 +143,18 @@ def ablation(problem: Problem, run_kind: np.ndarray, switched_off: FitResult, re
                     gain_by_kind(problem, run_kind, switched_off.residuals, res.residuals))
 
 
-def kinematic_evidence(registration: HeldOutEvidence) -> KinematicEvidence:
-    """The registration's held-out pose evidence as reported."""
+def kinematic_evidence(registration: HeldOutEvidence | ScanRegistrations) -> KinematicEvidence:
+    """The registration's held-out pose evidence as reported: the campaign's (pooled over its
+    scans) and, given every scan's (ScanRegistrations), each scan's own."""
+    scans = None
+    if isinstance(registration, ScanRegistrations):
+        scans = [ScanRegistration(s.scan, list(s.runs), s.offsets,
+                                  None if s.evidence is None else s.evidence.held_out_ms_as_scanned,
+                                  None if s.evidence is None else s.evidence.held_out_ms_registered,
+                                  None if s.evidence is None else s.evidence.ratio, s.significant)
+                 for s in registration.scans]
     return KinematicEvidence(registration.held_out_ms_as_scanned, registration.held_out_ms_registered,
-                             registration.ratio, registration.gain, registration.significant)
+                             registration.ratio, registration.gain, registration.significant, scans)
 
 
 def soil_at_bounds(params: dict[str, float]) -> list[str]:
@@ -156,10 +164,13 @@ def soil_at_bounds(params: dict[str, float]) -> list[str]:
 
 
 def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, float], off: Ablation | None,
-                   registration: HeldOutEvidence | None, at_bounds: Sequence[str] = ()) -> bool:
+                   registration: HeldOutEvidence | ScanRegistrations | None, at_bounds: Sequence[str] = (),
+                   n_params: int | None = None) -> bool:
     """Whether a judged candidate names a cause.  The registration, with its kinematic evidence
     given: that evidence is significant, the extension acts and no kind of run's replay gets
-    significantly worse.  Every other candidate: its gain passes (passes), the extension acts,
+    significantly worse (some scan's own evidence, for a campaign of several scans).  Every other
+    candidate: its gain passes (passes, for the ``n_params`` its fit adds, Candidate.parameters_in;
+    the catalogue's count when not given), the extension acts,
     switching it off loses the gain by the same rule (when the ablation is given), and the soil
     fitted with it sits at no bound of the search (``at_bounds``, soil_at_bounds).
 
@@ -173,12 +184,13 @@ def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, 
     on, and the ablation, which switches the extension off on that same bent soil, cannot see it."""
     if registration is not None and candidate.is_registration:
         return bool(registration.significant and acts and min(zs.values()) > -Z_MIN)
-    n = len(candidate.params)
+    n = len(candidate.params) if n_params is None else n_params
     return passes(n, gain, zs) and acts and (off is None or passes(n, off.gain, off.z_by_kind)) and not at_bounds
 
 
 def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
-          switched_off: FitResult | None = None, registration: HeldOutEvidence | None = None) -> JudgedCandidate:
+          switched_off: FitResult | None = None, registration: HeldOutEvidence | ScanRegistrations | None = None
+          ) -> JudgedCandidate:
     """A candidate's held-out gain over ``reference`` (the base model, or the first cause), and
     whether it is significant (is_significant).
 
@@ -204,7 +216,9 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
     times better than the scan as it is where the scan was misregistered, and about as well
     (0.5-1.5 times) where it was not, while its replayed gain was often only a few per cent.  On
     top of another cause the kinematic evidence is not given: a soft soil patch, which the
-    kinematic model does not know, sinks the rover as a lowered scan would."""
+    kinematic model does not know, sinks the rover as a lowered scan would.  A campaign with
+    several scans has a registration per scan (starts.registration_candidate), charged four
+    parameters for each scan it moves on the replay, as any parameter is."""
     candidate = CANDIDATES[res.name]
     if res.error:
         return JudgedCandidate(res.name, candidate.cause, 0.0, 0.0, False, False, "failed", res.failed_evaluations,
@@ -216,20 +230,20 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
     acts = candidate.acts(res.params)
     off = None if switched_off is None else ablation(problem, run_kind, switched_off, res)
     use_pose = registration is not None and candidate.is_registration
-    own = {e.name for e in candidate.params}
+    n_params = candidate.parameters_in(res.params)
     # The registration's soil is its reference's (references.on_reference_soil), not fitted with it.
     at_bounds = [] if candidate.is_registration else soil_at_bounds(res.params)
     return JudgedCandidate(
         res.name, candidate.cause, float(gain), float(max(zs.values())),
-        is_significant(candidate, acts, gain, zs, off, registration, at_bounds), acts, res.status,
+        is_significant(candidate, acts, gain, zs, off, registration, at_bounds, n_params), acts, res.status,
         res.failed_evaluations,
         gain_by_kind=gain_by_kind(problem, run_kind, reference.residuals, res.residuals), z_by_kind=zs,
         ablation=off, kinematic=kinematic_evidence(registration) if use_pose else None, judged_on=list(kinds),
         held_out_mse_before=held_out_mse(problem, reference.residuals, everywhere),
         held_out_mse_after=float(np.mean(capped_square(res.residuals[~problem.train & everywhere]))),
-        test_mse=res.test_mse, train_mse=res.train_mse, n_params=len(candidate.params),
+        test_mse=res.test_mse, train_mse=res.train_mse, n_params=n_params,
         soil={k: res.params[k] for k in SOIL_PARAMETERS},
-        extension={k: v for k, v in res.params.items() if k in own}, soil_at_bounds=at_bounds,
+        extension={k: v for k, v in res.params.items() if candidate.owns(k)}, soil_at_bounds=at_bounds,
         evaluations=res.evaluations, wall_time=res.wall_time)
 
 

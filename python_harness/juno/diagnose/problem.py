@@ -11,6 +11,7 @@ import numpy as np
 from ..campaign import Campaign
 from ..identify import PreparedRun, Segment, prepare_run, run_residuals
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
+from .candidates import run_parameters
 
 BLOCK = 4.0          # s, length of the alternating training / held-out blocks
 OUTPUT_INTERVAL = 0.05   # s between the FMU's output samples the residuals are read from
@@ -194,14 +195,16 @@ def residuals_or_failure(fmu: JunoFMU, problem: Problem, params: dict[str, objec
     same parameters is not simulated again."""
     soil = {k: params[k] for k in SOIL_PARAMETERS}
     extra = {k: v for k, v in params.items() if k not in SOIL_PARAMETERS}
-    # The registration belongs to the scan: runs on flat ground (no terrain file) do not get it
-    # (the FMU would raise its flat ground by terrain.offsetZ).
-    flat_extra = {k: v for k, v in extra.items() if not k.startswith("terrain.")}
     parts = []
     for p in problem.prepared:
         if p.kind not in kinds:
             continue
-        run_extra = extra if "terrain.file" in p.params else flat_extra
+        # A parameter applied to some runs only (candidates.for_runs: a scan's registration) goes
+        # to those runs.  The registration belongs to the scan: runs on flat ground (no terrain
+        # file) do not get it (the FMU would raise its flat ground by terrain.offsetZ).
+        run_extra = run_parameters(extra, p.run_id)
+        if "terrain.file" not in p.params:
+            run_extra = {k: v for k, v in run_extra.items() if not k.startswith("terrain.")}
         key = ReplayCache.key(p, {**p.params, **soil, **run_extra}) if cache is not None else None
         known = cache.get(key) if cache is not None else None
         part, failure = known if known is not None else _replay(fmu, p, soil, run_extra)

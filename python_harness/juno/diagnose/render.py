@@ -249,7 +249,21 @@ def _candidates_table(result: DiagnosisResult) -> list[str]:
         lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {significance(c)} |")
     lines.append("")
     for c in result.candidates:
-        if c.kinematic:
+        if c.kinematic and c.kinematic.scans and len(c.kinematic.scans) > 1:
+            lines += [f"The registration ({c.name}) is judged on the measured pose, not on the replay, one per scan: "
+                      f"fitted on the training blocks of the terrain runs on a scan, it is evidence that the scan "
+                      f"is misregistered when it explains their held-out blocks' height, pitch and roll at least "
+                      f"{result.criteria.registration_held_out_ratio:g} times better than the scan as it is.", "",
+                      "| scan | terrain runs | held-out ratio | misregistered | offsets x, y, z (m), yaw (rad) |",
+                      "|---|---|---|---|---|"]
+            for s in c.kinematic.scans:
+                ratio = "too short to test" if s.ratio is None else f"{s.ratio:.3g}"
+                offsets = ", ".join(f"{s.offsets[k]:+.3f}" for k in ("terrain.offsetX", "terrain.offsetY",
+                                                                       "terrain.offsetZ", "terrain.offsetYaw"))
+                lines.append(f"| {s.scan} | {', '.join(s.runs)} | {ratio} | {'yes' if s.misregistered else 'no'} "
+                             f"| {offsets} |")
+            lines.append("")
+        elif c.kinematic:
             k = c.kinematic
             lines += [f"The registration ({c.name}) is judged on the measured pose, not on the replay: fitted on "
                       f"the terrain run's training blocks, it explains the held-out blocks' height, pitch and roll "

@@ -64,19 +64,46 @@ class Ablation:
 
 
 @dataclass(frozen=True)
+class ScanRegistration:
+    """One scan's registration (juno.registration.ScanEvidence): the scan file as the manifest
+    names it, the terrain runs on it, the offsets applied to it (FMU names terrain.offsetX, Y, Z
+    in m and terrain.offsetYaw in rad; all 0 when it stays as it is), its held-out mean squared
+    scaled residual of height, pitch and roll as scanned and registered and their ratio (None
+    when its runs are too short to test), and whether the pose shows it misregistered."""
+
+    scan: str
+    runs: list[str]
+    offsets: dict[str, float]
+    held_out_ms_as_scanned: float | None
+    held_out_ms_registered: float | None
+    ratio: float | None
+    misregistered: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return _fields_json(self)
+
+
+@dataclass(frozen=True)
 class KinematicEvidence:
     """The registration's held-out evidence on the measured pose (juno.registration): mean squared
-    scaled residual of height, pitch and roll with the scan as it is and registered, their ratio,
-    the relative gain, and whether it is significant (registration.HELD_OUT_RATIO)."""
+    scaled residual of height, pitch and roll with the scans as they are and registered (pooled
+    over the scans), their ratio, the relative gain, whether it is significant (some scan's own
+    evidence passes registration.HELD_OUT_RATIO), and each scan's registration (``scans``, left
+    out when not known)."""
 
     held_out_ms_as_scanned: float
     held_out_ms_registered: float
     ratio: float
     gain: float
     significant: bool
+    scans: list[ScanRegistration] | None = None
+
+    def misregistered(self) -> list[ScanRegistration]:
+        """The scans the pose shows misregistered."""
+        return [s for s in self.scans or [] if s.misregistered]
 
     def to_json(self) -> dict[str, Any]:
-        return _fields_json(self)
+        return _fields_json(self, omit_if_none=("scans",))
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import numpy as np
 from ..campaign import Campaign, load_campaign, read_run
 from ..errors import InputError
 from ..identify import PAPER_INITIAL, gridded_scans, require_runs
-from ..registration import HELD_OUT_RATIO, HeldOutEvidence
+from ..registration import HELD_OUT_RATIO, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 from ..telling_apart import heaviest_drawbar_load, telling_apart
 from .assemble import diagnosis_result
@@ -30,7 +30,8 @@ from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, j
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
-from .starts import patch_grid, patch_on_the_ground, patch_start, registration_evidence, registration_start
+from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_candidate, registration_evidence,
+                     registration_start)
 from ..parallel import BackgroundTask, TaskPool
 from ..residual_structure import ResidualStructure, residual_structure
 from ..scan_consistency import ScanTests, campaign_scan_consistency
@@ -47,12 +48,14 @@ LONG_FIT = 3 * CANDIDATE_ITERATIONS
 class Search:
     """What every step of the search shares: the campaign, the problem as the candidates are
     judged on it (and each residual's kind of run), the candidates searched with a campaign-made
-    grid, the registration's kinematic evidence, where the fits run, and the progress reporter."""
+    grid (and the registration, once known, with the offsets of each scan it moves), the
+    registration's kinematic evidence (every scan's), where the fits run, and the progress
+    reporter."""
 
     campaign: Campaign
     problem: Problem
     searched: dict[str, Candidate]
-    registration: HeldOutEvidence | None
+    registration: ScanRegistrations | None
     workers: int | None
     scheduler: str | None
     say: Callable[[str], None]
@@ -65,14 +68,21 @@ class Search:
         self.run_kind = run_kinds(self.problem)
 
     def registration_known(self) -> None:
-        """Waits for the registration being fitted (if any), and says what it found."""
+        """Waits for the registration being fitted (if any), makes the registration candidate
+        the campaign's (starts.registration_candidate: one registration per scan), and says what
+        it found."""
         if self.registering is None:
             return
         self.registration, self.registering = self.registering.result(), None
-        if self.registration is not None:
-            self.say(f"registration fitted on the training blocks of terrain run "
-                     f"{self.campaign.runs_of_kind('terrain')[0].id}: held-out pose "
-                     f"{self.registration.ratio:.3g} times better than the scan as it is")
+        self.searched["terrain_offset"] = registration_candidate(self.registration)
+        for scan in self.registration.scans if self.registration is not None else ():
+            runs = ("terrain run " if len(scan.runs) == 1 else "terrain runs ") + ", ".join(scan.runs)
+            if scan.evidence is None:
+                self.say(f"scan {scan.scan}: not registered ({runs} too short for training and held-out blocks)")
+                continue
+            self.say(f"registration of scan {scan.scan} fitted on the training blocks of {runs}: held-out pose "
+                     f"{scan.evidence.ratio:.3g} times better than the scan as it is"
+                     + (" (misregistered)" if scan.significant else ""))
 
     def fits(self, jobs: list[FitJob]) -> list[FitResult]:
         """The fits of ``jobs``, in order (fitting.run_jobs, where this search's fits run)."""
@@ -83,7 +93,7 @@ class Search:
 class Setting:
     """The campaign prepared: the problem (terrain runs replayed by ``terrain_drive``), the
     problem under every drive, the base model's fit, the training loss of each drive at the base
-    model, the first terrain run's gridded scan (the registration's), the candidates that can be
+    model, the first terrain run's gridded scan, the candidates that can be
     fitted, and every terrain run's gridded scan by run id (each run's scan test is on its own)."""
 
     problem: Problem
@@ -149,11 +159,11 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         fmu_path = fmu_snapshot(fmu_path, tmp, scheduler)
         registering: list[BackgroundTask] = []
 
-        def start_registration(grid) -> None:
-            """The kinematic registration, fitted in a process of its own from the moment the
-            scan is gridded (in this process when the diagnosis is to run in one)."""
+        def start_registration(grids: dict[str, Any]) -> None:
+            """The kinematic registration of every scan, fitted in a process of its own from the
+            moment the scans are gridded (in this process when the diagnosis is to run in one)."""
             registering.append(stack.enter_context(
-                BackgroundTask(_registration_task, (campaign, grid), background=workers != 1)))
+                BackgroundTask(_registration_task, (campaign, grids), background=workers != 1)))
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration)
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
@@ -184,10 +194,11 @@ def scan_against_pose(campaign: Campaign, grids: dict[str, Any], say: Callable[[
     return scan
 
 
-def _registration_task(args: tuple[Campaign, Any]) -> HeldOutEvidence | None:
-    """starts.registration_evidence of (campaign, gridded scan): a picklable task."""
-    campaign, grid = args
-    return registration_evidence(campaign, grid)
+def _registration_task(args: tuple[Campaign, dict[str, Any]]) -> ScanRegistrations | None:
+    """starts.registration_evidence of (campaign, each terrain run's gridded scan): a picklable
+    task."""
+    campaign, grids = args
+    return registration_evidence(campaign, grids)
 
 
 def terrain_runs_named(campaign: Campaign) -> str:
@@ -235,8 +246,8 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
     """Grids every terrain run's scan into ``tmp`` (each terrain run is replayed on its own), builds
     the problem, fits the base model (an error if it fails; its Jacobians over ``workers`` local
     processes) and chooses the terrain drive the candidates are fitted with.  Without a terrain
-    run the candidates that need one are left out.  ``on_grid`` is called with the first
-    terrain run's gridded scan as soon as it is made."""
+    run the candidates that need one are left out.  ``on_grid`` is called with every terrain
+    run's gridded scan (by run id) as soon as they are made."""
     grid_file: dict[str, str] | None = None
     grid = None
     grids: dict[str, Any] = {}
@@ -246,7 +257,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
         grids = {run_id: g for run_id, (_path, g) in scans.items()}
         grid = next(iter(grids.values()))
         if on_grid is not None:
-            on_grid(grid)
+            on_grid(grids)
     else:
         # A candidate is never missing from the results unexplained, and a diagnosis left with no
         # candidate would report "none" without having tried one: an error, before the base fit.
@@ -407,7 +418,8 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
     for chosen in branches:
         label = "+".join(r.name for r in chosen)
         final = replace(chosen[-1], name=label)
-        n_params = sum(len(CANDIDATES[r.name].params) for r in chosen)   # a two-cause fit is named after its second
+        # a two-cause fit is named after its second; a registration counts four per scan it moves
+        n_params = sum(CANDIDATES[r.name].parameters_in(r.params) for r in chosen)
         gain = relative_gain(problem, base.residuals, final.residuals, everywhere)
         summaries.append(Contender(label, gain, n_params))
         fits.append(final)

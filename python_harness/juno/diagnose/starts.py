@@ -1,7 +1,8 @@
 """Where a candidate's search starts: the soil patch at the base model's worst place
 (patch_start) and along the ground the drawbar runs covered (patch_grid), its centre kept on
-the ground the wheels touched (patch_on_the_ground), and the registration
-fitted kinematically on the measured pose (registration_evidence, registration_start)."""
+the ground the wheels touched (patch_on_the_ground), and the registration of each scan fitted
+kinematically on the measured pose (registration_evidence, registration_candidate,
+registration_start)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..campaign import Campaign, read_run
-from ..registration import HeldOutEvidence
-from .candidates import CANDIDATES, Candidate
+from ..registration import ScanEvidence, ScanRegistrations
+from .candidates import CANDIDATES, Candidate, for_runs
 from .problem import BLOCK, Problem
 
 #: Bins along x (m) over which patch_start averages the squared residuals: the distance from which
@@ -127,33 +128,67 @@ def patch_on_the_ground(campaign: Campaign, fmu_path: str) -> Candidate:
     return replace(patch, params=params)
 
 
-def registration_evidence(campaign: Campaign, grid) -> HeldOutEvidence | None:
-    """The scan's registration fitted kinematically on the first terrain run's training blocks
-    (the measured height, pitch and roll against the rover posed on ``grid``, that run's gridded
-    scan, no simulation: juno.registration), and how much better than the scan as it is it
-    explains the held-out blocks.  None when the run is too short to have both kinds of block.
+def registration_evidence(campaign: Campaign, grids) -> ScanRegistrations | None:
+    """Each scan's registration fitted kinematically on the training blocks of the terrain runs on
+    it (the measured height, pitch and roll against the rover posed on the scan, no simulation:
+    juno.registration), and how much better than the scan as it is it explains their held-out
+    blocks.  ``grids``: each terrain run's gridded scan by run id (runs on one scan have the same
+    grid; the scan's first run's is used), or one grid for every terrain run.  None when no scan's
+    runs are long enough to have both kinds of block.
 
-    One registration for the campaign: the registration candidate's offsets are applied to every
-    terrain run's scan alike, and the evidence comes from the first terrain run only (a campaign
-    whose terrain runs were scanned separately gets no per-scan registration)."""
-    from ..registration import flat_height, held_out_evidence, traverse_of
-    run = campaign.runs_of_kind("terrain")[0]
-    traverse = traverse_of(campaign, run)
-    # The blocks of build_problem, which count from the run's first sample: the traverse's times
-    # are the run's own clock, which may start anywhere (a data logger's), and blocks counted on
-    # it would fit the registration on the blocks the replay is judged on.
-    since_start = traverse.t - read_run(campaign, run).time[0]
-    train = (np.floor(since_start / BLOCK).astype(int) % 2) == 0
-    if train.all() or not train.any():
+    Why per scan: each scan was taken and registered on its own, so each has its own error; the
+    runs on one scan share its registration and all of them measure it, and no other scan's
+    data enters it (juno.registration.scans_of)."""
+    from ..registration import flat_height, held_out_evidence, joined, scans_of, traverse_of
+    h0 = flat_height(campaign)
+    found = []
+    for scan, runs in scans_of(campaign):
+        grid = grids[runs[0].id] if isinstance(grids, dict) else grids
+        traverses, masks = [], []
+        for run in runs:
+            traverse = traverse_of(campaign, run)
+            # The blocks of build_problem, which count from the run's first sample: the traverse's
+            # times are the run's own clock, which may start anywhere (a data logger's), and
+            # blocks counted on it would fit the registration on the blocks the replay is judged on.
+            since_start = traverse.t - read_run(campaign, run).time[0]
+            traverses.append(traverse)
+            masks.append((np.floor(since_start / BLOCK).astype(int) % 2) == 0)
+        train = np.concatenate(masks)
+        evidence = None
+        if train.any() and not train.all():
+            evidence = held_out_evidence(grid, joined(traverses), h0, train)
+        found.append(ScanEvidence(scan, tuple(r.id for r in runs), evidence))
+    if all(s.evidence is None for s in found):
         return None
-    return held_out_evidence(grid, traverse, flat_height(campaign), train)
+    return ScanRegistrations(tuple(found))
 
 
-def registration_start(evidence: HeldOutEvidence | None) -> dict[str, float]:
-    """Where the registration candidate is: if its held-out evidence is significant, the
-    kinematic registration fitted on the whole terrain run (so its replayed gain, which is
-    reported but not judged, is not fully held out for the height), else the scan as it is (the
-    neutral setting, which does not act)."""
-    if evidence is not None and evidence.significant:
-        return dict(evidence.offsets_all)
-    return {e.name: 0.0 for e in CANDIDATES["terrain_offset"].params}
+def _registered_scans(evidence: ScanRegistrations) -> list[ScanEvidence]:
+    """The scans the registration candidate moves: those whose evidence is significant; when none
+    is, every scan (each at its neutral setting)."""
+    return evidence.misregistered() or list(evidence.scans)
+
+
+def registration_candidate(evidence: ScanRegistrations | None) -> Candidate:
+    """The registration candidate of a campaign: the catalogue's four offsets, which move every
+    terrain run's scan alike, when the campaign has one scan; with several, the four offsets of
+    each scan it moves (_registered_scans), each applied to that scan's runs only
+    (candidates.for_runs), so the offsets of one scan never move another and every scan moved
+    is charged its own four parameters (Candidate.parameters_in)."""
+    catalogue = CANDIDATES["terrain_offset"]
+    if evidence is None or len(evidence.scans) == 1:
+        return catalogue
+    return replace(catalogue, params=tuple(replace(e, name=for_runs(e.name, s.runs))
+                                           for s in _registered_scans(evidence) for e in catalogue.params))
+
+
+def registration_start(evidence: ScanRegistrations | None) -> dict[str, float]:
+    """Where the registration candidate (registration_candidate) is: each scan it moves at the
+    kinematic registration fitted on every sample of its runs once that scan's held-out evidence
+    is significant (so its replayed gain, which is reported but not judged, is not fully held out
+    for the height), else at the scan as it is (the neutral setting, which does not act)."""
+    if evidence is None:
+        return {e.name: 0.0 for e in CANDIDATES["terrain_offset"].params}
+    if len(evidence.scans) == 1:
+        return evidence.scans[0].offsets
+    return {for_runs(k, s.runs): v for s in _registered_scans(evidence) for k, v in s.offsets.items()}
