@@ -236,3 +236,35 @@ def test_each_scan_moved_is_charged_its_own_four_parameters():
     assert (one_scan.n_params, two_scans.n_params) == (4, 8)
     assert one_scan.significant and not two_scans.significant
     assert set(two_scans.extension) == {for_runs(k, [run]) for run in ("t1", "t2") for k in OFFSETS}
+
+
+# ------------------------------------------------------ what the result says
+
+def test_the_result_names_the_misregistered_scan_and_lists_every_scans_registration():
+    """The registration's evidence as reported (JSON, the report's table, the explanation): each
+    scan with its runs, offsets and ratio; only the misregistered one named as the cause's."""
+    from types import SimpleNamespace
+
+    from juno.diagnose.assemble import _cause_named
+    from juno.diagnose.judging import kinematic_evidence
+    from juno.diagnose.render import _candidates_table
+    from juno.diagnose.results import JudgedCandidate
+    bad = _evidence(20.0, 2.0, 60)
+    found = ScanRegistrations((ScanEvidence("terrain/a.xyz", ("t3d_a",), _evidence(1.0, 1.0, 60)),
+                               ScanEvidence("terrain/b.xyz", ("t3d_b", "t3d_c"), bad)))
+    pose = kinematic_evidence(found)
+    as_json = pose.to_json()["scans"]
+    assert [(s["scan"], s["runs"], s["misregistered"]) for s in as_json] == [
+        ("terrain/a.xyz", ["t3d_a"], False), ("terrain/b.xyz", ["t3d_b", "t3d_c"], True)]
+    assert as_json[0]["offsets"] == dict.fromkeys(OFFSETS, 0.0) and as_json[1]["offsets"] == bad.offsets_all
+    assert as_json[1]["ratio"] == pytest.approx(10.0)
+
+    judged = JudgedCandidate("terrain_offset", CANDIDATES["terrain_offset"].cause, 0.5, 4.0, True, True, "ok", 0,
+                             kinematic=pose)
+    said = _cause_named("terrain_offset", SimpleNamespace(candidates=[judged]))
+    assert said.endswith("(scan terrain/b.xyz, runs t3d_b, t3d_c)") and "a.xyz" not in said
+    table = _candidates_table(SimpleNamespace(candidates=[judged],
+                                              criteria=SimpleNamespace(registration_held_out_ratio=HELD_OUT_RATIO)))
+    rows = [line for line in table if line.startswith("| terrain/")]
+    assert rows[0].startswith("| terrain/a.xyz | t3d_a | 1 | no |")
+    assert rows[1].startswith("| terrain/b.xyz | t3d_b, t3d_c | 10 | yes | +0.200, -0.100, +0.020, +0.030")
