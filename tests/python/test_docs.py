@@ -85,6 +85,17 @@ def test_every_repository_path_the_documents_name_exists():
     assert not missing, "paths named in the documents that do not exist:\n" + "\n".join(missing)
 
 
+def test_the_map_of_checks_names_every_test_file():
+    """docs/checks.md's table of tests says where each kind of check lives: every test source
+    (Python, C, conformance drivers, fuzz targets) is named there, so a newcomer who reads it finds
+    every test, and a new test file is placed in the map when it lands."""
+    text = (DOCS / "checks.md").read_text(encoding="utf-8")
+    sources = [*sorted((ROOT / "tests/python").glob("test_*.py")), *sorted((ROOT / "tests/c").glob("test_*.c")),
+               *sorted((ROOT / "tests/conformance").glob("*.c")), *sorted((ROOT / "tests/fuzz").glob("*.c"))]
+    unnamed = [str(f.relative_to(ROOT)) for f in sources if f.name not in text and f.stem not in text]
+    assert sources and not unnamed, "test files docs/checks.md does not name:\n" + "\n".join(unnamed)
+
+
 def test_no_document_or_source_refers_to_documents_outside_the_repository():
     files = _text_files(["README.md", "docs", "CMakeLists.txt", *SOURCE_DIRS])
     hits = [f"{f.relative_to(ROOT)}:{n}: {line.strip()[:100]}"
