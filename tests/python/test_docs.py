@@ -96,6 +96,24 @@ def test_the_map_of_checks_names_every_test_file():
     assert sources and not unnamed, "test files docs/checks.md does not name:\n" + "\n".join(unnamed)
 
 
+def test_the_architecture_names_every_module_of_the_harness():
+    """docs/architecture.md's table places every module and package of the harness (the command
+    modules apart: one per command, by the rule stated there), and docs/diagnosis.md's table every
+    module of the diagnosis: a newcomer finds where each concept lives."""
+    harness = ROOT / "python_harness" / "juno"
+    architecture = (DOCS / "architecture.md").read_text(encoding="utf-8")
+    diagnosis = (DOCS / "diagnosis.md").read_text(encoding="utf-8")
+    unnamed = []
+    for path in sorted(harness.rglob("*.py")):
+        rel = path.relative_to(harness)
+        if path.name == "__init__.py" or rel.parts[0] == "commands":
+            continue
+        where, text = ("diagnosis.md", diagnosis) if rel.parts[0] == "diagnose" else ("architecture.md", architecture)
+        if f"`{path.name}`" not in text:
+            unnamed.append(f"{rel} (in docs/{where})")
+    assert not unnamed, "harness modules the documents' module tables do not name:\n" + "\n".join(unnamed)
+
+
 def test_no_document_or_source_refers_to_documents_outside_the_repository():
     files = _text_files(["README.md", "docs", "CMakeLists.txt", *SOURCE_DIRS])
     hits = [f"{f.relative_to(ROOT)}:{n}: {line.strip()[:100]}"
