@@ -96,10 +96,11 @@ def test_the_map_of_checks_names_every_test_file():
     assert sources and not unnamed, "test files docs/checks.md does not name:\n" + "\n".join(unnamed)
 
 
-def test_the_architecture_names_every_module_of_the_harness():
-    """docs/architecture.md's table places every module and package of the harness (the command
-    modules apart: one per command, by the rule stated there), and docs/diagnosis.md's table every
-    module of the diagnosis: a newcomer finds where each concept lives."""
+def test_the_architecture_names_every_source_of_the_fmus_and_module_of_the_harness():
+    """docs/architecture.md places every C source of the FMUs and every module and package of the
+    harness (the command modules apart: one per command, by the rule stated there), and
+    docs/diagnosis.md's table every module of the diagnosis: a newcomer finds where each concept
+    lives."""
     harness = ROOT / "python_harness" / "juno"
     architecture = (DOCS / "architecture.md").read_text(encoding="utf-8")
     diagnosis = (DOCS / "diagnosis.md").read_text(encoding="utf-8")
@@ -111,7 +112,10 @@ def test_the_architecture_names_every_module_of_the_harness():
         where, text = ("diagnosis.md", diagnosis) if rel.parts[0] == "diagnose" else ("architecture.md", architecture)
         if f"`{path.name}`" not in text:
             unnamed.append(f"{rel} (in docs/{where})")
-    assert not unnamed, "harness modules the documents' module tables do not name:\n" + "\n".join(unnamed)
+    for path in sorted((ROOT / "fmu_src").glob("*.[ch]")):
+        if path.name not in architecture and path.stem not in architecture:
+            unnamed.append(f"fmu_src/{path.name} (in docs/architecture.md)")
+    assert not unnamed, "modules the documents' module tables do not name:\n" + "\n".join(unnamed)
 
 
 def test_no_document_or_source_refers_to_documents_outside_the_repository():
