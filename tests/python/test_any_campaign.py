@@ -301,7 +301,7 @@ def test_the_diagnosis_of_drawbar_runs_only_leaves_out_the_candidates_that_need_
     said: list[str] = []
     setting = prepare(load_campaign(root), fmu_path, names, str(work), None, said.append)
     assert setting.names == ["drivetrain_loss"]
-    assert setting.grid is None and {p.kind for p in setting.problem.prepared} == {"drawbar"}
+    assert not setting.grids and {p.kind for p in setting.problem.prepared} == {"drawbar"}
     assert not setting.base.error
     assert any(m.startswith("left out terrain_offset: needs a terrain run") for m in said), said
 

@@ -93,15 +93,14 @@ class Search:
 class Setting:
     """The campaign prepared: the problem (terrain runs replayed by ``terrain_drive``), the
     problem under every drive, the base model's fit, the training loss of each drive at the base
-    model, the first terrain run's gridded scan, the candidates that can be
-    fitted, and every terrain run's gridded scan by run id (each run's scan test is on its own)."""
+    model, the candidates that can be fitted, and every terrain run's gridded scan by run id
+    (each scan's registration and each run's scan test are on its own)."""
 
     problem: Problem
     problems: dict[str, Problem]
     base: FitResult
     terrain_drive: str
     drive_losses: dict[str, float]
-    grid: Any
     names: list[str]
     grids: dict[str, Any] = field(default_factory=dict)
 
@@ -249,13 +248,11 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
     run the candidates that need one are left out.  ``on_grid`` is called with every terrain
     run's gridded scan (by run id) as soon as they are made."""
     grid_file: dict[str, str] | None = None
-    grid = None
     grids: dict[str, Any] = {}
     if campaign.runs_of_kind("terrain"):
         scans = gridded_scans(campaign, tmp, "validate")
         grid_file = {run_id: path for run_id, (path, _grid) in scans.items()}
         grids = {run_id: g for run_id, (_path, g) in scans.items()}
-        grid = next(iter(grids.values()))
         if on_grid is not None:
             on_grid(grids)
     else:
@@ -282,7 +279,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
         say(f"{terrain_runs_named(campaign)} replayed by {terrain_drive} (training fit loss at the base model: "
             + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
     say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
-    return Setting(problem, problems, base, terrain_drive, drive_losses, grid, names, grids)
+    return Setting(problem, problems, base, terrain_drive, drive_losses, names, grids)
 
 
 # ------------------------------------------------------------------ the first round
