@@ -92,29 +92,47 @@ static inline void point_add_generalised(double Q[NU], double J[3][NU], const do
         if (k < U_SPIN_L || k == sp) Q[k] += g[k];
 }
 
-/* M += a^T s b for rows a, b */
-static void add_outer(double Mx[NU][NU], const double a[NU], double s, const double b[NU])
+/* The rank-one updates of D and K below touch only the structural
+ * non-zeros of their rows: columns 0..U_BETA (the chassis's six and the
+ * rocker rate) and this wheel's spin column sp; the other spin column of
+ * every row above is an exact 0, so leaving it out changes nothing.  Each
+ * entry gets the same products in the same order as a dense loop. */
+enum { ACTIVE = U_BETA + 1 };   /* columns 0 .. U_BETA */
+
+/* M += (a s) b^T over rows and columns 0..U_BETA and sp. */
+static inline void add_outer(double Mx[NU][NU], const double a[NU], double s, const double b[NU], int sp)
 {
-    for (int i = 0; i < NU; ++i) {
-        if (a[i] == 0) continue;
-        for (int j = 0; j < NU; ++j) Mx[i][j] += a[i] * s * b[j];
+    for (int n = 0; n <= ACTIVE; ++n) {
+        const int i = n < ACTIVE ? n : sp;
+        const double ai = a[i] * s;
+        double *row = Mx[i];
+        for (int j = 0; j < ACTIVE; ++j) row[j] += ai * b[j];
+        row[sp] += ai * b[sp];
     }
 }
 
-/* M -= a^T b, then M -= c^T d: add_outer(M, a, -1, b) then add_outer(M,
- * c, -1, d) in one pass over M, each entry getting the same two additions
- * in the same order. */
-static void sub_outer_pair(double Mx[NU][NU], const double a[NU], const double b[NU], const double c[NU],
-                           const double d[NU])
+/* M += (a s) b^T for rows a, b whose spin columns are both 0 (a hub's
+ * point Jacobian): the 7 x 7 block of columns 0..U_BETA. */
+static inline void add_outer_hub(double Mx[NU][NU], const double a[NU], double s, const double b[NU])
 {
-    for (int i = 0; i < NU; ++i) {
+    for (int i = 0; i < ACTIVE; ++i) {
+        const double ai = a[i] * s;
+        double *row = Mx[i];
+        for (int j = 0; j < ACTIVE; ++j) row[j] += ai * b[j];
+    }
+}
+
+/* M -= a^T b, then M -= c^T d, in one pass over M (each entry gets the
+ * two additions in that order). */
+static inline void sub_outer_pair(double Mx[NU][NU], const double a[NU], const double b[NU], const double c[NU],
+                                  const double d[NU], int sp)
+{
+    for (int n = 0; n <= ACTIVE; ++n) {
+        const int i = n < ACTIVE ? n : sp;
         const double ai = a[i] * -1.0, ci = c[i] * -1.0;
-        if (a[i] != 0 && c[i] != 0)
-            for (int j = 0; j < NU; ++j) Mx[i][j] = (Mx[i][j] + ai * b[j]) + ci * d[j];
-        else if (a[i] != 0)
-            for (int j = 0; j < NU; ++j) Mx[i][j] += ai * b[j];
-        else if (c[i] != 0)
-            for (int j = 0; j < NU; ++j) Mx[i][j] += ci * d[j];
+        double *row = Mx[i];
+        for (int j = 0; j < ACTIVE; ++j) row[j] = (row[j] + ai * b[j]) + ci * d[j];
+        row[sp] = (row[sp] + ai * b[sp]) + ci * d[sp];
     }
 }
 
@@ -309,7 +327,7 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
         dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
         dFy[k] = jac[3] * g_long[k] + jac[4] * g_lat[k] + jac[5] * g_spin[k];
     }
-    sub_outer_pair(ev->D, a_t, dFl, g_lat, dFy);
+    sub_outer_pair(ev->D, a_t, dFl, g_lat, dFy, sp);
     /* The stiffness K = -dQ/dq: the force's direction times the sinkage's
      * gradient.  Sinkage = R - (H_z - z_t) n_z / in_plane grows by
      * -(n . dH) / in_plane when the hub moves by dH, whatever the force's
@@ -340,13 +358,13 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
             dQ_ds[k] = g_long[k] * sc->wr.dFx_ds + a_z[k] * sc->wr.dFz_ds - g_spin[k] * sc->wr.dFt_ds;
             ds_du[k] = ds_dv * g_long[k] + ds_dw * g_spin[k];
         }
-        add_outer(ev->D, dQ_ds, -1.0, ds_du);
+        add_outer(ev->D, dQ_ds, -1.0, ds_du, sp);
         /* Normal stiffness: dFz along the soil normal per unit of sinkage. */
-        add_outer(ev->K, a_z, sc->kn, a_s);
+        add_outer_hub(ev->K, a_z, sc->kn, a_s);
         return;
     }
     point_vec_times_jac(a_n, sg->nvec, Jh, sp);
-    add_outer(ev->K, a_n, sc->kn, a_s);
+    add_outer_hub(ev->K, a_n, sc->kn, a_s);
 }
 
 void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
