@@ -52,6 +52,7 @@ typedef struct {
     int side;                      /* SIDE_LEFT or SIDE_RIGHT for a rocker or wheel, -1: chassis */
     int spin;                      /* U_SPIN_L or U_SPIN_R for a wheel, -1 otherwise */
     double Ie[3], eIe;             /* I e and e.I e (rocker or wheel) */
+    double disc_It, disc_Is;       /* a wheel: I = It 1 + (Is - It) e e^T (disc_Is 0: not a disc) */
 } Body;
 
 /* What the bodies share within one evaluation. */
@@ -90,14 +91,23 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
         v3_set(bw, 0, 0, 0);
     }
     /* body angular velocity and gyroscopic torque */
-    double wb[3], Iw[3], gyro[3], Ibw[3];
-    v3_copy(wb, w);
-    v3_axpy(wb, b->spin_rate, e);
-    m3_mul_v(Iw, I, wb);
-    v3_cross(gyro, wb, Iw);
-    m3_mul_v(Ibw, I, bw);
+    double T[3];
+    if (b->disc_Is > 0) {
+        /* A disc spinning about e at wb = w + spin_rate e, bw = spin_rate (w x e) normal to e:
+         * I bw = It bw and wb x I wb = (Is - It) (e . wb) (w x e). */
+        const double It = b->disc_It, Is = b->disc_Is;
+        const double k = It * b->spin_rate + (Is - It) * (v3_dot(e, w) + b->spin_rate);
+        v3_scale(T, c->wxe, -k);
+    } else {
+        double wb[3], Iw[3], gyro[3], Ibw[3];
+        v3_copy(wb, w);
+        v3_axpy(wb, b->spin_rate, e);
+        m3_mul_v(Iw, I, wb);
+        v3_cross(gyro, wb, Iw);
+        m3_mul_v(Ibw, I, bw);
+        v3_set(T, -Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]);
+    }
     const double F[3] = {-m * bv[0], -m * bv[1], -m * (bv[2] + g)};
-    const double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
 
     /* Q += Jv^T F + Jw^T T */
     double rF[3];
@@ -221,6 +231,7 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
         v3_cross(common.pivot_acc[side], common.w, tmp);
     }
     Body b;
+    b.disc_It = b.disc_Is = 0;
     /* chassis */
     b.mass = d->chassis_mass;
     m3_mul_v(b.r, ev->R, d->chassis_cg);
@@ -251,6 +262,8 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
     /* wheels: discs about the axle e */
     const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
     b.mass = p->wheel_mass;
+    b.disc_It = It;
+    b.disc_Is = Is;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) b.I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
     m3_mul_v(b.Ie, b.I, ev->e);
