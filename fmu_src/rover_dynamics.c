@@ -1,8 +1,9 @@
 /*
  * The rover's dynamics (rover_internal.h): the kinematics of its seven
- * bodies, their mass matrix, gravity, bias and gyroscopic forces, the
- * drive, the rocker differential's friction and the drawbar, and the
- * outputs.  The contacts are rover_wheel_contact.c's.
+ * bodies, their mass matrix, gravity, bias and gyroscopic forces (each
+ * side's rocker and wheels assembled as one body, side_body), the drive,
+ * the rocker differential's friction and the drawbar, and the outputs.
+ * The contacts are rover_wheel_contact.c's.
  */
 #include <math.h>
 #include <string.h>
@@ -40,19 +41,18 @@ static void point_jacobian(const Eval *ev, const double pos[3], const double x[3
 /* One rigid body's kinematics for the assembly.  With r = CG - chassis
  * reference point (world), the CG velocity is
  *   v = u_v + w x r + u_beta cb,
- * and the angular velocity w + u_beta sb e + u_spin e (the spin term on
- * a wheel only); that is, Jv = [I, -[r]x, cb, 0] and Jw = [0, I, sb e, e].
- * The assembly below multiplies these blocks out instead of forming the
- * 3 x 9 matrices (most of their 54 entries are 0 or 1). */
+ * and the angular velocity w + u_beta sb e; that is, Jv = [I, -[r]x, cb, 0]
+ * and Jw = [0, I, sb e, 0].  The assembly below multiplies these blocks out
+ * instead of forming the 3 x 9 matrices (most of their 54 entries are 0 or
+ * 1).  The bodies are the chassis and each side's rocker with its two
+ * wheels (side_body); the wheels' spin adds its own terms (assemble_bodies). */
 typedef struct {
     double mass, r[3], I[9];       /* kg; m; world inertia about the CG, kg m^2 */
     double cb[3];                  /* CG velocity per unit rocker rate, m/rad (0: chassis) */
     double sb;                     /* rocker-rate factor of the angular velocity: sigma, or 0 */
     double spin_rate;              /* about e, relative to the chassis, rad/s */
-    int side;                      /* SIDE_LEFT or SIDE_RIGHT for a rocker or wheel, -1: chassis */
-    int spin;                      /* U_SPIN_L or U_SPIN_R for a wheel, -1 otherwise */
-    double Ie[3], eIe;             /* I e and e.I e (rocker or wheel) */
-    double disc_It, disc_Is;       /* a wheel: I = It 1 + (Is - It) e e^T (disc_Is 0: not a disc) */
+    int side;                      /* SIDE_LEFT or SIDE_RIGHT for a side's body, -1: chassis */
+    double Ie[3], eIe;             /* I e and e.I e (a side's body) */
 } Body;
 
 /* What the bodies share within one evaluation. */
@@ -91,23 +91,14 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
         v3_set(bw, 0, 0, 0);
     }
     /* body angular velocity and gyroscopic torque */
-    double T[3];
-    if (b->disc_Is > 0) {
-        /* A disc spinning about e at wb = w + spin_rate e, bw = spin_rate (w x e) normal to e:
-         * I bw = It bw and wb x I wb = (Is - It) (e . wb) (w x e). */
-        const double It = b->disc_It, Is = b->disc_Is;
-        const double k = It * b->spin_rate + (Is - It) * (v3_dot(e, w) + b->spin_rate);
-        v3_scale(T, c->wxe, -k);
-    } else {
-        double wb[3], Iw[3], gyro[3], Ibw[3];
-        v3_copy(wb, w);
-        v3_axpy(wb, b->spin_rate, e);
-        m3_mul_v(Iw, I, wb);
-        v3_cross(gyro, wb, Iw);
-        m3_mul_v(Ibw, I, bw);
-        v3_set(T, -Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]);
-    }
+    double wb[3], Iw[3], gyro[3], Ibw[3];
+    v3_copy(wb, w);
+    v3_axpy(wb, b->spin_rate, e);
+    m3_mul_v(Iw, I, wb);
+    v3_cross(gyro, wb, Iw);
+    m3_mul_v(Ibw, I, bw);
     const double F[3] = {-m * bv[0], -m * bv[1], -m * (bv[2] + g)};
+    const double T[3] = {-Ibw[0] - gyro[0], -Ibw[1] - gyro[1], -Ibw[2] - gyro[2]};
 
     /* Q += Jv^T F + Jw^T T */
     double rF[3];
@@ -143,19 +134,41 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
     }
     M[U_BETA][U_BETA] += m * v3_dot(b->cb, b->cb) + b->sb * b->sb * eIe;
     Q[U_BETA] += v3_dot(b->cb, F) + b->sb * v3_dot(e, T);
-    if (b->spin < 0) return;
-    /* wheel spin column: ws: I e, bs: sb e.I e, ss: e.I e */
-    for (int i = 0; i < 3; ++i) M[U_WX + i][b->spin] += Ie[i];
-    M[U_BETA][b->spin] += b->sb * eIe;
-    M[b->spin][b->spin] += eIe;
-    Q[b->spin] += v3_dot(e, T);
 }
 
-/* The rocker frames and the hubs relative to the chassis reference point,
- * which the body assembly needs beside what Eval keeps. */
+/* A side's rocker and its two wheels as one body turning with the rocker:
+ * a wheel is a disc about the axle (the rocker frame's y axis), so its
+ * mass distribution does not change as it spins, and the three bodies'
+ * mass matrix, gravity and bias forces at the rocker's motion are those of
+ * one body with their total mass, at their CG, with their inertia about it.
+ * Mass (kg), CG (rocker frame, from the pivot, m) and that inertia (rocker
+ * frame, kg m^2); the same for both sides. */
+static void side_body(const Model *m, double *mass, double cg[3], double I[9])
+{
+    const Params *p = &m->p;
+    const Derived *d = &m->d;
+    const double mr = p->rover_rockerMass, mw = p->wheel_mass;
+    const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
+    const double part_mass[3] = {mr, mw, mw};
+    const double *part_cg[3] = {d->rocker_cg, d->hub[0], d->hub[1]};
+    *mass = mr + 2 * mw;
+    for (int i = 0; i < 3; ++i) cg[i] = (mr * part_cg[0][i] + mw * part_cg[1][i] + mw * part_cg[2][i]) / *mass;
+    /* the parts' own inertias about their CGs: the rocker's principal axes are the rocker frame's,
+     * a wheel's I = It 1 + (Is - It) y y^T; then each part's mass about the common CG */
+    for (int k = 0; k < 9; ++k) I[k] = 0;
+    for (int i = 0; i < 3; ++i) I[4 * i] = d->rocker_inertia[i] + 2 * (i == 1 ? Is : It);
+    for (int n = 0; n < 3; ++n) {
+        double r[3];
+        v3_sub(r, part_cg[n], cg);
+        const double rr = v3_dot(r, r);
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) I[3 * i + j] += part_mass[n] * ((i == j ? rr : 0) - r[i] * r[j]);
+    }
+}
+
+/* The rocker frames, which the body assembly needs beside what Eval keeps. */
 typedef struct {
     double Rr[2][9];               /* world from rocker frame, left and right */
-    double hub_r[NUM_WHEELS][3];   /* hub - chassis reference point */
 } Frames;
 
 /* Kinematics: the chassis frame, the rocker frames, pivots, hubs and the
@@ -192,7 +205,6 @@ static void kinematics(const Model *m, Eval *ev, Frames *fr)
         double tmp[3];
         m3_mul_v(tmp, fr->Rr[side], d->hub[wh % 2]);
         v3_add(ev->hub[wh], ev->pivot[side], tmp);
-        v3_add(fr->hub_r[wh], ev->pivot_r[side], tmp);
         /* The hub Jacobians the contacts work with (dense rows). */
         double (*Jv)[NU] = ev->Jv[BODY_WHEEL0 + wh];
         double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + wh];
@@ -231,7 +243,6 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
         v3_cross(common.pivot_acc[side], common.w, tmp);
     }
     Body b;
-    b.disc_It = b.disc_Is = 0;
     /* chassis */
     b.mass = d->chassis_mass;
     m3_mul_v(b.r, ev->R, d->chassis_cg);
@@ -240,43 +251,39 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
     b.sb = 0;
     b.side = -1;
     b.spin_rate = 0;
-    b.spin = -1;
     add_body(ev, &common, &b, ev->M, ev->Q);
-    /* rockers */
+    /* each side's rocker with its wheels (side_body), turning with the rocker */
+    double side_mass, side_cg[3], side_I[9];
+    side_body(m, &side_mass, side_cg, side_I);
     for (int side = 0; side < 2; ++side) {
         double tmp[3], sv[3];
-        b.mass = p->rover_rockerMass;
-        m3_mul_v(tmp, fr->Rr[side], d->rocker_cg);
+        b.mass = side_mass;
+        m3_mul_v(tmp, fr->Rr[side], side_cg);
         v3_add(b.r, ev->pivot_r[side], tmp);
-        m3_rotate_diag(b.I, fr->Rr[side], d->rocker_inertia);
+        m3_rotate(b.I, fr->Rr[side], side_I);
         b.sb = sigma_of(side);
         b.side = side;
         v3_cross(sv, ev->e, tmp);                 /* e x (CG - pivot) */
         v3_scale(b.cb, sv, b.sb);
         b.spin_rate = b.sb * u[U_BETA];
-        b.spin = -1;
         m3_mul_v(b.Ie, b.I, ev->e);
         b.eIe = v3_dot(ev->e, b.Ie);
         add_body(ev, &common, &b, ev->M, ev->Q);
     }
-    /* wheels: discs about the axle e */
-    const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
-    b.mass = p->wheel_mass;
-    b.disc_It = It;
-    b.disc_Is = Is;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) b.I[3 * i + j] = (i == j ? It : 0) + (Is - It) * ev->e[i] * ev->e[j];
-    m3_mul_v(b.Ie, b.I, ev->e);
-    b.eIe = v3_dot(ev->e, b.Ie);
-    for (int wh = 0; wh < NUM_WHEELS; ++wh) {
-        const int side = side_of(wh);
-        v3_copy(b.r, fr->hub_r[wh]);
-        b.sb = sigma_of(side);
-        b.side = side;
-        for (int i = 0; i < 3; ++i) b.cb[i] = ev->Jv[BODY_WHEEL0 + wh][i][U_BETA];
-        b.spin_rate = b.sb * u[U_BETA] + u[U_SPIN_L + side];
-        b.spin = U_SPIN_L + side;
-        add_body(ev, &common, &b, ev->M, ev->Q);
+    /* The wheels' spin u_s relative to the rocker, about e: the spin columns
+     * of M (a disc's I e = Is e) and the gyroscopic torque of the spin,
+     * -Is u_s (w x e) per wheel (normal to e: nothing on the rocker and spin
+     * rows). */
+    const double Is = p->wheel_inertia;
+    for (int side = 0; side < 2; ++side) {
+        const int sp = U_SPIN_L + side;
+        const double wheels = NUM_WHEELS / 2, spin_torque = -wheels * Is * u[sp];
+        for (int i = 0; i < 3; ++i) {
+            ev->M[U_WX + i][sp] += wheels * Is * ev->e[i];
+            ev->Q[U_WX + i] += spin_torque * common.wxe[i];
+        }
+        ev->M[U_BETA][sp] += wheels * sigma_of(side) * Is;
+        ev->M[sp][sp] += wheels * Is;
     }
     for (int i = 0; i < NU; ++i)
         for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];

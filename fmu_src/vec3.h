@@ -45,6 +45,14 @@ static inline void m3_rotate_diag(double C[9], const double R[9], const double I
         for (int j = 0; j < 3; ++j)
             C[3 * i + j] = R[3 * i] * I[0] * R[3 * j] + R[3 * i + 1] * I[1] * R[3 * j + 1] + R[3 * i + 2] * I[2] * R[3 * j + 2];
 }
+/* World inertia R I R^T of a body inertia I (symmetric). */
+static inline void m3_rotate(double C[9], const double R[9], const double I[9])
+{
+    double RI[9];
+    m3_mul(RI, R, I);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) C[3 * i + j] = RI[3 * i] * R[3 * j] + RI[3 * i + 1] * R[3 * j + 1] + RI[3 * i + 2] * R[3 * j + 2];
+}
 /* Rotation matrix of a unit quaternion (w, x, y, z). */
 static inline void quat_to_m3(double R[9], const double q[4])
 {
