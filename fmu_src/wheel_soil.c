@@ -120,7 +120,10 @@ void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilCon
 {
     const ContactModel *cm = ws->contact;
     c->omega_r = cm->radius * in->spin;
-    c->den = fmax(fmax(fabs(c->omega_r), fabs(in->v_long)), cm->slip_v_eps);
+    /* max(|omega R|, |v|, eps), without fmax's library calls (a NaN speed
+     * gives a NaN slip either way) */
+    const double aw = fabs(c->omega_r), av = fabs(in->v_long), fast = aw >= av ? aw : av;
+    c->den = fast >= cm->slip_v_eps ? fast : cm->slip_v_eps;
     c->slip = (c->omega_r - in->v_long) / c->den;
     c->kh_factor = in->kh_factor;
     if (ws->slip_sinkage > 0) {     /* the soil under a slipping wheel yields: it digs in */
