@@ -255,12 +255,20 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
     /* each side's rocker with its wheels (side_body), turning with the rocker */
     double side_mass, side_cg[3], side_I[9];
     side_body(m, &side_mass, side_cg, side_I);
+    /* principal axes along the rocker frame's (the model's geometry, its parts in the x-z
+     * plane, symmetric fore and aft): R diag R^T, the same values with fewer products */
+    const int side_diagonal = side_I[1] == 0 && side_I[2] == 0 && side_I[3] == 0 && side_I[5] == 0 &&
+                              side_I[6] == 0 && side_I[7] == 0;
+    const double side_I_diag[3] = {side_I[0], side_I[4], side_I[8]};
     for (int side = 0; side < 2; ++side) {
         double tmp[3], sv[3];
         b.mass = side_mass;
         m3_mul_v(tmp, fr->Rr[side], side_cg);
         v3_add(b.r, ev->pivot_r[side], tmp);
-        m3_rotate(b.I, fr->Rr[side], side_I);
+        if (side_diagonal)
+            m3_rotate_diag(b.I, fr->Rr[side], side_I_diag);
+        else
+            m3_rotate(b.I, fr->Rr[side], side_I);
         b.sb = sigma_of(side);
         b.side = side;
         v3_cross(sv, ev->e, tmp);                 /* e x (CG - pivot) */
