@@ -268,6 +268,8 @@ typedef struct {
     double in_plane;               /* length of n within the mid-plane before normalising */
     double f[3];                   /* heading in the contact plane */
     double l[3];                   /* lateral direction, n x f */
+    double v_hub[3];               /* the hub's velocity, m/s */
+    double omega[3];               /* the wheel's angular velocity, rad/s (set by wheel_spin) */
 } ContactFrame;
 
 /* The contact frame, the sinkage (with a rear wheel's rut), the local soil
@@ -301,19 +303,18 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
     v3_cross(cf->f, ev->e, cf->np);
     v3_cross(cf->l, cf->n, cf->f);
     v3_normalize(cf->l);
-    double vh[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i) vh[i] = point_row_dot(Jh, i, m->s.u, sp);
-    wc->v_long = v3_dot(cf->f, vh);
+    for (int i = 0; i < 3; ++i) cf->v_hub[i] = point_row_dot(Jh, i, m->s.u, sp);
+    wc->v_long = v3_dot(cf->f, cf->v_hub);
     in->v_long = wc->v_long;
     return !(sinkage <= 0);               /* a NaN sinkage goes on, to be caught as a diverged state */
 }
 
-/* The wheel's spin about its axle (rad/s), from the rover's velocities. */
-static double wheel_spin(const Model *m, const Eval *ev, double Jw[3][NU], int sp)
+/* The wheel's spin about its axle (rad/s), from the rover's velocities;
+ * its angular velocity into cf->omega. */
+static double wheel_spin(const Model *m, const Eval *ev, double Jw[3][NU], int sp, ContactFrame *cf)
 {
-    double wheel_omega[3];
-    for (int i = 0; i < 3; ++i) wheel_omega[i] = angular_row_dot(Jw, i, m->s.u, sp);
-    return v3_dot(wheel_omega, ev->e);
+    for (int i = 0; i < 3; ++i) cf->omega[i] = angular_row_dot(Jw, i, m->s.u, sp);
+    return v3_dot(cf->omega, ev->e);
 }
 
 /* The rim (or lug tip) point the shear acts on and the directions of the
@@ -326,7 +327,7 @@ typedef struct {
 } ShearGeometry;
 
 /* The shear forces and the wheel's total force into wc. */
-static void contact_forces(const Model *m, const WheelSoil *ws, double Jh[3][NU], double Jw[3][NU], int sp,
+static void contact_forces(const WheelSoil *ws, double Jh[3][NU], double Jw[3][NU], int sp,
                            const ContactFrame *cf, const WheelSoilInput *in, const WheelSoilContact *sc,
                            int matrices, WheelContact *wc, ShearGeometry *sg)
 {
@@ -342,8 +343,9 @@ static void contact_forces(const Model *m, const WheelSoil *ws, double Jh[3][NU]
      * the normal force passes through the hub. */
     memcpy(sg->Jp, Jh, sizeof sg->Jp);
     add_wheel_offset(sg->Jp, Jw, r_rim, sp);
-    double v_rim[3];
-    for (int i = 0; i < 3; ++i) v_rim[i] = point_row_dot(sg->Jp, i, m->s.u, sp);
+    double v_rim[3];                                 /* Jp u: the hub's velocity + omega x r_rim */
+    v3_cross(v_rim, cf->omega, r_rim);
+    v3_add(v_rim, cf->v_hub, v_rim);
     const double v_lat = v3_dot(cf->l, v_rim);
     double F_long, F_lat;
     wheel_soil_shear(ws, sc, in, v_lat, &F_long, &F_lat, matrices ? sg->jac : NULL);
@@ -437,7 +439,7 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
                           m->p.grouser_thrustGain, m->p.grouser_lugHeight, m->p.slipSinkage_exponent,
                           m->p.grouser_thrustSlip, m->p.grouser_lugCount, m->p.grouser_rippleAmplitude};
-    in.spin = wheel_spin(m, ev, Jw, sp);
+    in.spin = wheel_spin(m, ev, Jw, sp, &cf);
     /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
      * and chassis' pitch, a few degrees, shift the phase a little); the rear
      * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
@@ -451,7 +453,7 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     const int jacobians = matrices == EVAL_MATRICES;
     wheel_soil_normal(&ws, &m->s.memory[w], &in, jacobians, &sc);
     ShearGeometry sg;
-    contact_forces(m, &ws, Jh, Jw, sp, &cf, &in, &sc, jacobians, wc, &sg);
+    contact_forces(&ws, Jh, Jw, sp, &cf, &in, &sc, jacobians, wc, &sg);
     if (jacobians) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
     else if (matrices) point_add_generalised(ev->Q, sg.Jp, wc->force, sp);
 }
