@@ -195,7 +195,7 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3])
 {
     const Params *p = &m->p;
     if (p->terrain_offsetX == 0 && p->terrain_offsetY == 0 && p->terrain_offsetYaw == 0) {
-        if (n) terrain_normal(&m->terrain, x, y, n);
+        if (n) return terrain_height_normal(&m->terrain, x, y, n) + p->terrain_offsetZ;
         return terrain_height(&m->terrain, x, y) + p->terrain_offsetZ;
     }
     const double c = cos(p->terrain_offsetYaw), sn = sin(p->terrain_offsetYaw);
@@ -203,10 +203,11 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3])
     const double qx = c * dx + sn * dy, qy = -sn * dx + c * dy;
     if (n) {
         double ng[3];
-        terrain_normal(&m->terrain, qx, qy, ng);
+        const double z = terrain_height_normal(&m->terrain, qx, qy, ng);
         n[0] = c * ng[0] - sn * ng[1];
         n[1] = sn * ng[0] + c * ng[1];
         n[2] = ng[2];
+        return z + p->terrain_offsetZ;
     }
     return terrain_height(&m->terrain, qx, qy) + p->terrain_offsetZ;
 }

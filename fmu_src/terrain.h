@@ -55,6 +55,8 @@ void terrain_free(Terrain *t);
  * (or a rover) beyond a tilted grid stands on flat ground. */
 double terrain_height(const Terrain *t, double x, double y);
 void terrain_normal(const Terrain *t, double x, double y, double n[3]);
+/* Both at once (one lookup of the cell): the elevation, and the normal into n. */
+double terrain_height_normal(const Terrain *t, double x, double y, double n[3]);
 
 /* 1 if (x, y) lies outside the grid's nodes (0 for flat ground and NaN). */
 int terrain_outside(const Terrain *t, double x, double y);

@@ -45,10 +45,18 @@ static void locate(double q, double q0, double cell, int n, int *k, double *f)
     *f = u - (double)i;
 }
 
+/* The bilinear elevation in cell (i, j) at fractions (fx, fy). */
+static double height_in_cell(const Terrain *t, int i, int j, double fx, double fy)
+{
+    const double *z = t->z;
+    const size_t nc = (size_t)t->ncols;
+    const size_t r0 = (size_t)j * nc + (size_t)i, r1 = r0 + nc;
+    return (1.0 - fy) * ((1.0 - fx) * z[r0] + fx * z[r0 + 1])
+         + fy * ((1.0 - fx) * z[r1] + fx * z[r1 + 1]);
+}
+
 double terrain_height(const Terrain *t, double x, double y)
 {
-    const double *z;
-    size_t nc, r0, r1;
     int i, j;
     double fx, fy;
 
@@ -58,12 +66,7 @@ double terrain_height(const Terrain *t, double x, double y)
         return NAN; /* a NaN position is an upstream bug: propagate, don't hide */
     locate(x, t->x0, t->cell, t->ncols, &i, &fx);
     locate(y, t->y0, t->cell, t->nrows, &j, &fy);
-    z = t->z;
-    nc = (size_t)t->ncols;
-    r0 = (size_t)j * nc + (size_t)i;
-    r1 = r0 + nc;
-    return (1.0 - fy) * ((1.0 - fx) * z[r0] + fx * z[r0 + 1])
-         + fy * ((1.0 - fx) * z[r1] + fx * z[r1 + 1]);
+    return height_in_cell(t, i, j, fx, fy);
 }
 
 /* Elevation gradient at node (i, j): central differences inside, one-sided
@@ -87,29 +90,33 @@ int terrain_outside(const Terrain *t, double x, double y)
            y < t->y0 || y > t->y0 + (double)(t->nrows - 1) * t->cell;
 }
 
-void terrain_normal(const Terrain *t, double x, double y, double n[3])
+/* The normal in cell (i, j) at fractions (fx, fy) of a point inside the
+ * grid: the bilinear interpolation of the central-difference gradients at
+ * the cell's four nodes.  Away from the grid's edge every node has both
+ * neighbours, and the gradients are the same differences without the
+ * clamping of node_gradient. */
+static void normal_in_cell(const Terrain *t, int i, int j, double fx, double fy, double n[3])
 {
-    int i, j;
-    double fx, fy, gx00, gy00, gx10, gy10, gx01, gy01, gx11, gy11, gx, gy, s;
+    double gx00, gy00, gx10, gy10, gx01, gy01, gx11, gy11, gx, gy, s;
 
-    if (t->ncols == 0) {
-        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
-        return;
+    if (i > 0 && i + 2 < t->ncols && j > 0 && j + 2 < t->nrows) {
+        const size_t nc = (size_t)t->ncols;
+        const double *z0 = t->z + (size_t)j * nc + (size_t)i, *z1 = z0 + nc;   /* nodes (i, j), (i, j + 1) */
+        const double d = 2.0 * t->cell;                  /* (ir - il) cell, (jr - jl) cell */
+        gx00 = (z0[1] - z0[-1]) / d;
+        gy00 = (z1[0] - z0[-(ptrdiff_t)nc]) / d;
+        gx10 = (z0[2] - z0[0]) / d;
+        gy10 = (z1[1] - z0[1 - (ptrdiff_t)nc]) / d;
+        gx01 = (z1[1] - z1[-1]) / d;
+        gy01 = (z1[nc] - z0[0]) / d;
+        gx11 = (z1[2] - z1[0]) / d;
+        gy11 = (z1[nc + 1] - z0[1]) / d;
+    } else {
+        node_gradient(t, i, j, &gx00, &gy00);
+        node_gradient(t, i + 1, j, &gx10, &gy10);
+        node_gradient(t, i, j + 1, &gx01, &gy01);
+        node_gradient(t, i + 1, j + 1, &gx11, &gy11);
     }
-    if (isnan(x) || isnan(y)) {
-        n[0] = n[1] = n[2] = NAN;
-        return;
-    }
-    if (terrain_outside(t, x, y)) {
-        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
-        return;
-    }
-    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
-    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
-    node_gradient(t, i, j, &gx00, &gy00);
-    node_gradient(t, i + 1, j, &gx10, &gy10);
-    node_gradient(t, i, j + 1, &gx01, &gy01);
-    node_gradient(t, i + 1, j + 1, &gx11, &gy11);
     gx = (1.0 - fy) * ((1.0 - fx) * gx00 + fx * gx10) + fy * ((1.0 - fx) * gx01 + fx * gx11);
     gy = (1.0 - fy) * ((1.0 - fx) * gy00 + fx * gy10) + fy * ((1.0 - fx) * gy01 + fx * gy11);
     if (fabs(gx) <= 1e150 && fabs(gy) <= 1e150) {
@@ -130,4 +137,49 @@ void terrain_normal(const Terrain *t, double x, double y, double n[3])
         n[1] = -b * s;
         n[2] = c * s;
     }
+}
+
+void terrain_normal(const Terrain *t, double x, double y, double n[3])
+{
+    int i, j;
+    double fx, fy;
+
+    if (t->ncols == 0) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+        return;
+    }
+    if (isnan(x) || isnan(y)) {
+        n[0] = n[1] = n[2] = NAN;
+        return;
+    }
+    if (terrain_outside(t, x, y)) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+        return;
+    }
+    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
+    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
+    normal_in_cell(t, i, j, fx, fy, n);
+}
+
+double terrain_height_normal(const Terrain *t, double x, double y, double n[3])
+{
+    int i, j;
+    double fx, fy;
+
+    if (t->ncols == 0) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+        return 0.0;
+    }
+    if (isnan(x) || isnan(y)) {
+        n[0] = n[1] = n[2] = NAN;
+        return NAN;
+    }
+    locate(x, t->x0, t->cell, t->ncols, &i, &fx);
+    locate(y, t->y0, t->cell, t->nrows, &j, &fy);
+    if (terrain_outside(t, x, y)) {
+        n[0] = 0.0, n[1] = 0.0, n[2] = 1.0;
+    } else {
+        normal_in_cell(t, i, j, fx, fy, n);
+    }
+    return height_in_cell(t, i, j, fx, fy);
 }
