@@ -833,6 +833,53 @@ static void test_free(void)
     CHECK(terrain_height(&t, 1.0, 2.0) == 0.0, "freed terrain not flat");
 }
 
+/* terrain_height_normal is terrain_height and terrain_normal at once: the
+ * same numbers bit for bit everywhere (inside, in the cells along every
+ * edge, on nodes, outside, NaN), so the model may use either. */
+static int same_double(double a, double b) { return (isnan(a) && isnan(b)) || a == b; }
+
+static void test_height_normal_at_once(void)
+{
+    const double x0 = 1.0, y0 = -2.0, cell = 0.1, x1 = x0 + 9 * cell, y1 = y0 + 7 * cell;
+    const char *path = write_surface("at_once.asc", 10, 8, x0, y0, cell, quad_fn, NULL);
+    char err[512];
+    Terrain t;
+    int k, mismatches = 0;
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "at-once load failed: %s", err);
+    for (k = 0; k < 3000; k++) {
+        double x, y, n[3], na[3], h, ha;
+        if (k < 1000) {                          /* anywhere, a margin outside included */
+            x = urand(x0 - 0.3, x1 + 0.3);
+            y = urand(y0 - 0.3, y1 + 0.3);
+        } else if (k < 2000) {                   /* in the two rows of cells along each edge */
+            x = k % 4 == 0 ? urand(x0, x0 + 2 * cell) : k % 4 == 1 ? urand(x1 - 2 * cell, x1) : urand(x0, x1);
+            y = k % 4 == 2 ? urand(y0, y0 + 2 * cell) : k % 4 == 3 ? urand(y1 - 2 * cell, y1) : urand(y0, y1);
+        } else if (k < 2980) {                   /* on nodes */
+            x = x0 + (k % 10) * cell;
+            y = y0 + ((k / 10) % 8) * cell;
+        } else {                                 /* NaN */
+            x = k % 2 ? NAN : 1.2;
+            y = k % 2 ? -1.5 : NAN;
+        }
+        h = terrain_height(&t, x, y);
+        terrain_normal(&t, x, y, n);
+        ha = terrain_height_normal(&t, x, y, na);
+        if (!same_double(h, ha) || !same_double(n[0], na[0]) || !same_double(n[1], na[1]) ||
+            !same_double(n[2], na[2]))
+            mismatches++;
+    }
+    CHECK(mismatches == 0, "terrain_height_normal differs from terrain_height/terrain_normal at %d of 3000 points",
+          mismatches);
+    terrain_free(&t);
+    {
+        double n[3];
+        terrain_init_flat(&t);
+        CHECK(terrain_height_normal(&t, 3.0, 4.0, n) == 0.0 && n[0] == 0.0 && n[1] == 0.0 && n[2] == 1.0,
+              "flat ground: height and normal (%g %g %g)", n[0], n[1], n[2]);
+    }
+}
+
 int main(int argc, char **argv)
 {
     const char *base = argc > 1 ? argv[1] : "/tmp";
@@ -847,6 +894,7 @@ int main(int argc, char **argv)
     test_corner_center();
     test_mound();
     test_outside_and_flat();
+    test_height_normal_at_once();
     test_nodata();
     test_bad_files();
     test_not_regular_files();
