@@ -301,9 +301,10 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
     }
     wc->sinkage = sinkage;
     in->sinkage = sinkage;
+    /* Both unit to rounding, without normalising: np is unit and normal
+     * to the axle e, and n = in_plane np + (n . e) e is normal to f. */
     v3_cross(cf->f, ev->e, cf->np);
     v3_cross(cf->l, cf->n, cf->f);
-    v3_normalize(cf->l);
     for (int i = 0; i < 3; ++i) cf->v_hub[i] = point_row_dot(Jh, i, m->s.u, sp);
     wc->v_long = v3_dot(cf->f, cf->v_hub);
     in->v_long = wc->v_long;
