@@ -431,8 +431,7 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
     const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
     WheelContact *wc = &ev->wheel[w];
-    memset(wc, 0, sizeof *wc);
-    wc->cos_alpha = 1.0;
+    *wc = (WheelContact){.cos_alpha = 1.0};      /* out of the soil: no slip, no force */
 
     ContactFrame cf;
     WheelSoilInput in;
