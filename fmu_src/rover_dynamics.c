@@ -220,6 +220,14 @@ static void kinematics(const Model *m, Eval *ev, Frames *fr)
     }
 }
 
+/* A = 0 by a loop of stores (GCC makes memset of this size a rep stos,
+ * whose start-up costs more than the stores). */
+static void zero_matrix(double A[NU][NU])
+{
+    for (int i = 0; i < NU; ++i)
+        for (int j = 0; j < NU; ++j) A[i][j] = 0.0;
+}
+
 /* M and Q of the seven bodies (ev->M, ev->Q cleared first; ev->D and
  * ev->K cleared for the contacts and inputs to add to, unless kept). */
 static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep_jacobians)
@@ -227,11 +235,11 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep
     const Params *p = &m->p;
     const Derived *d = &m->d;
     const double *u = m->s.u;
-    memset(ev->M, 0, sizeof ev->M);
+    zero_matrix(ev->M);
     memset(ev->Q, 0, sizeof ev->Q);
     if (!keep_jacobians) {
-        memset(ev->D, 0, sizeof ev->D);
-        memset(ev->K, 0, sizeof(double) * NU * NU);
+        zero_matrix(ev->D);
+        zero_matrix(ev->K);
     }
     BodyCommon common;
     common.w = &u[U_WX];

@@ -431,7 +431,12 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
     const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
     WheelContact *wc = &ev->wheel[w];
-    *wc = (WheelContact){.cos_alpha = 1.0};      /* out of the soil: no slip, no force */
+    /* out of the soil: no slip, no force (field by field: GCC makes a
+     * memset or a cleared struct of this size a rep stos, slow to start) */
+    wc->in_contact = 0;
+    wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
+    wc->cos_alpha = 1.0;
+    wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
 
     ContactFrame cf;
     WheelSoilInput in;
