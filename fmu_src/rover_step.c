@@ -7,8 +7,9 @@
  *   (M + h D + h^2 K) du = h (Q - h K u),   u += du,   q += h u.
  * The contact memory (max sinkage, distance rolled), the multi-pass rut
  * and the PID integral are advanced explicitly once per internal step.
- * With solver.tolerance > 0, the automatic step instead: a whole and two
- * half steps, extrapolated, the step size chosen by their difference.
+ * With solver.tolerance > 0, the automatic step instead: a two-stage
+ * linearly implicit step on one evaluation, with an embedded first-order
+ * solution whose difference chooses the step size.
  * Also: the reuse of the end-of-step evaluation, and the checks that name
  * the likely cause of a diverging state.
  */
@@ -215,6 +216,31 @@ void rover_evaluate_end_of_step(Model *m)
     rover_outputs_from(m, &m->eval);
 }
 
+/* The contact memory (max sinkage, distance rolled) and the multi-pass
+ * rut over a step of length h, explicitly, from the evaluation ev of the
+ * step's start. */
+static void advance_soil_memory(Model *m, const Eval *ev, const double sinkage[NUM_WHEELS], double h)
+{
+    State *s = &m->s;
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        contact_memory_update(&m->d.contact, &s->memory[w], sinkage[w], ev->wheel[w].v_long, h);
+    if (m->p.multipass_rutFraction > 0) {
+        /* Record the residual rut each front wheel leaves along its forward travel. */
+        for (int side = 0; side < 2; ++side) {
+            const int front = 2 * side;
+            const double v = ev->wheel[front].v_long;
+            if (!(v > 0)) continue;
+            const double depth = ev->wheel[front].sinkage > 0
+                                     ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
+            const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
+            s->path[side] += v * h;
+            const long to = (long)floor(s->path[side] / RUT_SPACING);
+            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i)
+                s->rut[side][((i % RUT_SAMPLES) + RUT_SAMPLES) % RUT_SAMPLES] = depth;
+        }
+    }
+}
+
 /* One internal step of length h from m->eval, the evaluation of the
  * current state with its input terms (rover_evaluate_passive and
  * rover_evaluate_inputs, with matrices); m->eval is only read. */
@@ -261,23 +287,9 @@ static int advance(Model *m, double h, char *err, size_t errlen)
     quat_integrate_world(s->quat, &s->u[U_WX], h);
     s->beta += h * s->u[U_BETA];
     for (int k = 0; k < 2; ++k) s->spin_angle[k] += h * s->u[U_SPIN_L + k];
-    for (int w = 0; w < NUM_WHEELS; ++w)
-        contact_memory_update(&m->d.contact, &s->memory[w], ev->wheel[w].sinkage, ev->wheel[w].v_long, h);
-    if (m->p.multipass_rutFraction > 0) {
-        /* Record the residual rut each front wheel leaves along its forward travel. */
-        for (int side = 0; side < 2; ++side) {
-            const int front = 2 * side;
-            const double v = ev->wheel[front].v_long;
-            if (!(v > 0)) continue;
-            const double depth = ev->wheel[front].sinkage > 0
-                                     ? (1 - m->p.soil_gamma) * s->memory[front].zmax : 0.0;
-            const long from = (long)floor(s->path[side] / RUT_SPACING) + 1;
-            s->path[side] += v * h;
-            const long to = (long)floor(s->path[side] / RUT_SPACING);
-            for (long i = from; i <= to && i - from < RUT_SAMPLES; ++i)
-                s->rut[side][((i % RUT_SAMPLES) + RUT_SAMPLES) % RUT_SAMPLES] = depth;
-        }
-    }
+    const double sinkage[NUM_WHEELS] = {ev->wheel[0].sinkage, ev->wheel[1].sinkage, ev->wheel[2].sinkage,
+                                        ev->wheel[3].sinkage};
+    advance_soil_memory(m, ev, sinkage, h);
     s->time += h;
     if (!state_is_sane(m, ev, err, errlen)) return -1;
     return 0;
@@ -295,37 +307,250 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 
 /* ------------------------------------------------- the automatic step */
 
-/* solver.tolerance > 0: steps of two halves, extrapolated, the step size
- * chosen by their difference.  From the state at t, one internal step of h
- * gives A, two of h/2 give B; both are first order, with errors of about
- * c h^2 and c h^2 / 2 per step, so 2 B - A (Richardson extrapolation) is
- * second order where the dynamics are smooth (the soil memory's explicit
- * update is not: measured, the error falls as h^1.8, tests/c/
- * test_auto_step.c) and |B - A| estimates B's local error.  Linearly implicit
- * Euler extrapolated so stays L-stable: a stiff soil mode that one long
- * step damps to nothing, the two halves damp too, and it neither counts as
- * error nor rings.  The step is accepted when the largest component of
- * B - A in the velocities (angular rates as the speed they give at a lever
- * of wheel.radius for the spins, half rover.wheelbase for the chassis and
- * rocker rates) is within solver.tolerance (m/s); the next step is
- * 0.9 h sqrt(tol / est) (B's error grows as h^2), within 0.2..2 times this
- * one and at most solver.step.  The velocities, positions, attitude,
- * rocker angle, wheel spin angles and PID integral are extrapolated; the soil memory, the
- * rut and the applied torque are B's (the memory's maximum and clamps are
- * not smooth in time).  All three substeps linearise with the Jacobians
- * of the step's start (the damping D and stiffness K, the drive's torque
- * slopes), as LIMEX does: with the matrix fixed over the step, the
- * substeps' errors still expand in powers of h, so the extrapolation keeps
- * its order, and a Jacobian a half step old damps the stiff soil modes as
- * well; the mass matrix M and the forces Q are the half-way point's, as the
- * equations of motion are.  A step so costs one evaluation with Jacobians
- * (the end, which the next step starts from), one without (the half-way
- * point: about two thirds of the cost) and three solves.  A
- * rejected step, or one whose state fails the checks of a diverging state,
- * is taken again from the saved state, shorter, down to STEP_MIN, below
- * which that failure is reported. */
+/* solver.tolerance > 0: a two-stage linearly implicit (Rosenbrock-type)
+ * step with an embedded first-order solution, the step size chosen by
+ * their difference.  In the first-order form y' = f(y), y the
+ * displacements (positions, attitude as a rotation vector, rocker and spin
+ * angles), the PID integrals and the velocities, with J the Jacobian of
+ * the step's start's evaluation (its damping D, stiffness K and the
+ * drive's slopes: those the fixed step linearises), one step of h from y is
+ *   (I - g h J) k1 = h f(y),   (I - g h J) k2 = k1,
+ *   y + g k1 + (1 - g) k2       (the solution the state moves on with),
+ *   y + k1                      (the embedded solution),
+ * with g = 1 - 1/sqrt(2); that is y + h phi(hJ) f(y), phi(z) = (1 - g^2 z) /
+ * (1 - g z)^2 = 1 + z/2 + O(z^2).  Its stability function, (1 + (1 - 2 g) z)
+ * / (1 - g z)^2, vanishes as z -> -inf (L-stable, as the fixed step's
+ * linearly implicit Euler): a stiff soil mode a long step cannot resolve
+ * is damped, not left ringing, and the embedded solution (1 / (1 - g z),
+ * first order, L-stable) damps it alike, so it does not count as error.
+ * With the exact Jacobian the step is second order.  D and K are not
+ * exact: they leave out the shear's dependence on the sinkage, the
+ * attitude's on the forces beside the soil's normal stiffness, the mass
+ * matrix's change and the gyroscopic terms, and what they leave out makes
+ * an O(h^2) local error; measured over the drawbar run's pitching the
+ * velocity error falls as h, six times smaller than the fixed step's at 2
+ * and 4 ms (tests/c/test_auto_step.c).  Both stages share one matrix,
+ * M + g h D + (g h)^2 K, factorised once, and one evaluation of f and J,
+ * the step's start's, which is the end-of-step evaluation of the step
+ * before: an accepted step costs one evaluation with Jacobians (of its
+ * end), one factorisation and two solves.
+ *
+ * The contact memory and the rut are advanced explicitly from the step's
+ * start (a running maximum and clamps are not smooth in time), as in the
+ * fixed step, but with the sinkage the step ends at (sinkage_at_end): with
+ * the start's, the memory would lag one step behind the sinkage, an O(h)
+ * error that was the larger share of the step's on these runs.
+ *
+ * The step is accepted when the largest component of the difference of
+ * the two solutions' velocities (angular rates as the speed they give at a
+ * lever of wheel.radius for the spins, half rover.wheelbase for the
+ * chassis and rocker rates) is within solver.tolerance (m/s); that is the
+ * embedded solution's local error, which grows as h^2, so the next step is
+ * 0.9 h sqrt(tol / est), within 0.2..2 times this one and at most
+ * solver.step.  A rejected step, or one whose state fails the checks of a
+ * diverging state, is taken again from the step's start (whose evaluation
+ * it has not changed), shorter, down to STEP_MIN, below which that failure
+ * is reported. */
 #define STEP_FIRST 1e-3     /* s, the first step after initialisation */
 #define STEP_MIN 1e-6       /* s */
+#define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
+
+/* LU factorisation with partial pivoting, in place (L's multipliers below
+ * the diagonal, unit diagonal implied; row c swapped with perm[c] at
+ * column c).  Returns -1 if singular. */
+static int lu_factor(double A[NU][NU], int perm[NU])
+{
+    for (int c = 0; c < NU; ++c) {
+        int piv = c;
+        double best = fabs(A[c][c]);
+        for (int r = c + 1; r < NU; ++r) {
+            const double v = fabs(A[r][c]);
+            if (v > best) best = v, piv = r;
+        }
+        if (!(best > 1e-300)) return -1;
+        perm[c] = piv;
+        if (piv != c)
+            for (int k = 0; k < NU; ++k) {
+                const double t = A[c][k];
+                A[c][k] = A[piv][k], A[piv][k] = t;
+            }
+        const double *pr = A[c], pivot = pr[c];
+        for (int r = c + 1; r < NU; ++r) {
+            double *rr = A[r];
+            const double f = rr[c] / pivot;
+            rr[c] = f;
+            if (f == 0) continue;
+            for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+        }
+    }
+    return 0;
+}
+
+/* Solves A x = b with lu_factor's A and perm; b is overwritten with x. */
+static void lu_solve(const double A[NU][NU], const int perm[NU], double b[NU])
+{
+    for (int c = 0; c < NU; ++c)
+        if (perm[c] != c) {
+            const double t = b[c];
+            b[c] = b[perm[c]], b[perm[c]] = t;
+        }
+    for (int r = 1; r < NU; ++r)
+        for (int c = 0; c < r; ++c) b[r] -= A[r][c] * b[c];
+    for (int c = NU - 1; c >= 0; --c) {
+        double x = b[c];
+        for (int k = c + 1; k < NU; ++k) x -= A[c][k] * b[k];
+        b[c] = x / A[c][c];
+    }
+}
+
+/* What one automatic step of h changes: the second-order solution's
+ * increments, and the embedded first-order solution's of the velocities. */
+typedef struct {
+    double du[NU];                 /* velocities */
+    double dq[NU];                 /* displacements along the velocities: position (m), rotation vector
+                                    * (rad, world), rocker angle, spin angles (rad) */
+    double dI[2];                  /* PID integrals, rad */
+    double du_first[NU];           /* the first-order solution's velocities */
+} StepIncrement;
+
+/* The two stages from the state m->s and its evaluation ev (with its input
+ * terms and matrices): writes inc; returns -1 if the matrix is singular.
+ *
+ * With r = (r_q, r_I, r_u) a stage's right-hand side, (I - g h J) k = r
+ * reads, for the velocities (the displacements and integrals following),
+ *   (M + g h D + (g h)^2 K) k_u = M r_u - g h K r_q + g h c (r_q,spin + r_I),
+ *   k_q = r_q + g h k_u,   k_I = r_I - g h a k_u,spin,
+ * where c = (1 - drive.lossFraction) drive.Ki is the PID integral's share
+ * of K's spin entries (where ev's torque is not saturated, as K has it) and
+ * a = 1 where the integral integrates (anti-windup, decided at the step's
+ * start), the integral's rate being a (ref - omega).  The first stage's
+ * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1. */
+static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
+{
+    const State *s = &m->s;
+    const double g = ROS_GAMMA * h;
+    const double (*K)[NU] = (const double (*)[NU])ev->K;
+    double A[NU][NU], k1u[NU], k1q[NU], k1I[2], k2u[NU];
+    int perm[NU];
+    for (int i = 0; i < NU; ++i)
+        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + g * g * K[i][j];
+    if (lu_factor(A, perm) != 0) return -1;
+
+    double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
+    if (m->p.drive_mode == DRIVE_PID)
+        for (int k = 0; k < 2; ++k) {
+            const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            const double e = ref - s->u[U_SPIN_L + k];
+            const int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
+            if (ev->torque_slope[k] != 0) c[k] = (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki;
+            if (!saturated || e * ev->torque[k] < 0) active[k] = 1, rate[k] = e;
+        }
+
+    /* first stage: r = h f(y) */
+    for (int i = 0; i < NU; ++i) {
+        double Ku = 0;
+        for (int j = 0; j < NU; ++j) Ku += K[i][j] * s->u[j];
+        k1u[i] = h * ev->Q[i] - g * h * Ku;
+    }
+    for (int k = 0; k < 2; ++k) k1u[U_SPIN_L + k] += g * c[k] * h * (s->u[U_SPIN_L + k] + rate[k]);
+    lu_solve((const double (*)[NU])A, perm, k1u);
+    for (int j = 0; j < NU; ++j) k1q[j] = h * s->u[j] + g * k1u[j];
+    for (int k = 0; k < 2; ++k) k1I[k] = h * rate[k] - g * active[k] * k1u[U_SPIN_L + k];
+
+    /* second stage: r = k1 */
+    for (int i = 0; i < NU; ++i) {
+        double Mk = 0, Kq = 0;
+        for (int j = 0; j < NU; ++j) Mk += ev->M[i][j] * k1u[j], Kq += K[i][j] * k1q[j];
+        k2u[i] = Mk - g * Kq;
+    }
+    for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
+    lu_solve((const double (*)[NU])A, perm, k2u);
+
+    /* y + g k1 + (1 - g) k2, k2's displacements and integrals from its velocities */
+    const double b1 = ROS_GAMMA, b2 = 1.0 - ROS_GAMMA;
+    for (int j = 0; j < NU; ++j) {
+        const double k2q = k1q[j] + g * k2u[j];
+        inc->du[j] = b1 * k1u[j] + b2 * k2u[j];
+        inc->dq[j] = b1 * k1q[j] + b2 * k2q;
+        inc->du_first[j] = k1u[j];
+    }
+    for (int k = 0; k < 2; ++k) {
+        const double k2I = k1I[k] - g * active[k] * k2u[U_SPIN_L + k];
+        inc->dI[k] = b1 * k1I[k] + b2 * k2I;
+    }
+    return 0;
+}
+
+/* The largest difference of the two solutions' velocities (levers above),
+ * relative to solver.tolerance: the step is accepted at <= 1. */
+static double error_ratio(const Model *m, const StepIncrement *inc)
+{
+    const double half_base = 0.5 * m->p.rover_wheelbase, R = m->p.wheel_radius;
+    const double lever[NU] = {1, 1, 1, half_base, half_base, half_base, half_base, R, R};
+    double worst = 0;
+    for (int i = 0; i < NU; ++i) {
+        const double v = fabs(inc->du[i] - inc->du_first[i]) * lever[i];
+        if (!(v <= worst)) worst = v;                  /* NaN counts as the worst */
+    }
+    return worst / m->p.solver_tolerance;
+}
+
+/* Wheel w's sinkage at the end of the step inc, for the soil memory: the
+ * contact's sinkage (rover_wheel_contact.c: R less the hub's height above
+ * the terrain's tangent plane under it, along the plane's normal, over the
+ * length of that normal within the wheel's mid-plane, less a rear wheel's
+ * rut) where the step's displacements carry the hub (by its velocity
+ * Jacobian) and the axle (by the rotation): exact in the terrain's shape,
+ * to O(h^2) in the motion.  The rut is the start's (ev), as is the sinkage
+ * of a wheel lying on its side. */
+static double sinkage_at_end(const Model *m, const Eval *ev, const StepIncrement *inc, int w)
+{
+    const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
+    double hub[3], e[3], n[3];
+    for (int i = 0; i < 3; ++i) {
+        hub[i] = ev->hub[w][i];
+        for (int k = 0; k < NU; ++k) hub[i] += Jv[i][k] * inc->dq[k];
+    }
+    v3_cross(e, &inc->dq[U_WX], ev->e);
+    v3_add(e, e, ev->e);
+    v3_normalize(e);
+    const double zt = rover_terrain_at(m, hub[0], hub[1], n), ne = v3_dot(n, e);
+    const double in_plane = sqrt(fmax(0.0, 1.0 - ne * ne));
+    if (in_plane < 1e-6) return ev->wheel[w].sinkage;
+    const double R = m->d.contact.radius, sinkage = R - (hub[2] - zt) * n[2] / in_plane;
+    if (w % 2 == 0 || !(m->p.multipass_rutFraction > 0)) return sinkage;
+    /* a rear wheel in its rut: the start's rut depth, the start's sinkage without it */
+    double n0[3];
+    const double zt0 = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n0), ne0 = v3_dot(n0, ev->e);
+    const double in_plane0 = sqrt(fmax(0.0, 1.0 - ne0 * ne0));
+    if (in_plane0 < 1e-6) return ev->wheel[w].sinkage;
+    return sinkage - (R - (ev->hub[w][2] - zt0) * n0[2] / in_plane0 - ev->wheel[w].sinkage);
+}
+
+/* Moves the state on by inc over h (ev: the step's start's evaluation, for
+ * the soil memory and the checks); -1 with a message if the new state
+ * fails the checks of a diverging state. */
+static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    for (int i = 0; i < NU; ++i) s->u[i] += inc->du[i];
+    for (int i = 0; i < 3; ++i) s->pos[i] += inc->dq[U_VX + i];
+    quat_integrate_world(s->quat, &inc->dq[U_WX], 1.0);
+    s->beta += inc->dq[U_BETA];
+    for (int k = 0; k < 2; ++k) s->spin_angle[k] += inc->dq[U_SPIN_L + k];
+    if (m->p.drive_mode == DRIVE_PID) {
+        for (int k = 0; k < 2; ++k) s->pid_integral[k] += inc->dI[k];
+        double slope[2];
+        rover_drive_torques(m, s->torque_applied, slope);   /* the end-of-step PID torque */
+    } else {
+        for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
+    }
+    double sinkage[NUM_WHEELS];
+    for (int w = 0; w < NUM_WHEELS; ++w) sinkage[w] = sinkage_at_end(m, ev, inc, w);
+    advance_soil_memory(m, ev, sinkage, h);
+    s->time += h;
+    return state_is_sane(m, ev, err, errlen) ? 0 : -1;
+}
 
 /* Copies the integrator state, the rut memory only when multipass is on
  * (it is 4 kB and unused otherwise). */
@@ -340,37 +565,6 @@ static void state_copy(State *to, const State *from, int with_rut)
     memcpy((char *)to + b, (const char *)from + b, sizeof *from - b);
 }
 
-/* The largest difference of B's velocities from A's (levers above),
- * relative to solver.tolerance: the step is accepted at <= 1. */
-static double error_ratio(const Model *m, const State *a, const State *b)
-{
-    const double half_base = 0.5 * m->p.rover_wheelbase, R = m->p.wheel_radius;
-    const double lever[NU] = {1, 1, 1, half_base, half_base, half_base, half_base, R, R};
-    double worst = 0;
-    for (int i = 0; i < NU; ++i) {
-        const double v = fabs(b->u[i] - a->u[i]) * lever[i];
-        if (!(v <= worst)) worst = v;                  /* NaN counts as the worst */
-    }
-    return worst / m->p.solver_tolerance;
-}
-
-/* s = 2 s - a where the state is smooth in time (above); the rest stays s's. */
-static void extrapolate(State *s, const State *a)
-{
-    for (int i = 0; i < NU; ++i) s->u[i] = 2.0 * s->u[i] - a->u[i];
-    for (int i = 0; i < 3; ++i) s->pos[i] = 2.0 * s->pos[i] - a->pos[i];
-    double n = 0;
-    for (int i = 0; i < 4; ++i) {
-        s->quat[i] = 2.0 * s->quat[i] - a->quat[i];
-        n += s->quat[i] * s->quat[i];
-    }
-    n = 1.0 / sqrt(n);
-    for (int i = 0; i < 4; ++i) s->quat[i] *= n;
-    s->beta = 2.0 * s->beta - a->beta;
-    for (int k = 0; k < 2; ++k) s->spin_angle[k] = 2.0 * s->spin_angle[k] - a->spin_angle[k];
-    for (int k = 0; k < 2; ++k) s->pid_integral[k] = 2.0 * s->pid_integral[k] - a->pid_integral[k];
-}
-
 static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
 {
     State *s = &m->s;
@@ -383,7 +577,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
     double remaining = h_comm;
-    State saved, single;
+    State saved;
     while (remaining > 0) {
         const double n = ceil(remaining / h - 1e-9);     /* steps of at most h to the communication point */
         const int last = n <= 1;
@@ -392,42 +586,33 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
          * compared by hs, a step that must be accepted there would be rejected for ever */
         const int smallest = h <= STEP_MIN;
         char why[512];
-        state_copy(&saved, s, with_rut);
+        StepIncrement inc;
         double ratio = HUGE_VAL;
-        int ok = advance(m, hs, why, sizeof why) == 0;                 /* A */
+        int ok = two_stage(m, ev, hs, &inc) == 0;
+        if (!ok) snprintf(why, sizeof why, "singular mass matrix at t = %.4f s", s->time);
         if (ok) {
-            state_copy(&single, s, with_rut);
-            state_copy(s, &saved, with_rut);
-            ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, first half */
-        }
-        if (ok) {   /* the half-way point: M and Q afresh, the Jacobians D and K the step's start's */
-            rover_evaluate_passive(m, ev, EVAL_KEEP_JACOBIANS);
-            rover_evaluate_inputs(m, ev, EVAL_KEEP_JACOBIANS);
-            ok = advance(m, 0.5 * hs, why, sizeof why) == 0;           /* B, second half */
-        }
-        if (ok) {
-            ratio = error_ratio(m, &single, s);
+            ratio = error_ratio(m, &inc);
             if (ratio <= 1.0 || smallest) {
-                extrapolate(s, &single);
-                s->time = saved.time + hs;
-                const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
-                /* never below STEP_MIN: a step accepted there with a large error would otherwise
-                 * shrink the next towards 0, and the step would never reach its end */
-                h = fmax(STEP_MIN, fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow))));
-                s->step_next = h;
-                m->steps_taken++;
-                remaining = last ? 0.0 : remaining - hs;
-                rover_evaluate_passive(m, ev, 1);
-                if (!last) rover_evaluate_inputs(m, ev, 1);
-                continue;
+                state_copy(&saved, s, with_rut);
+                ok = apply_increment(m, ev, &inc, hs, why, sizeof why) == 0;
+                if (ok) {
+                    const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
+                    /* never below STEP_MIN: a step accepted there with a large error would otherwise
+                     * shrink the next towards 0, and the step would never reach its end */
+                    h = fmax(STEP_MIN, fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow))));
+                    s->step_next = h;
+                    m->steps_taken++;
+                    remaining = last ? 0.0 : remaining - hs;
+                    rover_evaluate_passive(m, ev, 1);       /* the next step's start */
+                    if (!last) rover_evaluate_inputs(m, ev, 1);
+                    continue;
+                }
+                state_copy(s, &saved, with_rut);            /* ev is still the step's start's */
             }
         }
-        /* rejected: back to the step's start, shorter */
+        /* rejected: again from the step's start, shorter */
         if (smallest) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
         m->steps_rejected++;
-        state_copy(s, &saved, with_rut);
-        rover_evaluate_passive(m, ev, 1);
-        rover_evaluate_inputs(m, ev, 1);
         h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
     }
     s->time = t_end;
