@@ -48,7 +48,7 @@ static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0;
  *                     the linearly implicit step needs;
  *   EVAL_KEEP_JACOBIANS  M and Q afresh, D, K and the drive's torque slopes
  *                     left as an earlier EVAL_MATRICES evaluation of the same
- *                     Eval made them (the automatic step's half-way point). */
+ *                     Eval made them. */
 enum { EVAL_FORCES = 0, EVAL_MATRICES = 1, EVAL_KEEP_JACOBIANS = 2 };
 
 /* rover_wheel_contact.c */

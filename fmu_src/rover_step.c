@@ -339,7 +339,8 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
  * start (a running maximum and clamps are not smooth in time), as in the
  * fixed step, but with the sinkage the step ends at (sinkage_at_end): with
  * the start's, the memory would lag one step behind the sinkage, an O(h)
- * error that was the larger share of the step's on these runs.
+ * error larger, on the runs of tests/python/test_fmu_accuracy.py, than the
+ * rest of the step's.
  *
  * The step is accepted when the largest component of the difference of
  * the two solutions' velocities (angular rates as the speed they give at a

@@ -4,7 +4,7 @@
  *     every step accepted at a fixed length h (a tolerance no step
  *     exceeds), its velocity error through the drawbar run's pitching is at
  *     least five times smaller than the fixed step's at 4 ms and at 2 ms
- *     (measured: 6.2 and 6.9 times), and falls at least in proportion to h
+ *     (measured: 6.2 and 7.0 times), and falls at least in proportion to h
  *     (measured: as h; second order needs the exact Jacobian, and the
  *     model's damping and stiffness leave out slower terms);
  *   - the soil memory follows the sinkage the step ends at, not the one it

@@ -2,8 +2,8 @@
 torque and sinkage at the FMU's default solver settings (AUTOMATIC) stay within ACCURACY of a
 converged reference, and the automatic step runs wherever the fixed 1 ms step runs.
 
-solver.tolerance > 0 takes each internal step as two halves extrapolated to second order, the
-step chosen by their difference, up to solver.step.  The runs are those the benchmarks time and
+solver.tolerance > 0 takes each internal step as a two-stage linearly implicit step with an
+embedded first-order solution, the step chosen by their difference, up to solver.step.  The runs are those the benchmarks time and
 a PID run that the importer drives with stepped references:
 
 * drawbar - 30 s on flat ground at the start values (motor drive at 45 % throttle, 400 N);
