@@ -8,8 +8,8 @@
  * The contact memory (max sinkage, distance rolled), the multi-pass rut
  * and the PID integral are advanced explicitly once per internal step.
  * With solver.tolerance > 0, the automatic step instead: a two-stage
- * linearly implicit step on one evaluation, with an embedded first-order
- * solution whose difference chooses the step size.
+ * linearly implicit step of second order on one evaluation, with an
+ * embedded first-order solution whose difference chooses the step size.
  * Also: the reuse of the end-of-step evaluation, and the checks that name
  * the likely cause of a diverging state.
  */
@@ -308,39 +308,52 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 /* ------------------------------------------------- the automatic step */
 
 /* solver.tolerance > 0: a two-stage linearly implicit (Rosenbrock-type)
- * step with an embedded first-order solution, the step size chosen by
- * their difference.  In the first-order form y' = f(y), y the
- * displacements (positions, attitude as a rotation vector, rocker and spin
- * angles), the PID integrals and the velocities, with J the Jacobian of
- * the step's start's evaluation (its damping D, stiffness K and the
+ * step of second order with an embedded first-order solution, the step
+ * size chosen by their difference.  In the first-order form y' = f(y), y
+ * the displacements (positions, attitude as a rotation vector, rocker and
+ * spin angles), the PID integrals and the velocities, with J the Jacobian
+ * of the step's start's evaluation (its damping D, stiffness K and the
  * drive's slopes: those the fixed step linearises), one step of h from y is
- *   (I - g h J) k1 = h f(y),   (I - g h J) k2 = k1,
+ *   (I - g h J) k1 = h f(y),   (I - g h J) k2 = k1 + h^2/(2 (1 - g)) c,
  *   y + g k1 + (1 - g) k2       (the solution the state moves on with),
  *   y + k1                      (the embedded solution),
- * with g = 1 - 1/sqrt(2); that is y + h phi(hJ) f(y), phi(z) = (1 - g^2 z) /
- * (1 - g z)^2 = 1 + z/2 + O(z^2).  Its stability function, (1 + (1 - 2 g) z)
- * / (1 - g z)^2, vanishes as z -> -inf (L-stable, as the fixed step's
+ * with g = 1 - 1/sqrt(2) and c the correction below.  Without it the step
+ * is y + h phi(hJ) f(y), phi(z) = (1 - g^2 z) / (1 - g z)^2 = 1 + z/2 +
+ * O(z^2), second order if J were exact: y + h f + h^2/2 J f against the
+ * exact y + h f + h^2/2 f' f.  Its stability function, (1 + (1 - 2 g) z) /
+ * (1 - g z)^2, vanishes as z -> -inf (L-stable, as the fixed step's
  * linearly implicit Euler): a stiff soil mode a long step cannot resolve
  * is damped, not left ringing, and the embedded solution (1 / (1 - g z),
- * first order, L-stable) damps it alike, so it does not count as error.
- * With the exact Jacobian the step is second order.  D and K are not
- * exact: they leave out the shear's dependence on the sinkage, the
- * attitude's on the forces beside the soil's normal stiffness, the mass
- * matrix's change and the gyroscopic terms, and what they leave out makes
- * an O(h^2) local error; measured over the drawbar run's pitching the
- * velocity error falls as h, six times smaller than the fixed step's at 2
- * and 4 ms (tests/c/test_auto_step.c).  Both stages share one matrix,
- * M + g h D + (g h)^2 K, factorised once, and one evaluation of f and J,
- * the step's start's, which is the end-of-step evaluation of the step
- * before: an accepted step costs one evaluation with Jacobians (of its
- * end), one factorisation and two solves.
+ * L-stable too) damps it alike, so it does not count as error.
  *
- * The contact memory and the rut are advanced explicitly from the step's
- * start (a running maximum and clamps are not smooth in time), as in the
- * fixed step, but with the sinkage the step ends at (sinkage_at_end): with
- * the start's, the memory would lag one step behind the sinkage, an O(h)
- * error larger, on the runs of tests/python/test_fmu_accuracy.py, than the
- * rest of the step's.
+ * J is not exact: D and K leave out the shear's dependence on the
+ * sinkage, the soil memory's on the motion, the mass matrix's change and
+ * the gyroscopic terms, slow beside what they hold, and what they leave out
+ * makes an O(h^2) local error, (f' - J) f h^2/2.  The correction c
+ * estimates (f' - J) f from the last accepted step (of h_last, with the
+ * same inputs): the change of the generalised forces over it that the
+ * linearisation does not explain,
+ *   R = Q(now) - Q(then) + K dq + D du - c_pid (dq_spin + dI)  ~  M (f' - J) f h_last,
+ * so c = M^-1 R / h_last (in the second stage, solved with M + g h D + ...:
+ * (I - g h J)^-1 = I + O(h), and weighted 1 - g, it adds h^2/2 c + O(h^3)).
+ * It is explicit in what J leaves out (a two-step term, as Adams-Bashforth
+ * is), which is slow.  The first step after initialisation, after the
+ * inputs change (their forces are not in the last step's) or after a
+ * state with none is restored goes without it, at first order.
+ *
+ * Both stages share one matrix, M + g h D + (g h)^2 K, factorised once,
+ * and one evaluation of f and J, the step's start's, which is the
+ * end-of-step evaluation of the step before: an accepted step costs one
+ * evaluation with Jacobians (of its end), one factorisation and two solves.
+ *
+ * The contact memory and the rut are advanced explicitly (a running
+ * maximum and clamps are not smooth in time), as in the fixed step, but
+ * with the sinkage over the step rather than its start's: the end's where
+ * the wheel sinks deeper than its memory (the memory is then the end's
+ * sinkage), the mean of the start's and the end's where the memory relaxes
+ * towards a shallower sinkage.  With the start's the memory would lag one
+ * step behind, an O(h) error.  The end's sinkage is predicted from the
+ * step's displacements (sinkage_at_end).
  *
  * The step is accepted when the largest component of the difference of
  * the two solutions' velocities (angular rates as the speed they give at a
@@ -421,11 +434,12 @@ typedef struct {
  * reads, for the velocities (the displacements and integrals following),
  *   (M + g h D + (g h)^2 K) k_u = M r_u - g h K r_q + g h c (r_q,spin + r_I),
  *   k_q = r_q + g h k_u,   k_I = r_I - g h a k_u,spin,
- * where c = (1 - drive.lossFraction) drive.Ki is the PID integral's share
+ * where c = c_pid = (1 - drive.lossFraction) drive.Ki is the PID integral's share
  * of K's spin entries (where ev's torque is not saturated, as K has it) and
  * a = 1 where the integral integrates (anti-windup, decided at the step's
  * start), the integral's rate being a (ref - omega).  The first stage's
- * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1. */
+ * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1 plus
+ * the correction in r_u. */
 static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
 {
     const State *s = &m->s;
@@ -465,6 +479,19 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
         k2u[i] = Mk - g * Kq;
     }
     for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
+    if (s->last_step > 0) {
+        /* the correction (above): R from the last step, h^2 / (2 (1 - g)) M^-1 R / h_last added to
+         * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution */
+        double R[NU];
+        for (int i = 0; i < NU; ++i) {
+            double r = ev->Q[i] - s->last_Q[i];
+            for (int j = 0; j < NU; ++j) r += K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j];
+            R[i] = r;
+        }
+        for (int k = 0; k < 2; ++k) R[U_SPIN_L + k] -= c[k] * (s->last_dq[U_SPIN_L + k] + s->last_dI[k]);
+        const double f = h * h / (2.0 * (1.0 - ROS_GAMMA) * s->last_step);
+        for (int i = 0; i < NU; ++i) k2u[i] += f * R[i];
+    }
     lu_solve((const double (*)[NU])A, perm, k2u);
 
     /* y + g k1 + (1 - g) k2, k2's displacements and integrals from its velocities */
@@ -546,8 +573,14 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     } else {
         for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
     }
+    /* The soil memory over the step: where the wheel ends deeper than its memory, the memory is
+     * the end's sinkage; where it stays shallower, the memory relaxes towards the sinkage, and
+     * the mean of the start's and the end's is its mean over the step (trapezoidal rule). */
     double sinkage[NUM_WHEELS];
-    for (int w = 0; w < NUM_WHEELS; ++w) sinkage[w] = sinkage_at_end(m, ev, inc, w);
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const double z0 = ev->wheel[w].sinkage, z1 = sinkage_at_end(m, ev, inc, w), zmax = s->memory[w].zmax;
+        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : fmin(0.5 * (z0 + z1), zmax);
+    }
     advance_soil_memory(m, ev, sinkage, h);
     s->time += h;
     return state_is_sane(m, ev, err, errlen) ? 0 : -1;
@@ -577,6 +610,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     if (!(m->eval_valid && eval_key_matches(m))) rover_evaluate_passive(m, ev, 1);
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
+    if (memcmp(&s->last_inputs, &m->in, sizeof m->in) != 0) s->last_step = 0;   /* its forces had other inputs */
     double remaining = h_comm;
     State saved;
     while (remaining > 0) {
@@ -597,6 +631,12 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                 state_copy(&saved, s, with_rut);
                 ok = apply_increment(m, ev, &inc, hs, why, sizeof why) == 0;
                 if (ok) {
+                    s->last_step = hs;
+                    memcpy(s->last_Q, ev->Q, sizeof s->last_Q);
+                    memcpy(s->last_dq, inc.dq, sizeof s->last_dq);
+                    memcpy(s->last_du, inc.du, sizeof s->last_du);
+                    memcpy(s->last_dI, inc.dI, sizeof s->last_dI);
+                    s->last_inputs = m->in;
                     const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
                     /* never below STEP_MIN: a step accepted there with a large error would otherwise
                      * shrink the next towards 0, and the step would never reach its end */
