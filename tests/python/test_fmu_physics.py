@@ -356,15 +356,17 @@ def test_compaction_resistance_falls_as_gamma_rises(fmu_unzipped):
 def test_coasting_rover_comes_to_rest_and_stays(fmu_unzipped):
     """A passive rover released at 0.3 m/s stops and stays: it rolls back no more than 5 mm from
     its furthest point (the chassis pitches as it stops, so the reference point's speed may
-    briefly be negative) and moves less than 1 mm over the last 2 s of 4 s."""
-    r = run(fmu_unzipped, {"drive.mode": 0, "init.vx": 0.3}, FREE, stop_time=4.0, outputs=["x", "vx"])
-    late = r["time"] >= 2.0
+    briefly be negative) and moves less than 1 mm over the last 2 s of 6 s, at under 5 mm/s.
+    The rocking it stops with dies away slowly: converged (a fixed 0.0625 ms step), the reference
+    point still moves at up to 5.0 mm/s between 3 and 4 s and 3.4 mm/s between 4 and 5 s."""
+    r = run(fmu_unzipped, {"drive.mode": 0, "init.vx": 0.3}, FREE, stop_time=6.0, outputs=["x", "vx"])
+    late = r["time"] >= 4.0
     rollback = r["x"].max() - r["x"][-1]
     print(f"\ncoasting, default soil: stops at x = {r['x'][-1] * 1000:.1f} mm, rolls back {rollback * 1000:.2f} mm, "
           f"moves {np.ptp(r['x'][late]) * 1000:.2f} mm over the last 2 s")
     assert rollback < 0.005, f"a passive rover rolling forward must not roll back ({rollback * 1000:.1f} mm)"
     assert np.ptp(r["x"][late]) < 0.001, "it must come to rest and stay at rest"
-    assert np.abs(r["vx"][r["time"] >= 3.0]).max() < 0.005
+    assert np.abs(r["vx"][late]).max() < 0.005
 
 # ---------------------------------------------------------------------------------------------
 # Integration: a steady state does not depend on the solver step
