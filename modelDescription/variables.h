@@ -80,7 +80,7 @@
     /* ---- numerics: the contact law's (contact_variables.h) and the integrator's ---- */ \
     JUNO_CONTACT_NUMERICS_VARIABLES \
     REAL(182, "solver.step",       PARAM, "s",   0.02, 1e-6, 0.1, p.solver_step, "Largest internal integration step of the automatic step (solver.tolerance > 0), or the fixed step when solver.tolerance = 0") \
-    REAL(184, "solver.tolerance",  PARAM, "m/s", 1e-4, 0, 1, p.solver_tolerance, "0 = fixed internal steps of solver.step; > 0: automatic steps of at most solver.step, each a two-stage linearly implicit step with an embedded first-order solution, its length chosen so that the two solutions' velocities (angular rates as speeds at wheel.radius or half rover.wheelbase) differ by at most this") \
+    REAL(184, "solver.tolerance",  PARAM, "m/s", 4e-4, 0, 1, p.solver_tolerance, "0 = fixed internal steps of solver.step; > 0: automatic steps of at most solver.step, each a two-stage linearly implicit step with an embedded first-order solution, its length chosen so that the two solutions' velocities (angular rates as speeds at wheel.radius or half rover.wheelbase) differ by at most this") \
     /* ---- model extensions: effects real data shows and the paper's model leaves out; each is off at its default ---- */ \
     REAL(190, "soilPatch.x",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_x,      "Soil patch centre, world x") \
     REAL(191, "soilPatch.y",        PARAM, "m",   0.0, -NOLIM, NOLIM, p.patch_y,      "Soil patch centre, world y") \

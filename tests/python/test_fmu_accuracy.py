@@ -32,7 +32,7 @@ from fmu_helpers import WHEELS, FMICallException, LogCapture, Rover, model_descr
 from test_fmu_ranges import _values, _walked_variables
 
 ACCURACY = 2e-3            # relative RMS difference from the converged reference
-AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 1e-4}   # the FMU's default
+AUTOMATIC = {"solver.step": 0.02, "solver.tolerance": 4e-4}   # the FMU's default
 FIXED_1MS = {"solver.step": 1e-3, "solver.tolerance": 0.0}    # the fixed step the harness pins
 REFERENCE_STEP = 6.25e-5   # s, fixed
 COMM_STEP = 0.02           # s
