@@ -442,9 +442,10 @@ typedef struct {
 } Snapshot;
 
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
-/* Raised with every change of ModelState's layout (2: the wheels' spin angles), so that a state
- * saved by another version of the FMU is refused as such, even at an equal size. */
-#define SNAPSHOT_VERSION 2u
+/* Raised with every change of ModelState's layout (2: the wheels' spin angles; 3: the automatic
+ * step's last step), so that a state saved by another version of the FMU is refused as such, even
+ * at an equal size. */
+#define SNAPSHOT_VERSION 3u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)
 {
