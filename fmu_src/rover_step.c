@@ -396,7 +396,6 @@ static int lu_factor(double A[NU][NU], int perm[NU])
             double *rr = A[r];
             const double f = rr[c] / pivot;
             rr[c] = f;
-            if (f == 0) continue;
             for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
         }
     }
