@@ -1,6 +1,6 @@
 /*
  * The rover's dynamics (rover_internal.h): the kinematics of its seven
- * bodies, their mass matrix, gravity, bias and gyroscopic forces (each
+ * parts (chassis, two rockers, four wheels), their mass matrix, gravity, bias and gyroscopic forces (each
  * side's rocker and wheels assembled as one body, side_body), the drive,
  * the rocker differential's friction and the drawbar, and the outputs.
  * The contacts are rover_wheel_contact.c's.
@@ -228,19 +228,17 @@ static void zero_matrix(double A[NU][NU])
         for (int j = 0; j < NU; ++j) A[i][j] = 0.0;
 }
 
-/* M and Q of the seven bodies (ev->M, ev->Q cleared first; ev->D and
- * ev->K cleared for the contacts and inputs to add to, unless kept). */
-static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr, int keep_jacobians)
+/* M and Q of the bodies (ev->M, ev->Q cleared first; ev->D and ev->K
+ * cleared for the contacts and inputs to add to). */
+static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
 {
     const Params *p = &m->p;
     const Derived *d = &m->d;
     const double *u = m->s.u;
     zero_matrix(ev->M);
     memset(ev->Q, 0, sizeof ev->Q);
-    if (!keep_jacobians) {
-        zero_matrix(ev->D);
-        zero_matrix(ev->K);
-    }
+    zero_matrix(ev->D);
+    zero_matrix(ev->K);
     BodyCommon common;
     common.w = &u[U_WX];
     common.g = p->env_gravity;
@@ -311,7 +309,7 @@ void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
     Frames fr;
     kinematics(m, ev, &fr);
-    if (matrices) assemble_bodies(m, ev, &fr, matrices == EVAL_KEEP_JACOBIANS);
+    if (matrices) assemble_bodies(m, ev, &fr);
     for (int wh = 0; wh < NUM_WHEELS; ++wh) rover_wheel_contact(m, ev, wh, matrices);
 }
 
@@ -348,17 +346,14 @@ void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega
 /* The part that depends on the inputs (and s.pid_integral): the drive
  * torques and, if matrices, the drive, rocker damping and drawbar terms
  * added to the Q, D, K of rover_evaluate_passive (once per passive
- * evaluation; with EVAL_KEEP_JACOBIANS to Q only, and the torque slopes
- * stay those D and K were made with). */
+ * evaluation). */
 void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
 {
     const Params *p = &m->p;
     const double *u = m->s.u;
-    const int jacobians = matrices == EVAL_MATRICES;
     double (*D)[NU] = ev->D, (*K)[NU] = ev->K;
-    double now_slope[2];
-    double *slope = jacobians || !matrices ? ev->torque_slope : now_slope;
-    rover_drive_torques(m, ev->torque, slope);
+    const double *slope = ev->torque_slope;
+    rover_drive_torques(m, ev->torque, ev->torque_slope);
     if (!matrices) return;
 
     /* Drive: the motor on each rocker turns its side's wheels relative to it. */
@@ -367,12 +362,12 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
     const double transmitted = 1.0 - p->drive_lossFraction;
     for (int k = 0; k < 2; ++k) {
         ev->Q[U_SPIN_L + k] += transmitted * ev->torque[k];
-        if (jacobians) D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
+        D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
         /* The PID's integral acts like a torsion spring on the spin angle (I' = ref - omega):
          * treated implicitly as a stiffness, so a stiff PID stays stable at large steps
          * (explicitly, K_i = 2e4 N m/rad went unstable at 5 ms in soft soil).  Off when the
          * torque is saturated (slope 0), where the anti-windup holds the integral. */
-        if (jacobians && p->drive_mode == DRIVE_PID && slope[k] != 0)
+        if (p->drive_mode == DRIVE_PID && slope[k] != 0)
             K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
         /* Drivetrain friction on the wheel side (drive.frictionLeft/Right: Coulomb,
          * drive.viscousFriction: viscous), opposing the spin relative to the rocker; the
@@ -382,12 +377,12 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
         if (coulomb > 0 || p->drive_viscousFriction > 0) {
             const double w = u[U_SPIN_L + k], th = tanh(w / 0.05);
             ev->Q[U_SPIN_L + k] -= coulomb * th + p->drive_viscousFriction * w;
-            if (jacobians) D[U_SPIN_L + k][U_SPIN_L + k] += coulomb * (1.0 - th * th) / 0.05 + p->drive_viscousFriction;
+            D[U_SPIN_L + k][U_SPIN_L + k] += coulomb * (1.0 - th * th) / 0.05 + p->drive_viscousFriction;
         }
     }
     /* Rocker differential friction. */
     ev->Q[U_BETA] -= p->rover_rockerDamping * u[U_BETA];
-    if (jacobians) D[U_BETA][U_BETA] += p->rover_rockerDamping;
+    D[U_BETA][U_BETA] += p->rover_rockerDamping;
     /* Drawbar: horizontal, backwards along the heading, at the hitch (a
      * chassis point r from the reference point: Q_v += F, Q_w += r x F). */
     const double hitch_local[3] = {p->rover_hitchX, 0, p->rover_hitchZ};

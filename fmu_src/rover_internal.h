@@ -45,11 +45,8 @@ static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0;
  * `matrices` argument below):
  *   EVAL_FORCES       nothing more (the outputs);
  *   EVAL_MATRICES     M, Q, and the damping D and stiffness K, the Jacobians
- *                     the linearly implicit step needs;
- *   EVAL_KEEP_JACOBIANS  M and Q afresh, D, K and the drive's torque slopes
- *                     left as an earlier EVAL_MATRICES evaluation of the same
- *                     Eval made them. */
-enum { EVAL_FORCES = 0, EVAL_MATRICES = 1, EVAL_KEEP_JACOBIANS = 2 };
+ *                     the linearly implicit step needs. */
+enum { EVAL_FORCES = 0, EVAL_MATRICES = 1 };
 
 /* rover_wheel_contact.c */
 
@@ -57,9 +54,9 @@ enum { EVAL_FORCES = 0, EVAL_MATRICES = 1, EVAL_KEEP_JACOBIANS = 2 };
  * with the registration offsets (terrain.offset*) applied. */
 double rover_terrain_at(const Model *m, double x, double y, double n[3]);
 
-/* Contact of wheel w: fills ev->wheel[w]; with matrices (EVAL_MATRICES or
- * EVAL_KEEP_JACOBIANS), adds its generalised force to ev->Q, and with
- * EVAL_MATRICES its damping to ev->D and its stiffness to ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
+/* Contact of wheel w: fills ev->wheel[w]; with matrices (EVAL_MATRICES),
+ * adds its generalised force to ev->Q, its damping to ev->D and its
+ * stiffness to ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
 void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices);
 
 /* rover_dynamics.c */

@@ -106,15 +106,6 @@ static inline void angular_vec_times_jac(double out[NU], const double a[3], doub
     out[sp] = a[0] * Jw[0][sp] + a[1] * Jw[1][sp] + a[2] * Jw[2][sp];
 }
 
-/* Q += J^T F for a point Jacobian J. */
-static inline void point_add_generalised(double Q[NU], double J[3][NU], const double F[3], int sp)
-{
-    double g[NU];
-    point_vec_times_jac(g, F, J, sp);
-    for (int k = 0; k < NU; ++k)
-        if (k < U_SPIN_L || k == sp) Q[k] += g[k];
-}
-
 /* The rank-one updates of D and K below touch only the structural
  * non-zeros of their rows: columns 0..U_BETA (the chassis's six and the
  * rocker rate) and this wheel's spin column sp; the other spin column of
@@ -461,5 +452,4 @@ void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
     ShearGeometry sg;
     contact_forces(&ws, Jh, Jw, sp, &cf, &in, &sc, jacobians, wc, &sg);
     if (jacobians) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
-    else if (matrices) point_add_generalised(ev->Q, sg.Jp, wc->force, sp);
 }
