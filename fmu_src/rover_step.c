@@ -447,6 +447,25 @@ static void lu_solve(const double A[NU][NU], const int perm[NU], double b[NU])
     lu_backward_row(A, b, 0);
 }
 
+/* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
+ * contacts' normal stiffness acts through the hubs, whose velocity
+ * Jacobians have no spin columns: rover_wheel_contact.c's add_outer_hub)
+ * and the spin diagonal (the PID integral, rover_evaluate_inputs).  The
+ * products below skip the rest, exact zeros, whose terms change no sum. */
+enum { K_BLOCK = U_BETA + 1 };
+
+/* out = K x over K's structural non-zeros, each sum in the order of the
+ * dense loop. */
+static inline void k_times(const double (*K)[NU], const double x[NU], double out[NU])
+{
+    for (int i = 0; i < K_BLOCK; ++i) {
+        double s = 0;
+        for (int j = 0; j < K_BLOCK; ++j) s += K[i][j] * x[j];
+        out[i] = s;
+    }
+    for (int k = U_SPIN_L; k <= U_SPIN_R; ++k) out[k] = K[k][k] * x[k];
+}
+
 /* What one automatic step of h changes: the second-order solution's
  * increments, and the embedded first-order solution's of the velocities. */
 typedef struct {
@@ -477,8 +496,14 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
     const double (*K)[NU] = (const double (*)[NU])ev->K;
     double A[NU][NU], k1u[NU], k1q[NU], k1I[2], k2u[NU];
     int perm[NU];
-    for (int i = 0; i < NU; ++i)
-        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + g * g * K[i][j];
+    /* K's structural zeros (k_times) left out: adding g g 0 changes nothing */
+    const double gg = g * g;
+    for (int i = 0; i < K_BLOCK; ++i) {
+        for (int j = 0; j < K_BLOCK; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + gg * K[i][j];
+        for (int j = K_BLOCK; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j];
+    }
+    for (int i = K_BLOCK; i < NU; ++i)
+        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
     if (lu_factor(A, perm) != 0) return -1;
 
     double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
@@ -492,21 +517,21 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
         }
 
     /* first stage: r = h f(y) */
-    for (int i = 0; i < NU; ++i) {
-        double Ku = 0;
-        for (int j = 0; j < NU; ++j) Ku += K[i][j] * s->u[j];
-        k1u[i] = h * ev->Q[i] - g * h * Ku;
-    }
+    double Ku[NU];
+    k_times(K, s->u, Ku);
+    for (int i = 0; i < NU; ++i) k1u[i] = h * ev->Q[i] - g * h * Ku[i];
     for (int k = 0; k < 2; ++k) k1u[U_SPIN_L + k] += g * c[k] * h * (s->u[U_SPIN_L + k] + rate[k]);
     lu_solve((const double (*)[NU])A, perm, k1u);
     for (int j = 0; j < NU; ++j) k1q[j] = h * s->u[j] + g * k1u[j];
     for (int k = 0; k < 2; ++k) k1I[k] = h * rate[k] - g * active[k] * k1u[U_SPIN_L + k];
 
     /* second stage: r = k1 */
+    double Kq[NU];
+    k_times(K, k1q, Kq);
     for (int i = 0; i < NU; ++i) {
-        double Mk = 0, Kq = 0;
-        for (int j = 0; j < NU; ++j) Mk += ev->M[i][j] * k1u[j], Kq += K[i][j] * k1q[j];
-        k2u[i] = Mk - g * Kq;
+        double Mk = 0;
+        for (int j = 0; j < NU; ++j) Mk += ev->M[i][j] * k1u[j];
+        k2u[i] = Mk - g * Kq[i];
     }
     for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
     if (s->last_step > 0) {
@@ -514,8 +539,15 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
          * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution */
         double R[NU];
         for (int i = 0; i < NU; ++i) {
+            /* K dq + D du, K's structural zeros (k_times) left out (0 dq + D du is D du) */
             double r = ev->Q[i] - s->last_Q[i];
-            for (int j = 0; j < NU; ++j) r += K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j];
+            if (i < K_BLOCK) {
+                for (int j = 0; j < K_BLOCK; ++j) r += K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j];
+                for (int j = K_BLOCK; j < NU; ++j) r += ev->D[i][j] * s->last_du[j];
+            } else {
+                for (int j = 0; j < NU; ++j)
+                    r += j == i ? K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j] : ev->D[i][j] * s->last_du[j];
+            }
             R[i] = r;
         }
         for (int k = 0; k < 2; ++k) R[U_SPIN_L + k] -= c[k] * (s->last_dq[U_SPIN_L + k] + s->last_dI[k]);
