@@ -372,14 +372,23 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 #define STEP_MIN 1e-6       /* s */
 #define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
 
+/* The LU factors of the automatic step's matrix: L's multipliers below
+ * the diagonal of a (unit diagonal implied), U on and above it, row c
+ * swapped with perm[c] at column c, and the reciprocals of U's diagonal. */
+typedef struct {
+    double a[NU][NU];
+    double inv_diag[NU];
+    int perm[NU];
+} LU;
+
 /* One column c of lu_factor's elimination: partial pivoting among rows
- * c..NU-1 (row c swapped with perm[c]), then the rows below get their
- * multiplier in column c and lose that column's share right of it.  Inlined
- * with a constant c (lu_factor), its loops have fixed lengths, which GCC
- * unrolls and vectorises: the arithmetic of the loop over c, operation for
- * operation, in about half the instructions. */
-static inline int lu_column(double A[NU][NU], int perm[NU], const int c)
+ * c..NU-1, then the rows below get their multiplier in column c (by the
+ * pivot's reciprocal: one division a column) and lose that column's share
+ * right of it.  Inlined with a constant c (lu_factor), its loops have
+ * fixed lengths, which GCC unrolls and vectorises. */
+static inline int lu_column(LU *lu, const int c)
 {
+    double (*A)[NU] = lu->a;
     int piv = c;
     double best = fabs(A[c][c]);
     for (int r = c + 1; r < NU; ++r) {
@@ -387,64 +396,68 @@ static inline int lu_column(double A[NU][NU], int perm[NU], const int c)
         if (v > best) best = v, piv = r;
     }
     if (!(best > 1e-300)) return -1;
-    perm[c] = piv;
+    lu->perm[c] = piv;
     if (piv != c)
         for (int k = 0; k < NU; ++k) {
             const double t = A[c][k];
             A[c][k] = A[piv][k], A[piv][k] = t;
         }
-    const double *pr = A[c], pivot = pr[c];
+    const double *pr = A[c], inv = 1.0 / pr[c];
+    lu->inv_diag[c] = inv;
     for (int r = c + 1; r < NU; ++r) {
         double *rr = A[r];
-        const double f = rr[c] / pivot;
+        const double f = rr[c] * inv;
         rr[c] = f;
         for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
     }
     return 0;
 }
 
-/* LU factorisation with partial pivoting, in place (L's multipliers below
- * the diagonal, unit diagonal implied; row c swapped with perm[c] at
- * column c).  Returns -1 if singular. */
-static int lu_factor(double A[NU][NU], int perm[NU])
+/* LU factorisation of lu->a with partial pivoting, in place.  Returns -1
+ * if singular. */
+static int lu_factor(LU *lu)
 {
     _Static_assert(NU == 9, "lu_factor() unrolls its columns for NU = 9");
-    return lu_column(A, perm, 0) || lu_column(A, perm, 1) || lu_column(A, perm, 2) || lu_column(A, perm, 3) ||
-                   lu_column(A, perm, 4) || lu_column(A, perm, 5) || lu_column(A, perm, 6) ||
-                   lu_column(A, perm, 7) || lu_column(A, perm, 8)
+    return lu_column(lu, 0) || lu_column(lu, 1) || lu_column(lu, 2) || lu_column(lu, 3) || lu_column(lu, 4) ||
+                   lu_column(lu, 5) || lu_column(lu, 6) || lu_column(lu, 7) || lu_column(lu, 8)
                ? -1
                : 0;
 }
 
 /* Row r of the forward substitution (L y = b, unit diagonal) and row c of
- * the backward one (U x = y), each inlined with a constant row. */
-static inline void lu_forward_row(const double A[NU][NU], double b[NU], const int r)
+ * the backward one (U x = y), each inlined with a constant row.  Each sum
+ * takes the entry solved last (y[r - 1], x[c + 1]) last, and the backward
+ * row multiplies by the diagonal's reciprocal: the substitutions are a
+ * chain of dependent rows, and this keeps each row's share of the chain
+ * to one multiplication, one subtraction and (backward) one
+ * multiplication, instead of a subtraction per entry and a division. */
+static inline void lu_forward_row(const LU *lu, double b[NU], const int r)
 {
     double y = b[r];
-    for (int c = 0; c < r; ++c) y -= A[r][c] * b[c];
+    for (int c = 0; c < r; ++c) y -= lu->a[r][c] * b[c];
     b[r] = y;
 }
 
-static inline void lu_backward_row(const double A[NU][NU], double b[NU], const int c)
+static inline void lu_backward_row(const LU *lu, double b[NU], const int c)
 {
     double x = b[c];
-    for (int k = c + 1; k < NU; ++k) x -= A[c][k] * b[k];
-    b[c] = x / A[c][c];
+    for (int k = NU - 1; k > c; --k) x -= lu->a[c][k] * b[k];
+    b[c] = x * lu->inv_diag[c];
 }
 
-/* Solves A x = b with lu_factor's A and perm; b is overwritten with x. */
-static void lu_solve(const double A[NU][NU], const int perm[NU], double b[NU])
+/* Solves A x = b with lu_factor's factors; b is overwritten with x. */
+static void lu_solve(const LU *lu, double b[NU])
 {
     for (int c = 0; c < NU; ++c)
-        if (perm[c] != c) {
+        if (lu->perm[c] != c) {
             const double t = b[c];
-            b[c] = b[perm[c]], b[perm[c]] = t;
+            b[c] = b[lu->perm[c]], b[lu->perm[c]] = t;
         }
-    lu_forward_row(A, b, 1), lu_forward_row(A, b, 2), lu_forward_row(A, b, 3), lu_forward_row(A, b, 4);
-    lu_forward_row(A, b, 5), lu_forward_row(A, b, 6), lu_forward_row(A, b, 7), lu_forward_row(A, b, 8);
-    lu_backward_row(A, b, 8), lu_backward_row(A, b, 7), lu_backward_row(A, b, 6), lu_backward_row(A, b, 5);
-    lu_backward_row(A, b, 4), lu_backward_row(A, b, 3), lu_backward_row(A, b, 2), lu_backward_row(A, b, 1);
-    lu_backward_row(A, b, 0);
+    lu_forward_row(lu, b, 1), lu_forward_row(lu, b, 2), lu_forward_row(lu, b, 3), lu_forward_row(lu, b, 4);
+    lu_forward_row(lu, b, 5), lu_forward_row(lu, b, 6), lu_forward_row(lu, b, 7), lu_forward_row(lu, b, 8);
+    lu_backward_row(lu, b, 8), lu_backward_row(lu, b, 7), lu_backward_row(lu, b, 6), lu_backward_row(lu, b, 5);
+    lu_backward_row(lu, b, 4), lu_backward_row(lu, b, 3), lu_backward_row(lu, b, 2), lu_backward_row(lu, b, 1);
+    lu_backward_row(lu, b, 0);
 }
 
 /* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
@@ -494,8 +507,8 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
     const State *s = &m->s;
     const double g = ROS_GAMMA * h;
     const double (*K)[NU] = (const double (*)[NU])ev->K;
-    double A[NU][NU], k1u[NU], k1q[NU], k1I[2], k2u[NU];
-    int perm[NU];
+    LU lu;
+    double (*A)[NU] = lu.a, k1u[NU], k1q[NU], k1I[2], k2u[NU];
     /* K's structural zeros (k_times) left out: adding g g 0 changes nothing */
     const double gg = g * g;
     for (int i = 0; i < K_BLOCK; ++i) {
@@ -504,7 +517,7 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
     }
     for (int i = K_BLOCK; i < NU; ++i)
         for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
-    if (lu_factor(A, perm) != 0) return -1;
+    if (lu_factor(&lu) != 0) return -1;
 
     double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
     if (m->p.drive_mode == DRIVE_PID)
@@ -521,7 +534,7 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
     k_times(K, s->u, Ku);
     for (int i = 0; i < NU; ++i) k1u[i] = h * ev->Q[i] - g * h * Ku[i];
     for (int k = 0; k < 2; ++k) k1u[U_SPIN_L + k] += g * c[k] * h * (s->u[U_SPIN_L + k] + rate[k]);
-    lu_solve((const double (*)[NU])A, perm, k1u);
+    lu_solve(&lu, k1u);
     for (int j = 0; j < NU; ++j) k1q[j] = h * s->u[j] + g * k1u[j];
     for (int k = 0; k < 2; ++k) k1I[k] = h * rate[k] - g * active[k] * k1u[U_SPIN_L + k];
 
@@ -554,7 +567,7 @@ static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *in
         const double f = h * h / (2.0 * (1.0 - ROS_GAMMA) * s->last_step);
         for (int i = 0; i < NU; ++i) k2u[i] += f * R[i];
     }
-    lu_solve((const double (*)[NU])A, perm, k2u);
+    lu_solve(&lu, k2u);
 
     /* y + g k1 + (1 - g) k2, k2's displacements and integrals from its velocities */
     const double b1 = ROS_GAMMA, b2 = 1.0 - ROS_GAMMA;
