@@ -610,15 +610,19 @@ static double sinkage_at_end(const Model *m, const Eval *ev, const StepIncrement
 {
     const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
     double hub[3], e[3], n[3];
+    /* hub + Jv dq over Jv's structural non-zeros (a hub's rows: [1 | -[r]x | c | 0 0], the diagonal
+     * of -[r]x exactly 0), in the order of the dense sum: its other terms add exact zeros */
     for (int i = 0; i < 3; ++i) {
-        hub[i] = ev->hub[w][i];
-        for (int k = 0; k < NU; ++k) hub[i] += Jv[i][k] * inc->dq[k];
+        double x = ev->hub[w][i] + inc->dq[U_VX + i];
+        for (int j = 0; j < 3; ++j)
+            if (j != i) x += Jv[i][U_WX + j] * inc->dq[U_WX + j];
+        hub[i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
     }
     v3_cross(e, &inc->dq[U_WX], ev->e);
     v3_add(e, e, ev->e);
     v3_normalize(e);
     const double zt = rover_terrain_at(m, hub[0], hub[1], n), ne = v3_dot(n, e);
-    const double in_plane = sqrt(fmax(0.0, 1.0 - ne * ne));
+    const double in_plane2 = 1.0 - ne * ne, in_plane = sqrt(in_plane2 > 0.0 ? in_plane2 : 0.0);   /* no fmax call */
     if (in_plane < 1e-6) return ev->wheel[w].sinkage;
     const double R = m->d.contact.radius, sinkage = R - (hub[2] - zt) * n[2] / in_plane;
     if (w % 2 == 0 || !(m->p.multipass_rutFraction > 0)) return sinkage;
@@ -654,7 +658,8 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     double sinkage[NUM_WHEELS];
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const double z0 = ev->wheel[w].sinkage, z1 = sinkage_at_end(m, ev, inc, w), zmax = s->memory[w].zmax;
-        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : fmin(0.5 * (z0 + z1), zmax);
+        const double mean = 0.5 * (z0 + z1);
+        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : mean < zmax ? mean : zmax;   /* both finite here */
     }
     advance_soil_memory(m, ev, sinkage, h);
     s->time += h;
