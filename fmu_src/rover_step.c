@@ -174,14 +174,20 @@ static int state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
  * evaluating afresh.  It is used only if nothing it was computed from has
  * changed since, byte for byte (EvalKey: parameters, derived data, terrain, the
  * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
- * failed step make the next step evaluate afresh. */
-static void eval_key_store(Model *m)
+ * failed step make the next step evaluate afresh.
+ *
+ * key_current: the key's parameters, derived data and terrain are the
+ * model's already (the step began by matching them, and a step changes
+ * none of them), so only the state's part is stored. */
+static void eval_key_store(Model *m, int key_current)
 {
     EvalKey *k = &m->eval_key;
     const State *s = &m->s;
-    memcpy(&k->p, &m->p, sizeof k->p);
-    memcpy(&k->d, &m->d, sizeof k->d);
-    memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
+    if (!key_current) {
+        memcpy(&k->p, &m->p, sizeof k->p);
+        memcpy(&k->d, &m->d, sizeof k->d);
+        memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
+    }
     memcpy(k->pos, s->pos, sizeof k->pos);
     memcpy(k->quat, s->quat, sizeof k->quat);
     k->beta = s->beta;
@@ -206,15 +212,18 @@ static int eval_key_matches(const Model *m)
            (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
 }
 
-/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
-void rover_evaluate_end_of_step(Model *m)
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse
+ * (key_current: eval_key_store). */
+static void evaluate_end_of_step(Model *m, int key_current)
 {
     rover_evaluate_passive(m, &m->eval, 1);
-    eval_key_store(m);
+    eval_key_store(m, key_current);
     m->eval_valid = 1;
     rover_evaluate_inputs(m, &m->eval, 0);          /* the torques only: Q, D, K stay input-free */
     rover_outputs_from(m, &m->eval);
 }
+
+void rover_evaluate_end_of_step(Model *m) { evaluate_end_of_step(m, 0); }
 
 /* The contact memory (max sinkage, distance rolled) and the multi-pass
  * rut over a step of length h, explicitly, from the evaluation ev of the
@@ -687,7 +696,8 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     const double t_end = s->time + h_comm;
     if (!(h_comm > 0)) return snprintf(err, errlen, "communication step %g s must be positive", h_comm), -1;
     double h = fmin(s->step_next > 0 ? s->step_next : STEP_FIRST, m->p.solver_step);
-    if (!(m->eval_valid && eval_key_matches(m))) rover_evaluate_passive(m, ev, 1);
+    const int reuse = m->eval_valid && eval_key_matches(m);
+    if (!reuse) rover_evaluate_passive(m, ev, 1);
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
     if (memcmp(&s->last_inputs, &m->in, sizeof m->in) != 0) s->last_step = 0;   /* its forces had other inputs */
@@ -737,7 +747,7 @@ static int do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
     }
     s->time = t_end;
-    eval_key_store(m);                               /* the end's passive evaluation, for the next step */
+    eval_key_store(m, reuse);                        /* the end's passive evaluation, for the next step */
     m->eval_valid = 1;
     rover_evaluate_inputs(m, ev, 0);                 /* the torques only: Q, D, K stay input-free */
     rover_outputs_from(m, ev);
@@ -769,6 +779,6 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
         m->steps_taken++;
     }
     m->s.time = t_end;
-    rover_evaluate_end_of_step(m);
+    evaluate_end_of_step(m, reuse);
     return 0;
 }
