@@ -668,7 +668,8 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const double z0 = ev->wheel[w].sinkage, z1 = sinkage_at_end(m, ev, inc, w), zmax = s->memory[w].zmax;
         const double mean = 0.5 * (z0 + z1);
-        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : mean < zmax ? mean : zmax;   /* both finite here */
+        /* fmin(mean, zmax) without its library call (a NaN zmax gives the mean, as fmin does) */
+        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : !(mean >= zmax) ? mean : zmax;
     }
     advance_soil_memory(m, ev, sinkage, h);
     s->time += h;
