@@ -383,18 +383,22 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 
 /* The LU factors of the automatic step's matrix: L's multipliers below
  * the diagonal of a (unit diagonal implied), U on and above it, row c
- * swapped with perm[c] at column c, and the reciprocals of U's diagonal. */
+ * swapped with perm[c] at column c; for the backward substitution, the
+ * reciprocals of U's diagonal and U's rows right of it over their
+ * diagonal. */
 typedef struct {
     double a[NU][NU];
     double inv_diag[NU];
+    double u_scaled[NU][NU];       /* right of the diagonal: U[c][k] / U[c][c] */
     int perm[NU];
 } LU;
 
 /* One column c of lu_factor's elimination: partial pivoting among rows
  * c..NU-1, then the rows below get their multiplier in column c (by the
  * pivot's reciprocal: one division a column) and lose that column's share
- * right of it.  Inlined with a constant c (lu_factor), its loops have
- * fixed lengths, which GCC unrolls and vectorises. */
+ * right of it; and row c of U over its diagonal.  Inlined with a constant
+ * c (lu_factor), its loops have fixed lengths, which GCC unrolls and
+ * vectorises. */
 static inline int lu_column(LU *lu, const int c)
 {
     double (*A)[NU] = lu->a;
@@ -419,6 +423,7 @@ static inline int lu_column(LU *lu, const int c)
         rr[c] = f;
         for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
     }
+    for (int k = c + 1; k < NU; ++k) lu->u_scaled[c][k] = pr[k] * inv;
     return 0;
 }
 
@@ -434,12 +439,13 @@ static int lu_factor(LU *lu)
 }
 
 /* Row r of the forward substitution (L y = b, unit diagonal) and row c of
- * the backward one (U x = y), each inlined with a constant row.  Each sum
- * takes the entry solved last (y[r - 1], x[c + 1]) last, and the backward
- * row multiplies by the diagonal's reciprocal: the substitutions are a
- * chain of dependent rows, and this keeps each row's share of the chain
- * to one multiplication, one subtraction and (backward) one
- * multiplication, instead of a subtraction per entry and a division. */
+ * the backward one (U x = y, as x_c = y_c / U_cc - sum (U_ck / U_cc) x_k),
+ * each inlined with a constant row.  The substitutions are a chain of
+ * dependent rows: each sum takes the entry solved last (y[r - 1],
+ * x[c + 1]) last, and the backward row's division is done beforehand
+ * (lu_column), so that each row's share of the chain is one
+ * multiplication and one subtraction, not a subtraction per entry and a
+ * division. */
 static inline void lu_forward_row(const LU *lu, double b[NU], const int r)
 {
     double y = b[r];
@@ -449,9 +455,9 @@ static inline void lu_forward_row(const LU *lu, double b[NU], const int r)
 
 static inline void lu_backward_row(const LU *lu, double b[NU], const int c)
 {
-    double x = b[c];
-    for (int k = NU - 1; k > c; --k) x -= lu->a[c][k] * b[k];
-    b[c] = x * lu->inv_diag[c];
+    double x = b[c] * lu->inv_diag[c];
+    for (int k = NU - 1; k > c; --k) x -= lu->u_scaled[c][k] * b[k];
+    b[c] = x;
 }
 
 /* Solves A x = b with lu_factor's factors; b is overwritten with x. */
