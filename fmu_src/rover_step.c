@@ -382,15 +382,15 @@ static int substep(Model *m, double h, int reuse, char *err, size_t errlen)
 #define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
 
 /* The LU factors of the automatic step's matrix: L's multipliers below
- * the diagonal of a (unit diagonal implied), U on and above it, row c
- * swapped with perm[c] at column c; for the backward substitution, the
- * reciprocals of U's diagonal and U's rows right of it over their
- * diagonal. */
+ * the diagonal of a (unit diagonal implied), U on and above it, row c of
+ * both from the matrix's row order[c] (partial pivoting); for the backward
+ * substitution, the reciprocals of U's diagonal and U's rows right of it
+ * over their diagonal. */
 typedef struct {
     double a[NU][NU];
     double inv_diag[NU];
     double u_scaled[NU][NU];       /* right of the diagonal: U[c][k] / U[c][c] */
-    int perm[NU];
+    int order[NU];
 } LU;
 
 /* One column c of lu_factor's elimination: partial pivoting among rows
@@ -409,12 +409,14 @@ static inline int lu_column(LU *lu, const int c)
         if (v > best) best = v, piv = r;
     }
     if (!(best > 1e-300)) return -1;
-    lu->perm[c] = piv;
-    if (piv != c)
+    if (piv != c) {
         for (int k = 0; k < NU; ++k) {
             const double t = A[c][k];
             A[c][k] = A[piv][k], A[piv][k] = t;
         }
+        const int t = lu->order[c];
+        lu->order[c] = lu->order[piv], lu->order[piv] = t;
+    }
     const double *pr = A[c], inv = 1.0 / pr[c];
     lu->inv_diag[c] = inv;
     for (int r = c + 1; r < NU; ++r) {
@@ -432,6 +434,7 @@ static inline int lu_column(LU *lu, const int c)
 static int lu_factor(LU *lu)
 {
     _Static_assert(NU == 9, "lu_factor() unrolls its columns for NU = 9");
+    for (int i = 0; i < NU; ++i) lu->order[i] = i;
     return lu_column(lu, 0) || lu_column(lu, 1) || lu_column(lu, 2) || lu_column(lu, 3) || lu_column(lu, 4) ||
                    lu_column(lu, 5) || lu_column(lu, 6) || lu_column(lu, 7) || lu_column(lu, 8)
                ? -1
@@ -446,33 +449,35 @@ static int lu_factor(LU *lu)
  * (lu_column), so that each row's share of the chain is one
  * multiplication and one subtraction, not a subtraction per entry and a
  * division. */
-static inline void lu_forward_row(const LU *lu, double b[NU], const int r)
+static inline void lu_forward_row(const LU *lu, double x[NU], const int r)
 {
-    double y = b[r];
-    for (int c = 0; c < r; ++c) y -= lu->a[r][c] * b[c];
-    b[r] = y;
+    double y = x[r];
+    for (int c = 0; c < r; ++c) y -= lu->a[r][c] * x[c];
+    x[r] = y;
 }
 
-static inline void lu_backward_row(const LU *lu, double b[NU], const int c)
+static inline void lu_backward_row(const LU *lu, double x[NU], const int c)
 {
-    double x = b[c] * lu->inv_diag[c];
-    for (int k = NU - 1; k > c; --k) x -= lu->u_scaled[c][k] * b[k];
-    b[c] = x;
+    double v = x[c] * lu->inv_diag[c];
+    for (int k = NU - 1; k > c; --k) v -= lu->u_scaled[c][k] * x[k];
+    x[c] = v;
 }
 
-/* Solves A x = b with lu_factor's factors; b is overwritten with x. */
-static void lu_solve(const LU *lu, double b[NU])
+/* Solves A x = b with lu_factor's factors; b is overwritten with x.  The
+ * rows are solved in a local array indexed by constants only (the
+ * pivoting's reordering is a gather from b), which the compiler keeps in
+ * registers: through memory, each row would add a store and a load to
+ * the chain. */
+static void lu_solve(const LU *restrict lu, double *restrict b)
 {
-    for (int c = 0; c < NU; ++c)
-        if (lu->perm[c] != c) {
-            const double t = b[c];
-            b[c] = b[lu->perm[c]], b[lu->perm[c]] = t;
-        }
-    lu_forward_row(lu, b, 1), lu_forward_row(lu, b, 2), lu_forward_row(lu, b, 3), lu_forward_row(lu, b, 4);
-    lu_forward_row(lu, b, 5), lu_forward_row(lu, b, 6), lu_forward_row(lu, b, 7), lu_forward_row(lu, b, 8);
-    lu_backward_row(lu, b, 8), lu_backward_row(lu, b, 7), lu_backward_row(lu, b, 6), lu_backward_row(lu, b, 5);
-    lu_backward_row(lu, b, 4), lu_backward_row(lu, b, 3), lu_backward_row(lu, b, 2), lu_backward_row(lu, b, 1);
-    lu_backward_row(lu, b, 0);
+    double x[NU];
+    for (int i = 0; i < NU; ++i) x[i] = b[lu->order[i]];
+    lu_forward_row(lu, x, 1), lu_forward_row(lu, x, 2), lu_forward_row(lu, x, 3), lu_forward_row(lu, x, 4);
+    lu_forward_row(lu, x, 5), lu_forward_row(lu, x, 6), lu_forward_row(lu, x, 7), lu_forward_row(lu, x, 8);
+    lu_backward_row(lu, x, 8), lu_backward_row(lu, x, 7), lu_backward_row(lu, x, 6), lu_backward_row(lu, x, 5);
+    lu_backward_row(lu, x, 4), lu_backward_row(lu, x, 3), lu_backward_row(lu, x, 2), lu_backward_row(lu, x, 1);
+    lu_backward_row(lu, x, 0);
+    for (int i = 0; i < NU; ++i) b[i] = x[i];
 }
 
 /* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
