@@ -94,7 +94,7 @@ typedef struct {
     double torque_applied[2];      /* N m, last applied drive torque per side */
     double step_next;              /* s, the automatic step's next internal step (0: none yet) */
     /* The automatic step's last accepted internal step, for the next one's correction
-     * (rover_step.c): its length (0: none, or not with the current inputs), the generalised
+     * (rover_auto_step.c): its length (0: none, or not with the current inputs), the generalised
      * forces at its start, its increments and the inputs it was taken with. */
     double last_step;              /* s */
     double last_Q[NU];

@@ -7,8 +7,10 @@
  *                          the drive, the drawbar, the outputs
  *   rover_wheel_contact.c  one wheel's contact with the soil (both contact
  *                          laws) and the model extensions acting there
- *   rover_step.c           the integrator, the reuse of an evaluation, the
+ *   rover_step.c           a communication step: the fixed step, the reuse
+ *                          of an evaluation, the soil memory's update, the
  *                          checks of a diverging state
+ *   rover_auto_step.c      the automatic step (the default)
  *
  * The rover: the CSA Juno rover's chassis (6 DOF), two main rockers coupled
  * by the transverse differential (left angle beta, right -beta), one spin
@@ -80,6 +82,28 @@ void rover_outputs_from(Model *m, const Eval *ev);
 
 /* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
 void rover_evaluate_end_of_step(Model *m);
+
+/* Whether m->eval holds the passive evaluation of the current state: nothing
+ * it was computed from has changed (EvalKey); and the key stored for it
+ * (key_current: the parameters', derived data's and terrain's part is the
+ * model's already, only the state's is stored). */
+int rover_eval_key_matches(const Model *m);
+void rover_eval_key_store(Model *m, int key_current);
+
+/* The contact memory and the multi-pass rut over a step of length h, from
+ * the evaluation ev of the step's start and each wheel's sinkage over the
+ * step (m). */
+void rover_advance_soil_memory(Model *m, const Eval *ev, const double sinkage[NUM_WHEELS], double h);
+
+/* 1 if the state after a step is sane; else 0, with the likely cause of the
+ * divergence (from ev, the step's start's evaluation) in err. */
+int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n);
+
+/* rover_auto_step.c */
+
+/* One communication step of h_comm (s) in automatic steps
+ * (solver.tolerance > 0); 0, or -1 with the reason in err. */
+int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen);
 
 /* If the steepest terrain slope under the NUM_WHEELS points xy (world x,
  * y) exceeds the soil's friction angle, writes why the rover cannot stand

@@ -1,5 +1,5 @@
 /*
- * The automatic step (solver.tolerance > 0, rover_step.c):
+ * The automatic step (solver.tolerance > 0, rover_auto_step.c):
  *   - it is second order: with every step accepted at a fixed length h (a
  *     tolerance no step exceeds), its velocity error through the drawbar
  *     run's pitching falls as h^2 (measured: 2.0) where the fixed step's

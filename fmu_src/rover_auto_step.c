@@ -1,0 +1,463 @@
+/*
+ * The automatic step (rover_internal.h; solver.tolerance > 0, the
+ * default): a two-stage linearly implicit step of second order on one
+ * evaluation, with an embedded first-order solution whose difference
+ * chooses the step size.  The fixed step, the reuse of the end-of-step
+ * evaluation and the checks of a diverging state are rover_step.c's.
+ */
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "rover_internal.h"
+
+/* solver.tolerance > 0: a two-stage linearly implicit (Rosenbrock-type)
+ * step of second order with an embedded first-order solution, the step
+ * size chosen by their difference.  In the first-order form y' = f(y), y
+ * the displacements (positions, attitude as a rotation vector, rocker and
+ * spin angles), the PID integrals and the velocities, with J the Jacobian
+ * of the step's start's evaluation (its damping D, stiffness K and the
+ * drive's slopes: those the fixed step linearises), one step of h from y is
+ *   (I - g h J) k1 = h f(y),   (I - g h J) k2 = k1 + h^2/(2 (1 - g)) d,
+ *   y + g k1 + (1 - g) k2       (the solution the state moves on with),
+ *   y + k1                      (the embedded solution),
+ * with g = 1 - 1/sqrt(2) and d the correction below.  Without it the step
+ * is y + h phi(hJ) f(y), phi(z) = (1 - g^2 z) / (1 - g z)^2 = 1 + z/2 +
+ * O(z^2), second order if J were exact: y + h f + h^2/2 J f against the
+ * exact y + h f + h^2/2 f' f.  Its stability function, (1 + (1 - 2 g) z) /
+ * (1 - g z)^2, vanishes as z -> -inf (L-stable, as the fixed step's
+ * linearly implicit Euler): a stiff soil mode a long step cannot resolve
+ * is damped, not left ringing, and the embedded solution (1 / (1 - g z),
+ * L-stable too) damps it alike, so it does not count as error.
+ *
+ * J is not exact: D and K leave out the shear's dependence on the
+ * sinkage, the soil memory's on the motion, the mass matrix's change and
+ * the gyroscopic terms, and what they leave out makes an O(h^2) local
+ * error, (f' - J) f h^2/2.  The correction d estimates (f' - J) f from the
+ * last accepted step (of h_last, with the same inputs): the change of the
+ * generalised forces over it that the linearisation does not explain,
+ *   R = Q(now) - Q(then) + K dq + D du - c (dq_spin + dI)  ~  M (f' - J) f h_last
+ * (c: the PID integral's share of K, two_stage), so d = M^-1 R / h_last:
+ * in the second stage, solved with M + g h D + ... ((I - g h J)^-1 = I +
+ * O(h)) and weighted 1 - g, it adds h^2/2 d + O(h^3).  It treats what J
+ * leaves out explicitly, over two steps (as Adams-Bashforth does), which
+ * holds as long as that part is slow beside the step; at a tolerance loose
+ * enough for 20 ms steps the step runs over every declared parameter range
+ * (tests/python/test_fmu_accuracy.py).  The first step after
+ * initialisation, after the inputs change (their forces are not in the last
+ * step's) or after a state with none is restored goes without it, at first
+ * order.
+ *
+ * Both stages share one matrix, M + g h D + (g h)^2 K, factorised once,
+ * and one evaluation of f and J, the step's start's, which is the
+ * end-of-step evaluation of the step before: an accepted step costs one
+ * evaluation with Jacobians (of its end), one factorisation and two solves.
+ *
+ * The contact memory and the rut are advanced explicitly (a running
+ * maximum and clamps are not smooth in time), as in the fixed step, but
+ * with the sinkage over the step rather than its start's: the end's where
+ * the wheel sinks deeper than its memory (the memory is then the end's
+ * sinkage), the mean of the start's and the end's where the memory relaxes
+ * towards a shallower sinkage.  With the start's the memory would lag one
+ * step behind, an O(h) error.  The end's sinkage is predicted from the
+ * step's displacements (sinkage_at_end).
+ *
+ * The step is accepted when the largest component of the difference of
+ * the two solutions' velocities (angular rates as the speed they give at a
+ * lever of wheel.radius for the spins, half rover.wheelbase for the
+ * chassis and rocker rates) is within solver.tolerance (m/s); that is the
+ * embedded solution's local error, which grows as h^2, so the next step is
+ * 0.9 h sqrt(tol / est), within 0.2..2 times this one and at most
+ * solver.step.  A rejected step, or one whose state fails the checks of a
+ * diverging state, is taken again from the step's start (whose evaluation
+ * it has not changed), shorter, down to STEP_MIN, below which that failure
+ * is reported. */
+#define STEP_FIRST 1e-3     /* s, the first step after initialisation */
+#define STEP_MIN 1e-6       /* s */
+#define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
+
+/* The LU factors of the automatic step's matrix: L's multipliers below
+ * the diagonal of a (unit diagonal implied), U on and above it, row c of
+ * both from the matrix's row order[c] (partial pivoting); for the backward
+ * substitution, the reciprocals of U's diagonal and U's rows right of it
+ * over their diagonal. */
+typedef struct {
+    double a[NU][NU];
+    double inv_diag[NU];
+    double u_scaled[NU][NU];       /* right of the diagonal: U[c][k] / U[c][c] */
+    int order[NU];
+} LU;
+
+/* One column c of lu_factor's elimination: partial pivoting among rows
+ * c..NU-1, then the rows below get their multiplier in column c (by the
+ * pivot's reciprocal: one division a column) and lose that column's share
+ * right of it; and row c of U over its diagonal.  Inlined with a constant
+ * c (lu_factor), its loops have fixed lengths, which GCC unrolls and
+ * vectorises. */
+static inline int lu_column(LU *lu, const int c)
+{
+    double (*A)[NU] = lu->a;
+    int piv = c;
+    double best = fabs(A[c][c]);
+    for (int r = c + 1; r < NU; ++r) {
+        const double v = fabs(A[r][c]);
+        if (v > best) best = v, piv = r;
+    }
+    if (!(best > 1e-300)) return -1;
+    if (piv != c) {
+        for (int k = 0; k < NU; ++k) {
+            const double t = A[c][k];
+            A[c][k] = A[piv][k], A[piv][k] = t;
+        }
+        const int t = lu->order[c];
+        lu->order[c] = lu->order[piv], lu->order[piv] = t;
+    }
+    const double *pr = A[c], inv = 1.0 / pr[c];
+    lu->inv_diag[c] = inv;
+    for (int r = c + 1; r < NU; ++r) {
+        double *rr = A[r];
+        const double f = rr[c] * inv;
+        rr[c] = f;
+        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+    }
+    for (int k = c + 1; k < NU; ++k) lu->u_scaled[c][k] = pr[k] * inv;
+    return 0;
+}
+
+/* LU factorisation of lu->a with partial pivoting, in place.  Returns -1
+ * if singular. */
+static int lu_factor(LU *lu)
+{
+    _Static_assert(NU == 9, "lu_factor() unrolls its columns for NU = 9");
+    for (int i = 0; i < NU; ++i) lu->order[i] = i;
+    return lu_column(lu, 0) || lu_column(lu, 1) || lu_column(lu, 2) || lu_column(lu, 3) || lu_column(lu, 4) ||
+                   lu_column(lu, 5) || lu_column(lu, 6) || lu_column(lu, 7) || lu_column(lu, 8)
+               ? -1
+               : 0;
+}
+
+/* Row r of the forward substitution (L y = b, unit diagonal) and row c of
+ * the backward one (U x = y, as x_c = y_c / U_cc - sum (U_ck / U_cc) x_k),
+ * each inlined with a constant row.  The substitutions are a chain of
+ * dependent rows: each sum takes the entry solved last (y[r - 1],
+ * x[c + 1]) last, and the backward row's division is done beforehand
+ * (lu_column), so that each row's share of the chain is one
+ * multiplication and one subtraction, not a subtraction per entry and a
+ * division. */
+static inline void lu_forward_row(const LU *lu, double x[NU], const int r)
+{
+    double y = x[r];
+    for (int c = 0; c < r; ++c) y -= lu->a[r][c] * x[c];
+    x[r] = y;
+}
+
+static inline void lu_backward_row(const LU *lu, double x[NU], const int c)
+{
+    double v = x[c] * lu->inv_diag[c];
+    for (int k = NU - 1; k > c; --k) v -= lu->u_scaled[c][k] * x[k];
+    x[c] = v;
+}
+
+/* Solves A x = b with lu_factor's factors; b is overwritten with x.  The
+ * rows are solved in a local array indexed by constants only (the
+ * pivoting's reordering is a gather from b), which the compiler keeps in
+ * registers: through memory, each row would add a store and a load to
+ * the chain. */
+static void lu_solve(const LU *restrict lu, double *restrict b)
+{
+    double x[NU];
+    for (int i = 0; i < NU; ++i) x[i] = b[lu->order[i]];
+    lu_forward_row(lu, x, 1), lu_forward_row(lu, x, 2), lu_forward_row(lu, x, 3), lu_forward_row(lu, x, 4);
+    lu_forward_row(lu, x, 5), lu_forward_row(lu, x, 6), lu_forward_row(lu, x, 7), lu_forward_row(lu, x, 8);
+    lu_backward_row(lu, x, 8), lu_backward_row(lu, x, 7), lu_backward_row(lu, x, 6), lu_backward_row(lu, x, 5);
+    lu_backward_row(lu, x, 4), lu_backward_row(lu, x, 3), lu_backward_row(lu, x, 2), lu_backward_row(lu, x, 1);
+    lu_backward_row(lu, x, 0);
+    for (int i = 0; i < NU; ++i) b[i] = x[i];
+}
+
+/* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
+ * contacts' normal stiffness acts through the hubs, whose velocity
+ * Jacobians have no spin columns: rover_wheel_contact.c's add_outer_hub)
+ * and the spin diagonal (the PID integral, rover_evaluate_inputs).  The
+ * products below skip the rest, exact zeros, whose terms change no sum. */
+enum { K_BLOCK = U_BETA + 1 };
+
+/* out = K x over K's structural non-zeros, each sum in the order of the
+ * dense loop. */
+static inline void k_times(const double (*K)[NU], const double x[NU], double out[NU])
+{
+    for (int i = 0; i < K_BLOCK; ++i) {
+        double s = 0;
+        for (int j = 0; j < K_BLOCK; ++j) s += K[i][j] * x[j];
+        out[i] = s;
+    }
+    for (int k = U_SPIN_L; k <= U_SPIN_R; ++k) out[k] = K[k][k] * x[k];
+}
+
+/* What one automatic step of h changes: the second-order solution's
+ * increments, and the embedded first-order solution's of the velocities. */
+typedef struct {
+    double du[NU];                 /* velocities */
+    double dq[NU];                 /* displacements along the velocities: position (m), rotation vector
+                                    * (rad, world), rocker angle, spin angles (rad) */
+    double dI[2];                  /* PID integrals, rad */
+    double du_first[NU];           /* the first-order solution's velocities */
+} StepIncrement;
+
+/* The two stages from the state m->s and its evaluation ev (with its input
+ * terms and matrices): writes inc; returns -1 if the matrix is singular.
+ *
+ * With r = (r_q, r_I, r_u) a stage's right-hand side, (I - g h J) k = r
+ * reads, for the velocities (the displacements and integrals following),
+ *   (M + g h D + (g h)^2 K) k_u = M r_u - g h K r_q + g h c (r_q,spin + r_I),
+ *   k_q = r_q + g h k_u,   k_I = r_I - g h a k_u,spin,
+ * where c = (1 - drive.lossFraction) drive.Ki is the PID integral's share
+ * of K's spin entries (where ev's torque is not saturated, as K has it) and
+ * a = 1 where the integral integrates (anti-windup, decided at the step's
+ * start), the integral's rate being a (ref - omega).  The first stage's
+ * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1 plus
+ * the correction in r_u. */
+static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
+{
+    const State *s = &m->s;
+    const double g = ROS_GAMMA * h;
+    const double (*K)[NU] = (const double (*)[NU])ev->K;
+    LU lu;
+    double (*A)[NU] = lu.a, k1u[NU], k1q[NU], k1I[2], k2u[NU];
+    /* K's structural zeros (k_times) left out: adding g g 0 changes nothing */
+    const double gg = g * g;
+    for (int i = 0; i < K_BLOCK; ++i) {
+        for (int j = 0; j < K_BLOCK; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + gg * K[i][j];
+        for (int j = K_BLOCK; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j];
+    }
+    for (int i = K_BLOCK; i < NU; ++i)
+        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
+    if (lu_factor(&lu) != 0) return -1;
+
+    double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
+    if (m->p.drive_mode == DRIVE_PID)
+        for (int k = 0; k < 2; ++k) {
+            const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+            const double e = ref - s->u[U_SPIN_L + k];
+            const int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
+            if (ev->torque_slope[k] != 0) c[k] = (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki;
+            if (!saturated || e * ev->torque[k] < 0) active[k] = 1, rate[k] = e;
+        }
+
+    /* first stage: r = h f(y) */
+    double Ku[NU];
+    k_times(K, s->u, Ku);
+    for (int i = 0; i < NU; ++i) k1u[i] = h * ev->Q[i] - g * h * Ku[i];
+    for (int k = 0; k < 2; ++k) k1u[U_SPIN_L + k] += g * c[k] * h * (s->u[U_SPIN_L + k] + rate[k]);
+    lu_solve(&lu, k1u);
+    for (int j = 0; j < NU; ++j) k1q[j] = h * s->u[j] + g * k1u[j];
+    for (int k = 0; k < 2; ++k) k1I[k] = h * rate[k] - g * active[k] * k1u[U_SPIN_L + k];
+
+    /* second stage: r = k1 */
+    double Kq[NU];
+    k_times(K, k1q, Kq);
+    for (int i = 0; i < NU; ++i) {
+        double Mk = 0;
+        for (int j = 0; j < NU; ++j) Mk += ev->M[i][j] * k1u[j];
+        k2u[i] = Mk - g * Kq[i];
+    }
+    for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
+    if (s->last_step > 0) {
+        /* the correction (above): R from the last step, h^2 / (2 (1 - g)) M^-1 R / h_last added to
+         * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution */
+        double R[NU];
+        for (int i = 0; i < NU; ++i) {
+            /* K dq + D du, K's structural zeros (k_times) left out (0 dq + D du is D du) */
+            double r = ev->Q[i] - s->last_Q[i];
+            if (i < K_BLOCK) {
+                for (int j = 0; j < K_BLOCK; ++j) r += K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j];
+                for (int j = K_BLOCK; j < NU; ++j) r += ev->D[i][j] * s->last_du[j];
+            } else {
+                for (int j = 0; j < NU; ++j)
+                    r += j == i ? K[i][j] * s->last_dq[j] + ev->D[i][j] * s->last_du[j] : ev->D[i][j] * s->last_du[j];
+            }
+            R[i] = r;
+        }
+        for (int k = 0; k < 2; ++k) R[U_SPIN_L + k] -= c[k] * (s->last_dq[U_SPIN_L + k] + s->last_dI[k]);
+        const double f = h * h / (2.0 * (1.0 - ROS_GAMMA) * s->last_step);
+        for (int i = 0; i < NU; ++i) k2u[i] += f * R[i];
+    }
+    lu_solve(&lu, k2u);
+
+    /* y + g k1 + (1 - g) k2, k2's displacements and integrals from its velocities */
+    const double b1 = ROS_GAMMA, b2 = 1.0 - ROS_GAMMA;
+    for (int j = 0; j < NU; ++j) {
+        const double k2q = k1q[j] + g * k2u[j];
+        inc->du[j] = b1 * k1u[j] + b2 * k2u[j];
+        inc->dq[j] = b1 * k1q[j] + b2 * k2q;
+        inc->du_first[j] = k1u[j];
+    }
+    for (int k = 0; k < 2; ++k) {
+        const double k2I = k1I[k] - g * active[k] * k2u[U_SPIN_L + k];
+        inc->dI[k] = b1 * k1I[k] + b2 * k2I;
+    }
+    return 0;
+}
+
+/* The largest difference of the two solutions' velocities (levers above),
+ * relative to solver.tolerance: the step is accepted at <= 1. */
+static double error_ratio(const Model *m, const StepIncrement *inc)
+{
+    const double half_base = 0.5 * m->p.rover_wheelbase, R = m->p.wheel_radius;
+    const double lever[NU] = {1, 1, 1, half_base, half_base, half_base, half_base, R, R};
+    double worst = 0;
+    for (int i = 0; i < NU; ++i) {
+        const double v = fabs(inc->du[i] - inc->du_first[i]) * lever[i];
+        if (!(v <= worst)) worst = v;                  /* NaN counts as the worst */
+    }
+    return worst / m->p.solver_tolerance;
+}
+
+/* Wheel w's sinkage at the end of the step inc, for the soil memory: the
+ * contact's sinkage (rover_wheel_contact.c: R less the hub's height above
+ * the terrain's tangent plane under it, along the plane's normal, over the
+ * length of that normal within the wheel's mid-plane, less a rear wheel's
+ * rut) where the step's displacements carry the hub (by its velocity
+ * Jacobian) and the axle (by the rotation): exact in the terrain's shape,
+ * to O(h^2) in the motion.  The rut is the start's (ev), as is the sinkage
+ * of a wheel lying on its side. */
+static double sinkage_at_end(const Model *m, const Eval *ev, const StepIncrement *inc, int w)
+{
+    const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
+    double hub[3], e[3], n[3];
+    /* hub + Jv dq over Jv's structural non-zeros (a hub's rows: [1 | -[r]x | c | 0 0], the diagonal
+     * of -[r]x exactly 0), in the order of the dense sum: its other terms add exact zeros */
+    for (int i = 0; i < 3; ++i) {
+        double x = ev->hub[w][i] + inc->dq[U_VX + i];
+        for (int j = 0; j < 3; ++j)
+            if (j != i) x += Jv[i][U_WX + j] * inc->dq[U_WX + j];
+        hub[i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
+    }
+    v3_cross(e, &inc->dq[U_WX], ev->e);
+    v3_add(e, e, ev->e);
+    v3_normalize(e);
+    const double zt = rover_terrain_at(m, hub[0], hub[1], n), ne = v3_dot(n, e);
+    const double in_plane2 = 1.0 - ne * ne, in_plane = sqrt(in_plane2 > 0.0 ? in_plane2 : 0.0);   /* no fmax call */
+    if (in_plane < 1e-6) return ev->wheel[w].sinkage;
+    const double R = m->d.contact.radius, sinkage = R - (hub[2] - zt) * n[2] / in_plane;
+    if (w % 2 == 0 || !(m->p.multipass_rutFraction > 0)) return sinkage;
+    /* a rear wheel in its rut: the start's rut depth, the start's sinkage without it */
+    double n0[3];
+    const double zt0 = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n0), ne0 = v3_dot(n0, ev->e);
+    const double in_plane0 = sqrt(fmax(0.0, 1.0 - ne0 * ne0));
+    if (in_plane0 < 1e-6) return ev->wheel[w].sinkage;
+    return sinkage - (R - (ev->hub[w][2] - zt0) * n0[2] / in_plane0 - ev->wheel[w].sinkage);
+}
+
+/* Moves the state on by inc over h (ev: the step's start's evaluation, for
+ * the soil memory and the checks); -1 with a message if the new state
+ * fails the checks of a diverging state. */
+static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    for (int i = 0; i < NU; ++i) s->u[i] += inc->du[i];
+    for (int i = 0; i < 3; ++i) s->pos[i] += inc->dq[U_VX + i];
+    quat_integrate_world(s->quat, &inc->dq[U_WX], 1.0);
+    s->beta += inc->dq[U_BETA];
+    for (int k = 0; k < 2; ++k) s->spin_angle[k] += inc->dq[U_SPIN_L + k];
+    if (m->p.drive_mode == DRIVE_PID) {
+        for (int k = 0; k < 2; ++k) s->pid_integral[k] += inc->dI[k];
+        double slope[2];
+        rover_drive_torques(m, s->torque_applied, slope);   /* the end-of-step PID torque */
+    } else {
+        for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
+    }
+    /* The soil memory over the step: where the wheel ends deeper than its memory, the memory is
+     * the end's sinkage; where it stays shallower, the memory relaxes towards the sinkage, and
+     * the mean of the start's and the end's is its mean over the step (trapezoidal rule). */
+    double sinkage[NUM_WHEELS];
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const double z0 = ev->wheel[w].sinkage, z1 = sinkage_at_end(m, ev, inc, w), zmax = s->memory[w].zmax;
+        const double mean = 0.5 * (z0 + z1);
+        /* fmin(mean, zmax) without its library call (a NaN zmax gives the mean, as fmin does) */
+        sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : !(mean >= zmax) ? mean : zmax;
+    }
+    rover_advance_soil_memory(m, ev, sinkage, h);
+    s->time += h;
+    return rover_state_is_sane(m, ev, err, errlen) ? 0 : -1;
+}
+
+/* Copies the integrator state, the rut memory only when multipass is on
+ * (it is 4 kB and unused otherwise). */
+static void state_copy(State *to, const State *from, int with_rut)
+{
+    if (with_rut) {
+        *to = *from;
+        return;
+    }
+    const size_t a = offsetof(State, rut), b = a + sizeof from->rut;
+    memcpy(to, from, a);
+    memcpy((char *)to + b, (const char *)from + b, sizeof *from - b);
+}
+
+int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    Eval *ev = &m->eval;
+    const int with_rut = m->p.multipass_rutFraction > 0;
+    const double t_end = s->time + h_comm;
+    if (!(h_comm > 0)) return snprintf(err, errlen, "communication step %g s must be positive", h_comm), -1;
+    double h = fmin(s->step_next > 0 ? s->step_next : STEP_FIRST, m->p.solver_step);
+    const int reuse = m->eval_valid && rover_eval_key_matches(m);
+    if (!reuse) rover_evaluate_passive(m, ev, 1);
+    m->eval_valid = 0;
+    rover_evaluate_inputs(m, ev, 1);
+    if (memcmp(&s->last_inputs, &m->in, sizeof m->in) != 0) s->last_step = 0;   /* its forces had other inputs */
+    double remaining = h_comm;
+    State saved;
+    while (remaining > 0) {
+        const double n = ceil(remaining / h - 1e-9);     /* steps of at most h to the communication point */
+        const int last = n <= 1;
+        const double hs = last ? remaining : remaining / n;
+        /* at the smallest step by intent (h), not by hs, which round-off can leave just above it:
+         * compared by hs, a step that must be accepted there would be rejected for ever */
+        const int smallest = h <= STEP_MIN;
+        char why[512];
+        StepIncrement inc;
+        double ratio = HUGE_VAL;
+        int ok = two_stage(m, ev, hs, &inc) == 0;
+        if (!ok) snprintf(why, sizeof why, "singular mass matrix at t = %.4f s", s->time);
+        if (ok) {
+            ratio = error_ratio(m, &inc);
+            if (ratio <= 1.0 || smallest) {
+                state_copy(&saved, s, with_rut);
+                ok = apply_increment(m, ev, &inc, hs, why, sizeof why) == 0;
+                if (ok) {
+                    s->last_step = hs;
+                    memcpy(s->last_Q, ev->Q, sizeof s->last_Q);
+                    memcpy(s->last_dq, inc.dq, sizeof s->last_dq);
+                    memcpy(s->last_du, inc.du, sizeof s->last_du);
+                    memcpy(s->last_dI, inc.dI, sizeof s->last_dI);
+                    s->last_inputs = m->in;
+                    const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
+                    /* never below STEP_MIN: a step accepted there with a large error would otherwise
+                     * shrink the next towards 0, and the step would never reach its end */
+                    h = fmax(STEP_MIN, fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow))));
+                    s->step_next = h;
+                    m->steps_taken++;
+                    remaining = last ? 0.0 : remaining - hs;
+                    rover_evaluate_passive(m, ev, 1);       /* the next step's start */
+                    if (!last) rover_evaluate_inputs(m, ev, 1);
+                    continue;
+                }
+                state_copy(s, &saved, with_rut);            /* ev is still the step's start's */
+            }
+        }
+        /* rejected: again from the step's start, shorter */
+        if (smallest) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
+        m->steps_rejected++;
+        h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
+    }
+    s->time = t_end;
+    rover_eval_key_store(m, reuse);                        /* the end's passive evaluation, for the next step */
+    m->eval_valid = 1;
+    rover_evaluate_inputs(m, ev, 0);                 /* the torques only: Q, D, K stay input-free */
+    rover_outputs_from(m, ev);
+    return 0;
+}
