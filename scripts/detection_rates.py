@@ -7,7 +7,10 @@ range, python_harness/juno/effects.py), move truth.json out of the campaign, dia
 compare the named cause with the hidden one.  Prints a markdown table (detection rate, false
 causes, median held-out gain, median wall time of one diagnose) and writes every case to
 --json (written whole at the end, and after every case to FILE.partial so a long study can be
-followed and resumed).
+followed and resumed).  A partial study is resumed only by the same study: the same arguments
+(the number of seeds and the workers apart) on the same code (its commit, with any uncommitted
+change to the code); any other is refused, so no case of another study or another version of the
+diagnosis is ever counted as this one's.  The partial file is removed once --json is written.
 
 Run it offline, not in CI: each case costs one diagnose (30-90 s on 2 cores).
 
@@ -53,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from juno.atomic import atomic_write_text
+from juno.bench import commit
 from juno.diagnose import diagnose
 from juno.effects import ALL_EFFECTS, ALTERNATIVE_FORMS, DECOYS, EFFECT_INFO, EFFECTS
 from juno.synthesize import synthesize
@@ -184,6 +188,39 @@ def _forms_table(cases: list[dict], after_table: bool) -> list[str]:
     return lines
 
 
+#: The sources whose changes change a study's cases (what its commit stands for).
+CODE_PATHS = ("fmu_src", "modelDescription", "python_harness", "scripts", "CMakeLists.txt")
+
+
+def study_identity(args: argparse.Namespace) -> dict:
+    """What determines a study's cases: its arguments, apart from how many seeds it runs (a resumed
+    study may run more), the processes a diagnose uses and where it writes; and the code's commit."""
+    kept = ("effects", "forms", "decoys", "design", "first_seed", "min_strength", "max_strength", "heavy_run",
+            "pair", "pair_strengths")
+    return {"commit": commit(CODE_PATHS), **{k: getattr(args, k) for k in kept}}
+
+
+def resumed_cases(partial: Path, identity: dict) -> list[dict]:
+    """The cases of the partial study ``partial`` (none if there is no such file), provided it is
+    the study ``identity`` describes; a SystemExit naming the file and what differs otherwise."""
+    if not partial.exists():
+        return []
+    try:
+        saved = json.loads(partial.read_text())
+    except (OSError, ValueError) as exc:
+        raise SystemExit(f"detection_rates: {partial}: not a partial study ({exc}); delete it to start afresh")
+    if not isinstance(saved, dict) or "study" not in saved or "cases" not in saved:
+        raise SystemExit(f"detection_rates: {partial} does not say which study it belongs to; delete it to start "
+                         "afresh")
+    differs = [f"{k} {saved['study'].get(k)!r} (now {v!r})" for k, v in identity.items()
+               if saved["study"].get(k) != (list(v) if isinstance(v, tuple) else v)]
+    if differs:
+        raise SystemExit(f"detection_rates: {partial} is a partial study of another study or another version of the "
+                         f"code: {'; '.join(differs)}. Run that study again to finish it, or delete the file to "
+                         "start afresh")
+    return list(saved["cases"])
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--effects", nargs="+", choices=list(ALL_EFFECTS),
@@ -223,7 +260,8 @@ def main(argv: list[str] | None = None) -> int:
             atomic_write_text(args.json, json.dumps({"cases": cases, "table": table(cases)}, indent=1))
         return 0
     partial = Path(args.json + ".partial") if args.json else None
-    done = json.loads(partial.read_text()) if partial and partial.exists() else []
+    identity = study_identity(args)
+    done = resumed_cases(partial, identity) if partial else []
     cases = list(done)
     if args.pair:
         if args.pair[0] == args.pair[1]:
@@ -261,10 +299,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name:16s} seed {seed} strength {shown}: named {'+'.join(case['causes']) or case['cause']:16s} "
                   f"({'right' if case['correct'] else 'WRONG'}, {case['wall_time']:.0f} s)", flush=True)
             if partial:
-                atomic_write_text(partial, json.dumps(cases, indent=1))
+                atomic_write_text(partial, json.dumps({"study": identity, "cases": cases}, indent=1))
     print(table(cases))
     if args.json:
         atomic_write_text(args.json, json.dumps({"cases": cases, "table": table(cases)}, indent=1))
+        if partial:
+            partial.unlink(missing_ok=True)
     return 0
 
 

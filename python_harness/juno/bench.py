@@ -130,13 +130,14 @@ def _compiler(build_dir: Path) -> str:
     return f"{version}, {bt.group(1).strip() if bt else 'Release'} build"
 
 
-def commit() -> str:
-    """The checkout's commit (short hash), "+ changes" when the working tree differs from it."""
+def commit(paths: Sequence[str] = ()) -> str:
+    """The checkout's commit (short hash), "+ changes" when the working tree differs from it (in
+    ``paths`` only, relative to the checkout, when given)."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=_checkout(), capture_output=True,
                               text=True, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=_checkout(),
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", *paths],
+                               cwd=_checkout(), capture_output=True, text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return (head or "unknown") + (" + changes" if dirty else "")

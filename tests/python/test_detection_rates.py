@@ -4,6 +4,7 @@ The study itself runs one diagnose per case (minutes each), so it is not run her
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -59,3 +60,70 @@ def test_a_bad_pair_is_refused_before_any_case_runs(study, argv, complaint, caps
         study.main(argv + ["--seeds", "1"])
     assert stop.value.code == 2
     assert complaint in capsys.readouterr().err
+
+
+def _fake_case(effect, strength, seed, workers, heavy_run, design) -> dict:
+    """What scripts/detection_rates.one_case returns, without a diagnose: the effect named right."""
+    name = effect if isinstance(effect, str) else "+".join(effect)
+    return {"effect": name, "strength": strength, "seed": seed, "heavy_run": heavy_run, "design": design,
+            "cause": name, "causes": [] if name == "none" else [name], "correct": True, "unexplained": False,
+            "gain": 0.5, "gain_of_hidden": 0.5, "equally_good": [], "extension": {}, "truth_extension": {},
+            "wall_time": 1.0, "candidates": {}, "second_round": [], "kind": "catalog"}
+
+
+def _interrupted_at(effect_name):
+    """A one_case that stops the study (as Ctrl-C would) when it reaches ``effect_name``."""
+    def one_case(effect, *rest):
+        if effect == effect_name:
+            raise KeyboardInterrupt
+        return _fake_case(effect, *rest)
+    return one_case
+
+
+def test_an_interrupted_study_resumes_its_own_cases_and_removes_its_partial_file_when_written(
+        study, tmp_path, monkeypatch):
+    out = tmp_path / "study.json"
+    argv = ["--effects", "none", "soil_patch", "--seeds", "1", "--json", str(out)]
+    monkeypatch.setattr(study, "one_case", _interrupted_at("soil_patch"))
+    with pytest.raises(KeyboardInterrupt):
+        study.main(argv)
+    partial = Path(str(out) + ".partial")
+    assert partial.exists() and not out.exists()
+    ran = []
+    monkeypatch.setattr(study, "one_case", lambda effect, *rest: ran.append(effect) or _fake_case(effect, *rest))
+    assert study.main(argv) == 0
+    assert ran == ["soil_patch"], "the case the partial study holds is not run again"
+    assert [c["effect"] for c in json.loads(out.read_text())["cases"]] == ["none", "soil_patch"]
+    assert not partial.exists(), "the partial file outlived the study written whole"
+
+
+@pytest.mark.parametrize("change, named", [
+    (["--first-seed", "2000"], "first_seed"),
+    (["--design", "alt"], "design"),
+    ("another commit", "commit"),
+])
+def test_a_partial_study_of_another_study_or_code_is_refused_never_counted(study, tmp_path, monkeypatch, change,
+                                                                           named, capsys):
+    out = tmp_path / "study.json"
+    argv = ["--effects", "none", "soil_patch", "--seeds", "1", "--first-seed", "1000", "--json", str(out)]
+    monkeypatch.setattr(study, "one_case", _interrupted_at("soil_patch"))
+    with pytest.raises(KeyboardInterrupt):
+        study.main(argv)
+    monkeypatch.setattr(study, "one_case", _fake_case)
+    if change == "another commit":
+        monkeypatch.setattr(study, "commit", lambda paths=(): "0000000")
+    else:
+        argv = argv + change
+    with pytest.raises(SystemExit) as refused:
+        study.main(argv)
+    message = str(refused.value)
+    assert f"{out}.partial" in message and named in message, message
+    assert not out.exists()
+
+
+def test_a_partial_file_that_does_not_say_its_study_is_refused(study, tmp_path, monkeypatch):
+    out = tmp_path / "study.json"
+    Path(str(out) + ".partial").write_text(json.dumps([_fake_case("none", 1.0, 1000, 1, False, "default")]))
+    monkeypatch.setattr(study, "one_case", _fake_case)
+    with pytest.raises(SystemExit, match="does not say which study"):
+        study.main(["--effects", "none", "--seeds", "1", "--json", str(out)])
