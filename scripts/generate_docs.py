@@ -292,8 +292,9 @@ def run_detection_rates(studies: Sequence[str]) -> dict[str, Any]:
     """Run ``scripts/detection_rates.py ARGS --json`` for each ARGS in ``studies``, side by side
     (at most one per core), and merge their cases into one study with the provenance.
 
-    An interrupted study resumes where it stopped when run again with the same arguments (each
-    keeps its cases in ``out/detection-study-N.json.partial``).  A failed study fails the whole:
+    An interrupted study resumes where it stopped when run again with the same arguments on the
+    same code (each keeps its cases in ``out/detection-study-N.json.partial``; a partial study of
+    other arguments or another commit is refused, detection_rates.py).  A failed study fails the whole:
     the results page is never written from part of the studies.  On an interruption or a failure
     the studies still running are stopped, so none is left behind."""
     python = ROOT / ".venv" / "bin" / "python"
