@@ -57,22 +57,8 @@ static inline double angular_row_dot(double Jw[3][NU], int i, const double u[NU]
     return u[U_WX + i] + Jw[i][U_BETA] * u[U_BETA] + Jw[i][sp] * u[sp];
 }
 
-/* a^T J for a point Jacobian J: a row of NU (the other spin column 0). */
-static inline void point_vec_times_jac(double out[NU], const double a[3], double J[3][NU], int sp)
-{
-    out[U_VX + 0] = a[0];
-    out[U_VX + 1] = a[1];
-    out[U_VX + 2] = a[2];
-    out[U_WX + 0] = a[1] * J[1][U_WX + 0] + a[2] * J[2][U_WX + 0];
-    out[U_WX + 1] = a[0] * J[0][U_WX + 1] + a[2] * J[2][U_WX + 1];
-    out[U_WX + 2] = a[0] * J[0][U_WX + 2] + a[1] * J[1][U_WX + 2];
-    out[U_BETA] = a[0] * J[0][U_BETA] + a[1] * J[1][U_BETA] + a[2] * J[2][U_BETA];
-    out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
-    out[sp] = a[0] * J[0][sp] + a[1] * J[1][sp] + a[2] * J[2][sp];
-}
-
-/* point_vec_times_jac for three vectors a[v] into out[v], reading the
- * entries of J once (the same products in the same order). */
+/* a[v]^T J for three vectors a[v] and a point Jacobian J, each a row of NU
+ * (the other spin column 0) into out[v], reading the entries of J once. */
 static inline void point_vecs_times_jac(double out[3][NU], const double *const a[3], double J[3][NU], int sp)
 {
     const double j13 = J[1][U_WX + 0], j23 = J[2][U_WX + 0], j04 = J[0][U_WX + 1], j24 = J[2][U_WX + 1];
