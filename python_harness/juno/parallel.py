@@ -51,6 +51,7 @@ from __future__ import annotations
 import atexit
 import concurrent.futures
 import contextlib
+import ctypes
 import heapq
 import itertools
 import multiprocessing
@@ -61,6 +62,7 @@ import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from multiprocessing.util import _run_finalizers
 from typing import Any, Callable, Iterable, Sequence
 
 __all__ = ["map_tasks", "TaskPool", "Task", "BackgroundTask", "TaskError", "SchedulerError", "resolve_workers",
@@ -127,6 +129,26 @@ def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
     return n
 
 
+#: Seconds a terminated worker gets to run its exit finalizers before it is killed.
+TERMINATE_GRACE = 2.0
+
+
+def _reap(processes: list) -> None:
+    """Wait for terminated workers; kill those still alive after TERMINATE_GRACE.  Why the kill:
+    a worker's SIGTERM handler is Python code, which runs only between bytecodes; a worker
+    forked while another thread of the parent held a lock (the import lock, say) may block on
+    it for ever and never run the handler, and the parent's exit would then wait for it."""
+    deadline = time.monotonic() + TERMINATE_GRACE
+    for proc in processes:
+        with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
+            proc.join(timeout=max(0.0, deadline - time.monotonic()))
+    for proc in processes:
+        with contextlib.suppress(OSError, ValueError, AssertionError):
+            if proc.is_alive():
+                proc.kill()
+                proc.join(timeout=5.0)
+
+
 def _pool_context():
     methods = multiprocessing.get_all_start_methods()
     return multiprocessing.get_context("fork" if "fork" in methods else None)
@@ -135,7 +157,6 @@ def _pool_context():
 def _exit_worker(code: int) -> None:
     """End this worker now, after its exit finalizers (FMU instances and their folders)."""
     try:
-        from multiprocessing.util import _run_finalizers
         _run_finalizers(0)
     finally:
         os._exit(code)
@@ -158,7 +179,6 @@ def _worker_init(parent_pid: int, death_signal: bool) -> None:
     signal.signal(signal.SIGTERM, lambda signum, frame: _exit_worker(128 + signum))
     if death_signal and sys.platform.startswith("linux"):
         try:
-            import ctypes
             libc = ctypes.CDLL(None, use_errno=True)
             libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
         except (OSError, AttributeError):  # no prctl: the watchdog below still ends the worker
@@ -347,9 +367,7 @@ class TaskPool:
                     with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
                         proc.terminate()
                 self._executor.shutdown(wait=False, cancel_futures=True)
-                for proc in processes:
-                    with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
-                        proc.join(timeout=5.0)
+                _reap(processes)
             else:
                 self._executor.shutdown(wait=True, cancel_futures=True)
             self._executor = None
@@ -413,11 +431,12 @@ class BackgroundTask:
     def close(self, terminate: bool = False) -> None:
         """Ends the worker: waits for it, or (``terminate``) stops it without waiting."""
         if self._executor is not None:
-            if terminate:
-                for proc in list((getattr(self._executor, "_processes", None) or {}).values()):
-                    with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
-                        proc.terminate()
+            processes = list((getattr(self._executor, "_processes", None) or {}).values()) if terminate else []
+            for proc in processes:
+                with contextlib.suppress(OSError, ValueError, AssertionError):  # already gone
+                    proc.terminate()
             self._executor.shutdown(wait=not terminate, cancel_futures=True)
+            _reap(processes)
             self._executor = None
 
     def __enter__(self) -> "BackgroundTask":
