@@ -121,9 +121,12 @@ def _message(exc: BaseException) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    previous = None
+    previous = previous_int = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        # Ctrl-C as the module docstring says even when juno was started with SIGINT ignored (a
+        # background job of a non-interactive shell inherits that, and Python then keeps it).
+        previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         check_output_paths(args)
         return int(args.func(args) or 0)
@@ -140,6 +143,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+        if previous_int is not None:
+            signal.signal(signal.SIGINT, previous_int)
 
 
 if __name__ == "__main__":
