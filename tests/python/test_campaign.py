@@ -157,6 +157,36 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
     np.testing.assert_array_equal(read_terrain_points(c, "t3d"), terrain)
 
 
+def test_a_run_is_read_once_per_loaded_campaign_until_its_file_changes(campaign_dir: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The phases of an analysis each read the runs they need: the loaded campaign keeps a run
+    once read (its arrays read-only, so no reader changes what the next is given), reads it again
+    when its file has changed, and a pickled campaign (sent to a worker) does not carry them."""
+    import pickle
+
+    import juno.campaign.tables as tables
+    parsed: list[str] = []
+    real = tables.read_run_csv
+    monkeypatch.setattr(tables, "read_run_csv", lambda path, *a, **k: parsed.append(Path(path).name) or real(path, *a, **k))
+    c = load_campaign(campaign_dir)
+    first = read_run(c, "dbp1")
+    assert read_run(c, c.run("dbp1")) is first and parsed == ["dbp1.csv"]
+    with pytest.raises(ValueError, match="read-only"):
+        first["torque_left"][0] = 0.0
+    assert load_campaign(campaign_dir) == c and read_run(load_campaign(campaign_dir), "dbp1") is not first
+
+    shipped = pickle.dumps(c)
+    assert len(shipped) < 2000, "a pickled campaign carries its runs"
+    assert pickle.loads(shipped) == c
+
+    path = campaign_dir / "runs" / "dbp1.csv"
+    text = path.read_text()
+    path.write_text(text.replace("\n2", "\n 2", 1))   # a cell with a space: the same samples, another file
+    again = read_run(c, "dbp1")
+    assert again is not first and parsed[-1] == "dbp1.csv" and len(parsed) == 3
+    np.testing.assert_array_equal(again["torque_left"], first["torque_left"])
+
+
 def test_write_campaign_refuses_to_overwrite_and_leaves_nothing_on_failure(tmp_path: Path, campaign_dir: Path) -> None:
     before = snapshot(campaign_dir)
     with pytest.raises(FileExistsError):

@@ -107,6 +107,12 @@ class Campaign:
         rover: FMU parameter overrides by FMU name (``{"wheel.width": 0.254}``); numbers stay
             int or float as written, strings stay strings.
         extra: other top-level manifest keys, kept as read.
+
+    A loaded campaign is a snapshot of its folder: :func:`~juno.campaign.read_run` keeps every
+    run it has read and checked here (keyed by the file and its size and modification time, so a
+    file rewritten since is read again), and the phases of one analysis that each need a run
+    read its file once.  The runs kept are not pickled: a campaign sent to a worker process
+    carries its manifest only, and the worker reads what it needs.
     """
 
     root: Path
@@ -114,6 +120,13 @@ class Campaign:
     runs: tuple[RunSpec, ...]
     rover: dict[str, Union[float, int, str]] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    #: the runs read so far: (file, kind, run id) -> (file's size and modification time, RunData)
+    _runs_read: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_runs_read"] = {}
+        return state
 
     @property
     def manifest_path(self) -> Path:

@@ -253,7 +253,7 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                          "'juno identify' fits it", campaign.manifest_path,
                          _line_of_run(decode_input_text(campaign.manifest_path,
                                                         read_input_bytes(campaign.manifest_path)), spec.id))
-    data = read_run_csv(campaign.run_path(spec), spec.kind, run_id=spec.id)
+    data = _read_once(campaign, campaign.run_path(spec), spec.kind, spec.id)
     if spec.steady_window is not None:
         a, b = spec.steady_window
         t = data.time
@@ -264,6 +264,29 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                 campaign.manifest_path,
                 _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
             )
+    return data
+
+
+def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str) -> RunData:
+    """:func:`read_run_csv` of a run of ``campaign``, read once for as long as its file is unchanged
+    (the same size and modification time): every phase of an analysis reads the runs it needs, and
+    a run's file is parsed and checked once.  The arrays of a run kept so are read-only, so that no
+    reader changes what the next one is given."""
+    try:
+        st = path.stat()
+        stamp: Optional[tuple[int, int, int]] = (st.st_size, st.st_mtime_ns, st.st_ino)
+    except OSError:
+        stamp = None          # read_run_csv says what is wrong with the file
+    key = (str(path), kind, run_id)
+    kept = campaign._runs_read.get(key)
+    if stamp is not None and kept is not None and kept[0] == stamp:
+        return kept[1]
+    data = read_run_csv(path, kind, run_id=run_id)
+    for array in (*data.columns.values(), *data.extra.values(), data.lines):
+        if array is not None:
+            array.setflags(write=False)
+    if stamp is not None:
+        campaign._runs_read[key] = (stamp, data)
     return data
 
 
