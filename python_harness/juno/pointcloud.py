@@ -290,7 +290,7 @@ class Grid:
             raise ValueError(f"Grid.z must be a non-empty 2-D array, got shape {z.shape}")
         if not (np.isfinite(self.cell) and self.cell > 0):
             raise ValueError(f"Grid.cell must be > 0, got {self.cell}")
-        object.__setattr__(self, "z", z)
+        object.__setattr__(self, "z", np.ascontiguousarray(z))
         object.__setattr__(self, "x0", float(self.x0))
         object.__setattr__(self, "y0", float(self.y0))
         object.__setattr__(self, "cell", float(self.cell))
@@ -324,26 +324,41 @@ class Grid:
         return (self.x0, self.x0 + self.cell * (self.ncols - 1), self.y0, self.y0 + self.cell * (self.nrows - 1))
 
     def height(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
-        """Bilinear elevation (m) at world (x, y) (m), vectorised; clamped to the edges outside.
+        """Bilinear elevation (m) at world (x, y) (m), vectorised; clamped to the edges outside;
+        NaN where x or y is NaN.
 
-        Returns an array of the broadcast shape of x and y (a 0-d array for scalars).
+        Returns an array of the broadcast shape of x and y (a NumPy float for scalars).
         """
         xa, ya = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
-        u = np.clip((xa - self.x0) / self.cell, 0.0, self.ncols - 1)
-        v = np.clip((ya - self.y0) / self.cell, 0.0, self.nrows - 1)
-        i0 = np.minimum(np.floor(u).astype(np.intp), max(self.ncols - 2, 0))
-        j0 = np.minimum(np.floor(v).astype(np.intp), max(self.nrows - 2, 0))
-        i1 = np.minimum(i0 + 1, self.ncols - 1)
-        j1 = np.minimum(j0 + 1, self.nrows - 1)
+        ncols, nrows = self.ncols, self.nrows
+        u = np.clip((xa - self.x0) / self.cell, 0.0, ncols - 1)
+        v = np.clip((ya - self.y0) / self.cell, 0.0, nrows - 1)
+        # The cell's lower-left corner: u and v are >= 0 here, so truncation is the floor.
+        i0 = np.minimum(u.astype(np.intp), max(ncols - 2, 0))
+        j0 = np.minimum(v.astype(np.intp), max(nrows - 2, 0))
         fu = u - i0
         fv = v - j0
-        z = self.z
+        gu = 1 - fu
+        gv = 1 - fv
+        # The four corners by their index in the flattened grid; on a grid one cell wide (or high)
+        # the next column (row) is the same one, as the clamping says.  A NaN coordinate has no
+        # cell (its index is clipped into the grid) and its weights make the height NaN.
+        z = self._flat_z
+        k00 = j0 * ncols
+        k00 += i0
+        k10 = k00 + (ncols if nrows > 1 else 0)
+        right = 1 if ncols > 1 else 0
         return (
-            z[j0, i0] * (1 - fu) * (1 - fv)
-            + z[j0, i1] * fu * (1 - fv)
-            + z[j1, i0] * (1 - fu) * fv
-            + z[j1, i1] * fu * fv
+            z.take(k00, mode="clip") * gu * gv
+            + z.take(k00 + right, mode="clip") * fu * gv
+            + z.take(k10, mode="clip") * gu * fv
+            + z.take(k10 + right, mode="clip") * fu * fv
         )
+
+    @property
+    def _flat_z(self) -> NDArray[np.float64]:
+        """The elevations in row-major order (a view when ``z`` is C-contiguous, as it is made)."""
+        return self.z.reshape(-1)
 
 
 def _average_duplicates(pts: NDArray[np.float64], quantum: float) -> NDArray[np.float64]:

@@ -62,6 +62,7 @@ chassis's lag behind the ground are model error).
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -149,9 +150,60 @@ ENVELOPE_POINTS = np.linspace(-1.0, 1.0, 13) * 0.999
 #: sigma, so this leaves the differences exact to 0.1 %).
 POSE_TOLERANCE = 1e-10
 POSE_ITERATIONS = 30
+#: Step (of z in m, of the angles in rad) of the finite differences of the pose solve's Jacobian.
+POSE_STEP = 1e-6
 #: Wheel order of the pose arrays: FL, RL, FR, RR (the FMU's).  Side: +1 left, -1 right.
 _SIDE = np.array([1.0, 1.0, -1.0, -1.0])
 _FORE = np.array([1.0, -1.0, 1.0, -1.0])
+#: Largest array of scan samples (envelope points x registrations x samples x wheels) one batch of
+#: pose solves builds: registrations beyond it are solved in further batches (8 MB per array).
+BATCH_ELEMENTS = 2 ** 20
+#: Registrations whose poses a _Posing keeps besides its latest batch.
+KEPT_POSES = 16
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """The hubs of the rover in a pose (hub_positions), with the steps on the way that the pose
+    solve's Jacobian reuses: the hub below the pivot in the chassis frame (x1, y1, z1, turned by
+    the rocker), after the roll (y2, z2, with cos and sin of the roll), after the pitch (z3, with
+    cos and sin of the pitch), and the world position (x, y, z), each (..., n, 4) (m)."""
+
+    x1: np.ndarray
+    y1: np.ndarray
+    z1: np.ndarray
+    cr: np.ndarray
+    sr: np.ndarray
+    y2: np.ndarray
+    z2: np.ndarray
+    cp: np.ndarray
+    sp: np.ndarray
+    z3: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+
+
+def _rocked(tr: Traverse, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The hub's x and z (m) in the chassis frame for rocker angle ``beta`` (rad, (..., n, 1)):
+    the rockers turned by +beta on the left and -beta on the right."""
+    b = _SIDE * beta
+    cb, sb = np.cos(b), np.sin(b)
+    half = tr.wheelbase / 2
+    return cb * _FORE * half - sb * tr.pivot_height, -sb * _FORE * half - cb * tr.pivot_height
+
+
+def _frame(tr: Traverse, pose: np.ndarray, cy: np.ndarray, sy: np.ndarray) -> _Frame:
+    """hub_positions with its steps; ``cy``, ``sy``: cos and sin of the traverse's yaw, (n, 1)."""
+    z, roll, pitch, beta = (pose[..., i:i + 1] for i in range(4))
+    x1, z1 = _rocked(tr, beta)
+    y1 = np.broadcast_to(_SIDE * tr.track / 2, x1.shape)
+    cr, sr = np.cos(roll), np.sin(roll)
+    y2, z2 = cr * y1 - sr * z1, sr * y1 + cr * z1          # Rx(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    x3, z3 = cp * x1 + sp * z2, -sp * x1 + cp * z2         # Ry(pitch)
+    return _Frame(x1, y1, z1, cr, sr, y2, z2, cp, sp, z3,
+                  tr.x[:, None] + cy * x3 - sy * y2, tr.y[:, None] + sy * x3 + cy * y2, z + z3)
 
 
 def hub_positions(tr: Traverse, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -161,45 +213,117 @@ def hub_positions(tr: Traverse, pose: np.ndarray) -> tuple[np.ndarray, np.ndarra
     height) in the rocker frame, which is turned about the chassis y axis by +beta on the left and
     -beta on the right; the chassis rotation is Rz(yaw) Ry(pitch) Rx(roll).  ``pose`` may also be
     a stack (k, n, 4) of poses along the traverse; the results are then (k, n, 4)."""
+    f = _frame(tr, pose, np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None])
+    return f.x, f.y, f.z
+
+
+def _hub_heights_moved(tr: Traverse, pose: np.ndarray, f: _Frame) -> list[np.ndarray]:
+    """The hubs' heights (m, (..., n, 4)) with each coordinate of ``pose`` (z, roll, pitch, beta)
+    in turn moved by POSE_STEP, from ``f``, the frame of ``pose``: each recomputes only what that
+    coordinate changes, with the arithmetic of _frame."""
     z, roll, pitch, beta = (pose[..., i:i + 1] for i in range(4))
-    b = _SIDE * beta
-    cb, sb = np.cos(b), np.sin(b)
-    half = tr.wheelbase / 2
-    x1 = cb * _FORE * half - sb * tr.pivot_height          # in the chassis frame
-    y1 = np.broadcast_to(_SIDE * tr.track / 2, x1.shape)
-    z1 = -sb * _FORE * half - cb * tr.pivot_height
-    cr, sr = np.cos(roll), np.sin(roll)
-    y2, z2 = cr * y1 - sr * z1, sr * y1 + cr * z1          # Rx(roll)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    x3, z3 = cp * x1 + sp * z2, -sp * x1 + cp * z2         # Ry(pitch)
-    cy, sy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
-    return tr.x[:, None] + cy * x3 - sy * y2, tr.y[:, None] + sy * x3 + cy * y2, z + z3
+    cr, sr = np.cos(roll + POSE_STEP), np.sin(roll + POSE_STEP)
+    cp, sp = np.cos(pitch + POSE_STEP), np.sin(pitch + POSE_STEP)
+    x1, z1 = _rocked(tr, beta + POSE_STEP)
+    z2 = f.sr * f.y1 + f.cr * z1
+    return [(z + POSE_STEP) + f.z3,
+            z + (-f.sp * f.x1 + f.cp * (sr * f.y1 + cr * f.z1)),
+            z + (-sp * f.x1 + cp * f.z2),
+            z + (-f.sp * x1 + f.cp * z2)]
+
+
+class _Posing:
+    """The rover posed along one traverse on one gridded scan, for trial registrations.
+
+    What does not depend on the registration is computed once: the heading's cosine and sine, and
+    the envelope points of a wheel along it.  The poses of the registrations solved last are kept
+    (a least-squares fit evaluates one registration several times: the finite-difference steps of
+    the attitude gains leave the registration as it is), and poses(), given the registrations a
+    fit is about to try (a grid of starts, the steps of a finite-difference Jacobian), solves them
+    at once, each as pose_on_ground would alone: every sample's arithmetic is elementwise, and
+    each registration's Newton iteration stops by its own test."""
+
+    def __init__(self, grid: Grid, tr: Traverse, h0: float):
+        self.grid, self.tr, self.h0 = grid, tr, h0
+        self.cy, self.sy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
+        f = ENVELOPE_POINTS.reshape(-1, 1, 1, 1)
+        radius = tr.wheel_radius
+        # (points, 1, n, 1): the envelope points' world offsets from the hub along the heading
+        self.along_x = (f[:, 0] * radius * self.cy)[:, None]
+        self.along_y = (f[:, 0] * radius * self.sy)[:, None]
+        self.drop = radius * (np.sqrt(1.0 - f * f) - 1.0)
+        self._kept: dict[bytes, np.ndarray] = {}
+
+    def ground(self, x: np.ndarray, y: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """wheel_ground for hubs at world (x, y), (k, n, m) (m), each of the k registrations
+        ``offsets`` (k, 4) for its own hubs."""
+        ox, oy, oz, yaw = (offsets[:, i].reshape(-1, 1, 1) for i in range(4))
+        c, s = np.cos(yaw), np.sin(yaw)
+        dx, dy = x + self.along_x - ox, y + self.along_y - oy          # from the scan's origin
+        samples = self.grid.height(c * dx + s * dy, -s * dx + c * dy) + self.drop
+        # The highest sample, refined by the parabola through it and its neighbours: the samples are
+        # R/6 apart, which alone leaves the height up to 1 mm low on a slope.
+        top = np.argmax(samples, axis=0)
+        k = np.clip(top, 1, len(ENVELOPE_POINTS) - 2)
+        flat, m = samples.reshape(-1), top.size               # point p of column j at p * m + j
+        at = k.reshape(-1) * m + np.arange(m)
+        before, best, after = (flat.take(at + d * m).reshape(k.shape) for d in (-1, 0, 1))
+        curvature = before - 2.0 * best + after
+        inside = (top == k) & (curvature < 0.0)
+        vertex = best - (after - before) ** 2 / (8.0 * np.where(inside, curvature, -1.0))
+        return np.where(inside, vertex, samples.max(axis=0)) + oz
+
+    def solve(self, offsets: np.ndarray) -> np.ndarray:
+        """The poses (k, n, 4) for registrations ``offsets`` (k, 4) (pose_on_ground's Newton
+        iteration, each registration's stopping on its own)."""
+        tr, h0 = self.tr, self.h0
+        clearance = h0 - tr.pivot_height          # hub height above the ground it rests on
+        q = np.zeros((len(offsets), len(tr.x), 4))
+        q[..., 0] = h0 + self.ground(tr.x[None, :, None], tr.y[None, :, None], offsets)[..., 0]
+        active = np.arange(len(offsets))
+        for _ in range(POSE_ITERATIONS):
+            pose = q[active]
+            f = _frame(tr, pose, self.cy, self.sy)
+            gap = f.z - (self.ground(f.x, f.y, offsets[active]) + clearance)
+            going = ~(np.max(np.abs(gap), axis=(1, 2)) < POSE_TOLERANCE)
+            if not going.all():
+                if not going.any():
+                    break
+                active, pose, gap = active[going], pose[going], gap[going]
+                f = _frame(tr, pose, self.cy, self.sy)
+            jac = np.stack([(moved - f.z) / POSE_STEP for moved in _hub_heights_moved(tr, pose, f)], axis=-1)
+            q[active] = pose - np.linalg.solve(jac, gap[..., None])[..., 0]
+        return q
+
+    def poses(self, offsets: list[np.ndarray]) -> list[np.ndarray]:
+        """The pose (n, 4) for each registration of ``offsets`` (each (4,)): kept ones as kept, the
+        others solved together (in batches of BATCH_ELEMENTS) and kept."""
+        keys = [np.asarray(o, dtype=float).tobytes() for o in offsets]
+        new = list(dict.fromkeys(k for k in keys if k not in self._kept))
+        per = max(1, BATCH_ELEMENTS // (len(ENVELOPE_POINTS) * 4 * max(len(self.tr.x), 1)))
+        for i in range(0, len(new), per):
+            batch = new[i:i + per]
+            for key, pose in zip(batch, self.solve(np.array([np.frombuffer(k) for k in batch]))):
+                self._kept[key] = pose
+        found = [self._kept[k] for k in keys]
+        for key in list(self._kept)[:max(0, len(self._kept) - KEPT_POSES - len(new))]:
+            del self._kept[key]
+        return found
+
+    def residuals(self, offset: np.ndarray, gains: tuple[float, float]) -> np.ndarray:
+        """residuals() of the traverse for registration ``offset`` (4,)."""
+        return _scaled(self.tr, self.poses([offset])[0], gains)
 
 
 def wheel_ground(grid: Grid, tr: Traverse, x: np.ndarray, y: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """The ground height (m) a wheel with its hub above world (x, y) rests on, for registration
-    ``offset`` (ox, oy, oz, yaw): the highest point of the scan under the wheel's circle (radius
-    tr.wheel_radius, in the vertical plane of the chassis heading), less the radius.  On flat
-    ground it is the ground; on a 0.3 slope, 1.2 cm above the point below the hub."""
-    ox, oy, oz, yaw = offset
-    c, s = np.cos(yaw), np.sin(yaw)
-    hx, hy = np.cos(tr.yaw)[:, None], np.sin(tr.yaw)[:, None]
-    radius = tr.wheel_radius
-    # Every envelope point at once (axis 0), in one call of the grid: the same arithmetic per
-    # element as one point at a time, without a Python round per point (the pose solve calls
-    # this tens of thousands of times in a registration fit).
-    f = ENVELOPE_POINTS.reshape((-1,) + (1,) * np.ndim(x))
-    dx, dy = x + f * radius * hx - ox, y + f * radius * hy - oy          # from the scan's origin
-    samples = grid.height(c * dx + s * dy, -s * dx + c * dy) + radius * (np.sqrt(1.0 - f * f) - 1.0)
-    # The highest sample, refined by the parabola through it and its neighbours: the samples are
-    # R/6 apart, which alone leaves the height up to 1 mm low on a slope.
-    top = np.argmax(samples, axis=0)
-    k = np.clip(top, 1, len(ENVELOPE_POINTS) - 2)
-    before, best, after = (np.take_along_axis(samples, (k + d)[None], axis=0)[0] for d in (-1, 0, 1))
-    curvature = before - 2.0 * best + after
-    inside = (top == k) & (curvature < 0.0)
-    vertex = best - (after - before) ** 2 / (8.0 * np.where(inside, curvature, -1.0))
-    return np.where(inside, vertex, samples.max(axis=0)) + oz
+    """The ground height (m) a wheel with its hub above world (x, y) ((n, m), n the traverse's
+    samples) rests on, for registration ``offset`` (ox, oy, oz, yaw): the highest point of the
+    scan under the wheel's circle (radius tr.wheel_radius, in the vertical plane of the chassis
+    heading), less the radius.  On flat ground it is the ground; on a 0.3 slope, 1.2 cm above the
+    point below the hub."""
+    offsets = np.asarray(offset, dtype=float).reshape(1, 4)
+    return _Posing(grid, tr, 0.0).ground(np.asarray(x, dtype=float)[None], np.asarray(y, dtype=float)[None],
+                                         offsets)[0]
 
 
 def pose_on_ground(grid: Grid, tr: Traverse, offset: np.ndarray, h0: float) -> np.ndarray:
@@ -209,29 +333,11 @@ def pose_on_ground(grid: Grid, tr: Traverse, offset: np.ndarray, h0: float) -> n
     yaw; h0 is the chassis height above flat ground.  Newton's method with the Jacobian of the
     hub heights with the ground held (the hubs move sideways by millimetres per iteration, so it
     converges by a factor of about ten an iteration)."""
-    n = len(tr.x)
-    clearance = h0 - tr.pivot_height          # hub height above the ground it rests on
-    q = np.zeros((n, 4))
-    q[:, 0] = h0 + wheel_ground(grid, tr, tr.x[:, None], tr.y[:, None], offset)[:, 0]
-    step = 1e-6
-    for _ in range(POSE_ITERATIONS):
-        x, y, z = hub_positions(tr, q)
-        gap = z - (wheel_ground(grid, tr, x, y, offset) + clearance)
-        if np.max(np.abs(gap)) < POSE_TOLERANCE:
-            break
-        moved = np.repeat(q[None], 4, axis=0)         # pose j with its coordinate j moved by step
-        for j in range(4):
-            moved[j, :, j] += step
-        jac = np.moveaxis((hub_positions(tr, moved)[2] - z) / step, 0, -1)
-        q -= np.linalg.solve(jac, gap[:, :, None])[:, :, 0]
-    return q
+    return _Posing(grid, tr, h0).solve(np.asarray(offset, dtype=float).reshape(1, 4))[0]
 
 
-def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
-              gains: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
-    """Scaled residuals of height (and pitch and roll, if measured) for a trial registration,
-    with the chassis tilting ``gains`` (pitch, roll) times the posed rover's attitude."""
-    pose = pose_on_ground(grid, tr, np.asarray(offset, dtype=float), h0)
+def _scaled(tr: Traverse, pose: np.ndarray, gains: tuple[float, float]) -> np.ndarray:
+    """The scaled residuals (residuals()) of the rover posed so (n, 4)."""
     r = [(tr.z - pose[:, 0]) / SIGMA_Z]
     if tr.pitch is not None:
         r.append((tr.pitch - gains[0] * pose[:, 2]) / SIGMA_PITCH)
@@ -240,30 +346,51 @@ def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
     return np.concatenate(r)
 
 
+def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
+              gains: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+    """Scaled residuals of height (and pitch and roll, if measured) for a trial registration,
+    with the chassis tilting ``gains`` (pitch, roll) times the posed rover's attitude."""
+    return _scaled(tr, pose_on_ground(grid, tr, np.asarray(offset, dtype=float), h0), gains)
+
+
+#: Whether scipy's least_squares takes a map-like ``workers`` for its finite differences (scipy
+#: 1.16 on): _fit then solves the poses of a Jacobian's steps together.
+_BATCHED_JACOBIAN = "workers" in inspect.signature(least_squares).parameters
+
+
 def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least squares of the four offsets and the two attitude gains from a grid of starts, and of
     the gains alone with the scan as it is.  Returns (offsets with gains (6,), the as-scanned
     gains (2,), the cost of each).  With ``h0`` None the raise is not fitted (see register)."""
     fit_z = h0 is not None
-    h = 0.0 if h0 is None else h0
+    posing = _Posing(grid, tr, 0.0 if h0 is None else h0)
+
+    def offset_of(v: np.ndarray) -> np.ndarray:
+        """v: the four offsets, then the pitch and roll gains."""
+        return np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]])
 
     def res(v: np.ndarray) -> np.ndarray:
-        """v: the four offsets, then the pitch and roll gains."""
-        off = np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]])
-        r = residuals(off, grid, tr, h, (v[4], v[5]))
+        r = posing.residuals(offset_of(v), (v[4], v[5]))
         if not fit_z:
             r[:len(tr.z)] -= np.mean(r[:len(tr.z)])   # the height offset is free
         return r
 
+    def each(fun, points) -> list[np.ndarray]:
+        """A map for least_squares' finite differences: their registrations posed at once."""
+        points = list(points)
+        posing.poses([offset_of(v) for v in points])
+        return [fun(v) for v in points]
+
+    batched = {"workers": each} if _BATCHED_JACOBIAN else {}
     starts = [np.array([dx, dy, 0.0, yaw, 1.0, 1.0])
               for dx in START_SHIFTS for dy in START_SHIFTS for yaw in START_YAWS]
-    costs = [float(np.sum(res(v) ** 2)) for v in starts]
+    costs = [float(np.sum(r ** 2)) for r in each(res, starts)]
     lower = np.concatenate([-LIMITS, [g[0] for g in GAIN_LIMITS]])
     upper = np.concatenate([LIMITS, [g[1] for g in GAIN_LIMITS]])
     best = None
     for i in np.argsort(costs)[:4]:
         fit = least_squares(res, np.clip(starts[i], lower, upper), x_scale=np.array([0.1, 0.1, 0.01, 0.02, 0.1, 0.1]),
-                            max_nfev=300, diff_step=1e-6, bounds=(lower, upper))
+                            max_nfev=300, diff_step=1e-6, bounds=(lower, upper), **batched)
         if best is None or fit.cost < best.cost:
             best = fit
     as_scanned = least_squares(lambda g: res(np.array([0.0, 0.0, 0.0, 0.0, g[0], g[1]])),
@@ -304,8 +431,27 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
 HELD_OUT_RATIO = 3.0
 
 
+class _HeldOutFigures:
+    """The held-out figures of registration evidence, from its held-out mean squared scaled
+    residuals as scanned and as registered: one scan's (HeldOutEvidence) and every scan's pooled
+    (ScanRegistrations) alike."""
+
+    held_out_ms_as_scanned: float
+    held_out_ms_registered: float
+
+    @property
+    def ratio(self) -> float:
+        """How many times better the registration explains the held-out samples."""
+        return self.held_out_ms_as_scanned / max(self.held_out_ms_registered, 1e-300)
+
+    @property
+    def gain(self) -> float:
+        """Relative held-out gain of the registration over the scan as it is."""
+        return 1.0 - self.held_out_ms_registered / self.held_out_ms_as_scanned
+
+
 @dataclass(frozen=True)
-class HeldOutEvidence:
+class HeldOutEvidence(_HeldOutFigures):
     """A registration fitted on the training samples of a traverse (``offsets``), judged on the
     held-out ones: the held-out mean squared scaled residual (height, pitch, roll) with the scan
     as it is and with that registration, and their ratio.  ``offsets_all``: once the evidence
@@ -318,15 +464,6 @@ class HeldOutEvidence:
     offsets_all: dict[str, float] | None = None
     #: how many held-out samples (each a height, pitch and roll) the mean squares are over
     held_out_samples: int = 0
-
-    @property
-    def ratio(self) -> float:
-        return self.held_out_ms_as_scanned / max(self.held_out_ms_registered, 1e-300)
-
-    @property
-    def gain(self) -> float:
-        """Relative held-out gain of the registration over the scan as it is."""
-        return 1.0 - self.held_out_ms_registered / self.held_out_ms_as_scanned
 
     @property
     def significant(self) -> bool:
@@ -461,7 +598,7 @@ class ScanEvidence:
 
 
 @dataclass(frozen=True)
-class ScanRegistrations:
+class ScanRegistrations(_HeldOutFigures):
     """Every scan's registration (ScanEvidence, the campaign's scans in order), at least one with
     evidence.  The scans are judged one by one, each on its own held-out samples; the campaign's
     figures pool them: the held-out mean squared scaled residual over every scan's held-out
@@ -487,15 +624,6 @@ class ScanRegistrations:
     @property
     def held_out_ms_registered(self) -> float:
         return self._pooled("held_out_ms_registered")
-
-    @property
-    def ratio(self) -> float:
-        return self.held_out_ms_as_scanned / max(self.held_out_ms_registered, 1e-300)
-
-    @property
-    def gain(self) -> float:
-        """Relative pooled held-out gain of the registrations over the scans as they are."""
-        return 1.0 - self.held_out_ms_registered / self.held_out_ms_as_scanned
 
     @property
     def significant(self) -> bool:

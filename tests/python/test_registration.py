@@ -137,6 +137,35 @@ def _flank_traverse(scan: Grid, offset: np.ndarray, pitch_gain: float, roll_gain
                         rover().track, roll=roll_gain * roll + 0.003 * rng.standard_normal(n))
 
 
+def test_registrations_posed_together_are_posed_exactly_as_each_alone():
+    """A fit poses the rover for many registrations at once (a grid of starts, a Jacobian's
+    steps) and keeps the poses it solved: each pose is the one pose_on_ground gives for that
+    registration alone, to the last bit (every sample's arithmetic is elementwise and each
+    registration stops iterating by its own test), in batches of any size, and a registration
+    asked for again is not solved again."""
+    scan = _mound_scan()
+    truth = np.array([0.15, -0.12, 0.02, 0.04])
+    tr = _flank_traverse(scan, truth, 1.15, 1.05, seed=7)
+    rng = np.random.default_rng(2)
+    offsets = [truth + rng.normal(0.0, 1.0, 4) * np.array([0.2, 0.2, 0.02, 0.05]) for _ in range(6)]
+    offsets.append(offsets[2].copy())
+    alone = [reg.pose_on_ground(scan, tr, o, 0.41) for o in offsets]
+    for batch in (7, 2):
+        posing = reg._Posing(scan, tr, 0.41)
+        solved = []
+        real = posing.solve
+        posing.solve = lambda o: solved.append(len(o)) or real(o)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(reg, "BATCH_ELEMENTS", batch * len(reg.ENVELOPE_POINTS) * 4 * len(tr.x))
+            together = posing.poses(offsets)
+        assert all(np.array_equal(a, b) for a, b in zip(alone, together))
+        assert sum(solved) == 6 and max(solved) == min(batch, 6)
+        posing.poses([offsets[4]])
+        assert sum(solved) == 6
+        assert np.array_equal(posing.residuals(offsets[4], (1.1, 0.9)),
+                              reg.residuals(offsets[4], scan, tr, 0.41, (1.1, 0.9)))
+
+
 @pytest.mark.parametrize("pitch_gain, roll_gain", [(1.0, 1.0), (1.15, 1.05)])
 def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_gain):
     """A rover passing 0.55 m beside the mound's crest, its height, pitch and roll measured with
