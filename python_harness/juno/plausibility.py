@@ -39,7 +39,12 @@ the campaign's ``rover`` entry):
   pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
   total station that updates has noise in its last digits.
 * **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
-  radius: the same margins as the torque, times 2 / radius.
+  radius: the same margins as the torque, times 2 / radius. At the other end, a load cell read
+  in kN gives a drawbar force a thousand times too small: a run whose largest |drawbar_force|
+  is under ``KILONEWTON_SHARE`` (1 %) of the thrust its torques give (their medians' sum over
+  the wheel radius) while a thousand times it is a force the wheels can push. One such run is a
+  warning (a run without load reads only the load cell's noise and the start's pull); every
+  drawbar run of a campaign so is an error: drawbar tests load the rover.
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
   typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
   more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
@@ -156,6 +161,9 @@ SIGN_MATERIAL = 0.05
 #: thrust its measured torques give (their medians' sum over the wheel radius): a reversed sign,
 #: not a load cell's offset on a run with a load near zero.
 DRAWBAR_SIGN_MATERIAL = 0.25
+#: A drawbar run whose largest |drawbar_force| stays below this share of the thrust its measured
+#: torques give looks like a load cell read in kN (module docstring, "Drawbar force").
+KILONEWTON_SHARE = 0.01
 #: Probability that Gaussian noise over one column raises an outlier finding.
 FALSE_ALARM = 1e-4
 #: Gaussian efficiency of the MAD as a scale estimate (degrees of freedom per sample).
@@ -468,6 +476,22 @@ def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     return []
 
 
+def drawbar_in_kilonewtons(run: RunData, limits: RoverLimits) -> Optional[str]:
+    """The evidence (a sentence) that a drawbar run's ``drawbar_force`` is in kN (module
+    docstring, "Drawbar force"), or None."""
+    torques = [n for n in ("torque_left", "torque_right") if run.has(n)]
+    if run.kind != "drawbar" or not run.has("drawbar_force") or not torques:
+        return None
+    thrust = sum(abs(float(np.median(_own(run, n)[1]))) for n in torques) / limits.wheel_radius
+    peak, where, _, _, _ = _largest(run, "drawbar_force")
+    pushable = 2.0 * limits.plugging_torque / limits.wheel_radius
+    if not (thrust > 0 and peak < KILONEWTON_SHARE * thrust and 0 < 1000.0 * peak <= pushable):
+        return None
+    return (f"|drawbar_force| is at most {_g(peak)} N ({where}) while the measured torques push {_g(thrust)} N "
+            f"(their medians over the wheel radius), under {KILONEWTON_SHARE:.0%} of it: looks like kN "
+            f"({_g(1000.0 * peak)} N)")
+
+
 def check_positions(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Positions in millimetres (typical speed far beyond the top speed); a frozen position."""
     out = []
@@ -769,6 +793,7 @@ def check_campaign(campaign: Campaign) -> list[Finding]:
     """
     limits = rover_limits(campaign.rover)
     found: list[Finding] = []
+    kilonewtons: list[tuple[str, Optional[str]]] = []
     for spec in campaign.runs:
         if spec.kind == "wheel_rig":
             found += check_rig_wheel(spec, campaign.manifest_path.name)
@@ -778,6 +803,12 @@ def check_campaign(campaign: Campaign) -> list[Finding]:
         found += check_run(run, spec.file, limits)
         if spec.terrain is not None:
             found += check_scan(campaign, spec, run, limits)
+        if run.kind == "drawbar" and run.has("drawbar_force"):
+            kilonewtons.append((spec.file, drawbar_in_kilonewtons(run, limits)))
+    every_run = all(evidence is not None for _, evidence in kilonewtons)
+    found += [Finding("error" if every_run else "warning", file, "drawbar_force",
+                      evidence + (" in every drawbar run" if every_run and len(kilonewtons) > 1 else ""))
+              for file, evidence in kilonewtons if evidence is not None]
     return [f for f in found if f.severity == "error"] + [f for f in found if f.severity != "error"]
 
 

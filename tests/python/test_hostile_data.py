@@ -55,6 +55,14 @@ def scale(run: str, factor: float, *names: str) -> Callable[[Path], None]:
     return apply
 
 
+def in_every_drawbar_run(change: Callable[[str], Callable[[Path], None]]) -> Callable[[Path], None]:
+    """Applies ``change(run)`` to every drawbar run of the campaign."""
+    def apply(root: Path) -> None:
+        for run in ("dbp1", "dbp2", "dbp3"):
+            change(run)(root)
+    return apply
+
+
 def set_sample(run: str, name: str, k: int, value: float) -> Callable[[Path], None]:
     """Sets the k-th own sample of a column to ``value``."""
     def apply(root: Path) -> None:
@@ -167,6 +175,8 @@ ERRORS = [
          ("electrical maximum", "stall torque")),
     Case("drawbar force beyond the wheels", scale("dbp1", 40.0, "drawbar_force"), "error", "runs/dbp1.csv",
          "drawbar_force", ("the wheels could push",)),
+    Case("drawbar force in kN in every run", in_every_drawbar_run(lambda r: scale(r, 1e-3, "drawbar_force")),
+         "error", "runs/dbp2.csv", "drawbar_force", ("looks like kN", "in every drawbar run", "torques push")),
     Case("path far off the scan", cropped(0.5), "error", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan terrain/scan.xyz during", "s (")),
 ]
@@ -176,6 +186,8 @@ WARNINGS = [
          "torque_left", ("drive's limit",)),
     Case("drawbar force beyond the drive", scale("dbp1", 15.0, "drawbar_force"), "warning", "runs/dbp1.csv",
          "drawbar_force", ("torque limit pushes",)),
+    Case("drawbar force in kN in one run (or a run without load)", scale("dbp3", 1e-3, "drawbar_force"), "warning",
+         "runs/dbp3.csv", "drawbar_force", ("looks like kN",)),
     Case("frozen total station", freeze_position("t3d", 2.0), "warning", "runs/t3d.csv", "pos_x",
          ("frozen", "while the wheels turn")),
     Case("one glitch of the total station", add_to_sample("t3d", "pos_x", 12, 1.0), "warning", "runs/t3d.csv",
@@ -187,6 +199,10 @@ WARNINGS = [
     Case("path briefly off the scan", cropped(1.0), "warning", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan")),
 ]
+
+
+def case_named(name: str) -> Case:
+    return next(c for c in ERRORS + WARNINGS if c.name == name)
 
 
 def checksums(root: Path) -> dict[str, str]:
@@ -245,7 +261,7 @@ def test_each_case_is_found_with_its_severity(base, tmp_path, case) -> None:
 
 @pytest.mark.parametrize("command", ["validate", "report", "diagnose"])
 def test_every_command_reading_measured_data_refuses(base, tmp_path, command, capsys) -> None:
-    root = bad_copy(base, tmp_path, ERRORS[0])
+    root = bad_copy(base, tmp_path, case_named("pitch in degrees"))
     extra = ["--out", str(tmp_path / "report")] if command == "report" else []
     proc = run_juno_here(capsys, command, root, *extra, "--quiet")
     assert proc.returncode == 2, proc.stderr
@@ -255,7 +271,7 @@ def test_every_command_reading_measured_data_refuses(base, tmp_path, command, ca
 
 def test_simulate_of_a_campaign_refuses_and_force_goes_on(base, tmp_path, capsys) -> None:
     """--force turns the errors into warnings: the run is simulated, the evidence still printed."""
-    root = bad_copy(base, tmp_path, ERRORS[0])
+    root = bad_copy(base, tmp_path, case_named("pitch in degrees"))
     proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet")
     assert proc.returncode == 2 and "runs/t3d.csv, column 'pitch'" in proc.stderr
     proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet", "--force")
@@ -265,7 +281,7 @@ def test_simulate_of_a_campaign_refuses_and_force_goes_on(base, tmp_path, capsys
 
 
 def test_warnings_print_one_line_each_and_go_on(base, tmp_path, capsys) -> None:
-    root = bad_copy(base, tmp_path, WARNINGS[2])
+    root = bad_copy(base, tmp_path, case_named("frozen total station"))
     proc = run_juno_here(capsys, "simulate", "--campaign", root, "--run", "dbp1", "--quiet")
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
@@ -273,8 +289,8 @@ def test_warnings_print_one_line_each_and_go_on(base, tmp_path, capsys) -> None:
 
 
 def test_every_error_is_listed_at_once(base, tmp_path) -> None:
-    root = bad_copy(base, tmp_path, ERRORS[0])
-    ERRORS[2].write(root)
+    root = bad_copy(base, tmp_path, case_named("pitch in degrees"))
+    case_named("spins in rpm").write(root)
     lines: list[str] = []
     with pytest.raises(PlausibilityError) as err:
         enforce_plausibility(load_campaign(root), stream=lines.append)
@@ -288,7 +304,7 @@ def test_gridding_drops_the_far_point(base, tmp_path) -> None:
     """A 1e6 m point would stretch the grid over a kilometre; it is dropped and said so."""
     from juno.validate import grid_terrain
 
-    root = bad_copy(base, tmp_path, WARNINGS[4])
+    root = bad_copy(base, tmp_path, case_named("a scan point a kilometre off"))
     campaign = load_campaign(root)
     said: list[str] = []
     _, grid = grid_terrain(campaign, campaign.run("t3d"), tmp_path, say=said.append)
