@@ -62,7 +62,6 @@ chassis's lag behind the ground are model error).
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -356,11 +355,6 @@ def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
     return _scaled(tr, pose_on_ground(grid, tr, np.asarray(offset, dtype=float), h0), gains)
 
 
-#: Whether scipy's least_squares takes a map-like ``workers`` for its finite differences (scipy
-#: 1.16 on): _fit then solves the poses of a Jacobian's steps together.
-_BATCHED_JACOBIAN = "workers" in inspect.signature(least_squares).parameters
-
-
 def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least squares of the four offsets and the two attitude gains from a grid of starts, and of
     the gains alone with the scan as it is.  Returns (offsets with gains (6,), the as-scanned
@@ -379,12 +373,12 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
         return r
 
     def each(fun, points) -> list[np.ndarray]:
-        """A map for least_squares' finite differences: their registrations posed at once."""
+        """``fun`` at each of ``points`` with their registrations posed at once: the starts, and
+        the steps of least_squares' finite-difference Jacobian (its ``workers``)."""
         points = list(points)
         posing.poses([offset_of(v) for v in points])
         return [fun(v) for v in points]
 
-    batched = {"workers": each} if _BATCHED_JACOBIAN else {}
     starts = [np.array([dx, dy, 0.0, yaw, 1.0, 1.0])
               for dx in START_SHIFTS for dy in START_SHIFTS for yaw in START_YAWS]
     costs = [float(np.sum(r ** 2)) for r in each(res, starts)]
@@ -393,7 +387,7 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     best = None
     for i in np.argsort(costs)[:4]:
         fit = least_squares(res, np.clip(starts[i], lower, upper), x_scale=np.array([0.1, 0.1, 0.01, 0.02, 0.1, 0.1]),
-                            max_nfev=300, diff_step=1e-6, bounds=(lower, upper), **batched)
+                            max_nfev=300, diff_step=1e-6, bounds=(lower, upper), workers=each)
         if best is None or fit.cost < best.cost:
             best = fit
     as_scanned = least_squares(lambda g: res(np.array([0.0, 0.0, 0.0, 0.0, g[0], g[1]])),
