@@ -91,8 +91,8 @@
     REAL(196, "multipass.khFactor", PARAM, "1",  1.0, 0.05, 20, p.multipass_khFactor, "k_h of soil compacted by the front wheel, relative to virgin soil (1 = off)") \
     JUNO_CONTACT_EXTENSION_VARIABLES /* slip-sinkage, grouser thrust and lugs (contact_variables.h) */ \
     REAL(199, "drive.lossFraction", PARAM, "1", 0.0, 0, 0.9, p.drive_lossFraction, "Fraction of the drive torque (motor side, as measured from the current) lost in gears and chain") \
-    REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x") \
-    REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y") \
+    REAL(185, "terrain.offsetX",   PARAM, "m",   0.0, -1e7, 1e7, p.terrain_offsetX,   "Registration: the terrain grid is shifted by this in x (after the turn about the world origin: a turn of a scan far from the origin shifts it far)") \
+    REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e7, 1e7, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y (after the turn about the world origin)") \
     REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -1e4, 1e4, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this") \
     REAL(188, "terrain.offsetYaw", PARAM, "rad", 0.0, -3.15, 3.15,   p.terrain_offsetYaw, "Registration: the terrain grid is rotated by this about z (about the world origin)") \
     REAL(500, "drive.frictionLeft",  PARAM, "N.m", 0.0, 0, 400, p.drive_frictionLeft,  "Coulomb friction torque of the left drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \

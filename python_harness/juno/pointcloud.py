@@ -374,6 +374,10 @@ def _average_duplicates(pts: NDArray[np.float64], quantum: float) -> NDArray[np.
     return out
 
 
+#: The local origin a scan is gridded about is its centre rounded to this (m): see grid_from_points.
+LOCAL_ORIGIN_STEP = 1000.0
+
+
 def grid_from_points(
     points: ArrayLike,
     cell: float = 0.05,
@@ -424,19 +428,26 @@ def grid_from_points(
     # Centre the grid on the data when it overhangs the bounding box.
     x0 = 0.5 * (xmin + xmax) - 0.5 * cell * (ncols - 1)
     y0 = 0.5 * (ymin + ymax) - 0.5 * cell * (nrows - 1)
-    gx = x0 + cell * np.arange(ncols)
-    gy = y0 + cell * np.arange(nrows)
+    # Triangulated about a local origin: the scan's centre rounded to the kilometre.  The
+    # triangulation's in-circle tests lose precision with the coordinates' size (a scan in map
+    # coordinates 5,400 km from the origin gridded up to 0.18 m off), and a subtraction of a
+    # number within a factor of two is exact: a scan within 500 m of the origin grids as given,
+    # a scan in map coordinates as if it lay there.
+    origin = LOCAL_ORIGIN_STEP * np.round(0.5 * np.array([xmin + xmax, ymin + ymax]) / LOCAL_ORIGIN_STEP)
+    local = pts[:, :2] - origin
+    gx = (x0 - origin[0]) + cell * np.arange(ncols)
+    gy = (y0 - origin[1]) + cell * np.arange(nrows)
     X, Y = np.meshgrid(gx, gy)
     if len(pts) >= 3 and method != "nearest":
         try:
-            z = griddata(pts[:, :2], pts[:, 2], (X, Y), method=method)
+            z = griddata(local, pts[:, 2], (X, Y), method=method)
         except Exception as e:  # Qhull failure on a nearly degenerate cloud
             raise InputError(f"cannot triangulate the point cloud: {str(e).splitlines()[0]}") from None
     else:
         z = np.full(X.shape, np.nan)
     holes = ~np.isfinite(z)
     if holes.any():
-        tree = cKDTree(pts[:, :2])
+        tree = cKDTree(local)
         _, idx = tree.query(np.column_stack([X[holes], Y[holes]]))
         z[holes] = pts[idx, 2]
     return Grid(x0=float(x0), y0=float(y0), cell=float(cell), z=z, filled=holes)

@@ -33,14 +33,21 @@ the RMS model error was
     height 4.3-6.5 mm, pitch 6.5-11.7 mrad, roll 5.5-11.9 mrad    (simpler model)
     height 3.2-4.2 mm, pitch 5.9-9.8 mrad,  roll 3.6-8.6 mrad     (exact pose)
 
-and the simpler model's fit spent that error on a sideways shift traded against a turn: on the 20
-terrain_offset campaigns (the scan 9-40 cm off along the path) the registration left the path
-2.7-10.4 cm (median 7.2 cm) from where the true one puts it; with the exact pose, 1.7-15.2 cm
-(median 4.0 cm; 12 of 20 within 5 cm, against 5).  A shift along y and a turn about the scan's
-origin still trade against each other: the worst case (15.2 cm) is 0.3 m off in y and 0.09 rad
-in yaw, and puts the mound's centre 4.3 cm from where it is.  The FMU's own contact geometry (a plane through
-the scan point below the hub, along its normal) instead of the wheel's circle did as well
-(median 3.8 cm, worst 10.6 cm).
+and the simpler model's fit spent that error on a sideways shift traded against a turn.  Over 20
+fresh terrain_offset campaigns (strengths 0.7-1), the registration fitted on the whole run (the
+exact pose) maps the measured path into the scan 2.3-18.2 cm (median 5.5 cm, 9 of 20 within
+5 cm; the largest distance along the path) from where the true registration maps it: a shift
+across the path and a turn still trade against each other where the path crosses the mound on
+one side only.
+
+About the path's centre: the search turns the scan about the centre of the measured path's
+bounding box (turning_centre) and then shifts it, and only the result is expressed as the
+FMU's offsets about the world origin (fmu_offsets).  A turn about the world origin moves a scan
+that lies d metres from it by d times the angle, so with the shifts bounded (LIMITS) a scan far
+from the origin could not be turned at all: in a total station's frame set up 250 m away, the
+registration placed the mound 3.6 cm from where the same data put it in a frame about the
+scan.  About the path's centre the bounds, the starts and the result mean the same in every
+frame (the mound within 1 mm).
 
 Least squares over the four offsets and the two gains from a grid of starts gives the
 registration; register() keeps it only if it explains the measurements EVIDENCE_RATIO times
@@ -78,7 +85,8 @@ START_YAWS = (-0.06, -0.03, 0.0, 0.03, 0.06)
 SIGMA_Z = 0.01
 SIGMA_PITCH = 0.01
 SIGMA_ROLL = 0.01
-#: The registrations searched: shifts up to 0.6 m, raises up to 10 cm, turns up to 7 deg.  A
+#: The registrations searched: shifts up to 0.6 m, raises up to 10 cm, turns up to 7 deg about
+#: the measured path's centre (turning_centre).  A
 #: traverse that crosses no terrain feature leaves the registration undetermined, and an
 #: unbounded search then wanders (a 2 m, 29 deg "registration" was found on such a run).
 LIMITS = np.array([0.6, 0.6, 0.1, 0.12])
@@ -361,10 +369,12 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     gains (2,), the cost of each).  With ``h0`` None the raise is not fitted (see register)."""
     fit_z = h0 is not None
     posing = _Posing(grid, tr, 0.0 if h0 is None else h0)
+    centre = turning_centre(tr)
 
     def offset_of(v: np.ndarray) -> np.ndarray:
-        """v: the four offsets, then the pitch and roll gains."""
-        return np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]])
+        """v: the shift and turn about the traverse's centre, the raise, then the pitch and roll
+        gains; returned as the FMU's offsets (about the world origin)."""
+        return fmu_offsets(np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]]), centre)
 
     def res(v: np.ndarray) -> np.ndarray:
         r = posing.residuals(offset_of(v), (v[4], v[5]))
@@ -393,9 +403,25 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     as_scanned = least_squares(lambda g: res(np.array([0.0, 0.0, 0.0, 0.0, g[0], g[1]])),
                                np.clip(np.ones(2), lower[4:], upper[4:]), bounds=(lower[4:], upper[4:]))
     x = best.x.copy()
-    if not fit_z:
-        x[2] = 0.0
+    x[:4] = offset_of(best.x)
     return x, as_scanned.x, float(best.cost), float(as_scanned.cost)
+
+
+def turning_centre(tr: Traverse) -> np.ndarray:
+    """The point (x, y, m) a registration of ``tr`` is searched about: the centre of the
+    measured path's bounding box (module docstring, "About the path's centre")."""
+    return np.array([0.5 * (float(np.min(tr.x)) + float(np.max(tr.x))),
+                     0.5 * (float(np.min(tr.y)) + float(np.max(tr.y)))])
+
+
+def fmu_offsets(about_centre: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The FMU's registration (ox, oy, oz, yaw: grid point q at world o + Rz(yaw) q) of the one
+    ``about_centre`` = (sx, sy, oz, yaw) that turns the grid by yaw about ``centre`` (x, y, m) and
+    then shifts it by (sx, sy): o = s + centre - Rz(yaw) centre."""
+    sx, sy, oz, yaw = (float(v) for v in about_centre)
+    c, sn = np.cos(yaw), np.sin(yaw)
+    cx, cy = float(centre[0]), float(centre[1])
+    return np.array([sx + (cx - (c * cx - sn * cy)), sy + (cy - (sn * cx + c * cy)), oz, yaw])
 
 
 def _offsets(x: np.ndarray) -> dict[str, float]:

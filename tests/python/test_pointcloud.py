@@ -57,6 +57,19 @@ def test_gridding_reproduces_an_analytic_surface() -> None:
     assert np.sqrt(np.mean((g.height(q[:, 0], q[:, 1]) - mound(q[:, 0], q[:, 1])) ** 2)) < 3 * NOISE
 
 
+@pytest.mark.parametrize("dx, dy", [(300.0, -200.0), (512345.0, 5412345.0)])
+def test_a_scan_far_from_the_origin_grids_as_it_does_at_the_origin(dx: float, dy: float) -> None:
+    """A scan in a frame whose origin lies far away (a site 360 m from a total station; map
+    coordinates, 5,400 km from their origin) grids to the same heights as the same scan about
+    the origin, to 1e-8 m: the triangulation works about a local origin."""
+    points = scan(n=4000)
+    here = grid_from_points(points, cell=0.1)
+    there = grid_from_points(points + np.array([dx, dy, 0.0]), cell=0.1)
+    assert there.z.shape == here.z.shape
+    assert there.x0 - dx == pytest.approx(here.x0, abs=1e-8) and there.y0 - dy == pytest.approx(here.y0, abs=1e-8)
+    assert np.max(np.abs(there.z - here.z)) < 1e-8
+
+
 def test_holes_are_filled_by_nearest_neighbour() -> None:
     rng = np.random.default_rng(2)
     xy = rng.uniform(-2.0, 2.0, size=(4000, 2))
