@@ -30,6 +30,12 @@ the campaign's ``rover`` entry):
   times its top speed). rpm are 9.55 times rad/s.
 * **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
   speed over 1 s exceeds twice that are not in metres.
+* **Ground datum.** Drawbar runs are on flat ground at z = 0; the chassis rides at about its
+  centre of gravity's height (wheel radius + ``rover.cgHeight``, 0.53 m) above it, less the
+  sinkage. A drawbar run whose median pos_z lies more than ``DATUM_LIMIT`` (2) times that height
+  from the ground is measured from another datum (a total station's or a map's: a UTM height
+  of hundreds of metres), an error: compared with the model's flat ground, such heights would
+  bend every fit.
 * **Attitude.** The static tip-over angles are ``atan(half track / CG height)`` in roll and
   ``atan(half wheelbase / CG height)`` in pitch (CG height = wheel radius + ``rover.cgHeight``):
   0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
@@ -174,6 +180,9 @@ RESIDUAL_TAIL = math.sqrt(1.3)
 SPAN_FRACTION = 0.25
 #: ... and is an error beyond this multiple of the span.
 ABSURD_SPAN = 10.0
+#: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
+#: (above or below its flat ground at z = 0) is measured from another datum.
+DATUM_LIMIT = 2.0
 #: Path off the scan for more than this fraction of the run's position samples: an error.
 OFF_SCAN_ERROR = 0.10
 
@@ -226,6 +235,7 @@ class RoverLimits:
     half_width: float        # m: track / 2 + wheel width / 2
     roll_tip: float          # rad
     pitch_tip: float         # rad
+    cg_height: float = 0.0   # m: wheel radius + rover.cgHeight, the CG over flat ground
 
     @property
     def plugging_torque(self) -> float:
@@ -249,7 +259,8 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         stall_torque=stall, drive_torque=min(stall, p["drive.torqueMax"]), no_load_spin=omega0,
         top_speed=omega0 * r, wheel_radius=r, half_length=0.5 * p["rover.wheelbase"] + r,
         half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
-        roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg))
+        roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
+        cg_height=cg)
 
 
 # --------------------------------------------------------------------------------------------
@@ -513,7 +524,22 @@ def check_positions(run: RunData, file: str, limits: RoverLimits) -> list[Findin
                                f"{_g(limits.top_speed)} m/s{hint}"))
     if run.has("pos_x") and run.has("pos_y"):
         out += _check_frozen(run, file)
-    return out
+    return out + check_ground_datum(run, file, limits)
+
+
+def check_ground_datum(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A drawbar run's heights measured from a datum other than its flat ground (module
+    docstring, "Ground datum")."""
+    if run.kind != "drawbar" or not run.has("pos_z"):
+        return []
+    height = float(np.median(_own(run, "pos_z")[1]))
+    bound = DATUM_LIMIT * limits.cg_height
+    if abs(height) <= bound:
+        return []
+    return [Finding("error", file, "pos_z", f"the median pos_z is {_g(height)} m: drawbar runs are on flat ground at "
+                    f"z = 0 (docs/campaign-format.md), where the chassis stays within {_g(bound)} m of the ground "
+                    f"({DATUM_LIMIT:g} times its centre of gravity's height of {_g(limits.cg_height)} m); measured from "
+                    "another datum (a total station's, a map's): subtract the ground's height")]
 
 
 def _check_frozen(run: RunData, file: str) -> list[Finding]:

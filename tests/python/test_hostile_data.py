@@ -55,6 +55,15 @@ def scale(run: str, factor: float, *names: str) -> Callable[[Path], None]:
     return apply
 
 
+def shift(run: str, delta: float, *names: str) -> Callable[[Path], None]:
+    def apply(root: Path) -> None:
+        def change(c):
+            for n in names:
+                c[n] = c[n] + delta
+        edit_run(root, run, change)
+    return apply
+
+
 def in_every_drawbar_run(change: Callable[[str], Callable[[Path], None]]) -> Callable[[Path], None]:
     """Applies ``change(run)`` to every drawbar run of the campaign."""
     def apply(root: Path) -> None:
@@ -177,6 +186,8 @@ ERRORS = [
          "drawbar_force", ("the wheels could push",)),
     Case("drawbar force in kN in every run", in_every_drawbar_run(lambda r: scale(r, 1e-3, "drawbar_force")),
          "error", "runs/dbp2.csv", "drawbar_force", ("looks like kN", "in every drawbar run", "torques push")),
+    Case("heights from a map's datum", in_every_drawbar_run(lambda r: shift(r, 312.0, "pos_z")), "error",
+         "runs/dbp1.csv", "pos_z", ("another datum", "flat ground at z = 0", "312.")),
     Case("path far off the scan", cropped(0.5), "error", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan terrain/scan.xyz during", "s (")),
 ]
