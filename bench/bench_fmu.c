@@ -372,7 +372,7 @@ static double cpu_per_call(Model *m, Eval *ev, int what, int n)
         if (what == 0) rover_evaluate_passive(m, ev, 1);
         else if (what == 1) rover_evaluate_passive(m, ev, 0);
         else
-            for (int w = 0; w < NUM_WHEELS; ++w) rover_wheel_contact(m, ev, w, what == 2);
+            rover_wheel_contacts(m, ev, what == 2);
     }
     return (cpu_now() - c0) / n;
 }

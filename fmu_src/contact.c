@@ -310,24 +310,26 @@ typedef struct {
     double L, V, Vh, dVh, xbar, dbar;
 } Half;
 
-/* Both halves by Eqn 3, for depths h[0], h[1] (each already <= R; <= 0:
- * no contact).  The two halves are computed step by step together (both
- * atan, both log, both exp) rather than one after the other: each half is
- * a chain of dependent libm calls, and side by side the processor overlaps
- * the two chains (measured: ~10 % of the closed form). */
-static void halves_closed_form(const ContactModel *m, const double h[2], Half hf[2])
+/* n halves by Eqn 3 (n <= 2 CONTACT_BATCH), for depths h[k] (each already
+ * <= R; <= 0: no contact).  The halves are computed stage by stage together
+ * (every atan, then every log, then every exp) rather than one after the
+ * other: each half is a chain of dependent libm calls, and side by side the
+ * processor overlaps the chains (the two halves of a patch, and the patches
+ * of the wheels that contact_patches gets together). */
+static void halves_closed_form(const ContactModel *m, int n, const double *h, Half *hf)
 {
     const double R = m->radius, b = m->width, p = m->vh_exp;
-    double x[2] = {0.0, 0.0}, t[2] = {0.0, 0.0}, ratio[2] = {0.0, 0.0};
-    for (int k = 0; k < 2; ++k) {
+    double x[2 * CONTACT_BATCH], t[2 * CONTACT_BATCH], ratio[2 * CONTACT_BATCH];
+    for (int k = 0; k < n; ++k) {
         hf[k].L = hf[k].V = hf[k].Vh = hf[k].dVh = hf[k].xbar = hf[k].dbar = 0.0;
+        x[k] = t[k] = ratio[k] = 0.0;
         if (!(h[k] > 0.0)) continue;
         hf[k].L = chord_half(R, h[k]);
         x[k] = segment_angle_arg(R, h[k], hf[k].L);
     }
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < n; ++k)
         if (h[k] > 0.0) t[k] = 2.0 * atan(x[k]);
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < n; ++k) {
         if (!(h[k] > 0.0)) continue;
         hf[k].V = half_volume_from_angle(R, m->inv_R2, b, h[k], hf[k].L, t[k]);
     }
@@ -337,12 +339,12 @@ static void halves_closed_form(const ContactModel *m, const double h[2], Half hf
      * exp(p (ln 2V - ln Vint)) with ln Vint prepared: the same value as
      * pow(2V / Vint, p) to rounding (|p ln(2V/Vint)| is small), at about
      * half the cost of glibc's pow, which took a quarter of the time. */
-    double lg[2] = {0.0, 0.0};
-    for (int k = 0; k < 2; ++k)
-        if (hf[k].V > 0.0) lg[k] = log(2.0 * hf[k].V);     /* V may underflow at tiny h */
-    for (int k = 0; k < 2; ++k)
+    double lg[2 * CONTACT_BATCH];
+    for (int k = 0; k < n; ++k)
+        lg[k] = hf[k].V > 0.0 ? log(2.0 * hf[k].V) : 0.0;     /* V may underflow at tiny h */
+    for (int k = 0; k < n; ++k)
         if (hf[k].V > 0.0) ratio[k] = exp(p * (lg[k] - m->log_Vint));   /* Vh / V */
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < n; ++k) {
         if (!(hf[k].V > 0.0)) continue;
         hf[k].Vh = hf[k].V * ratio[k];
         /* d/dh [V (2V/Vint)^p] = (1 + p) (Vh / V) dV/dh, dV/dh = b L */
@@ -374,52 +376,29 @@ static Half half_quadrature(const ContactModel *m, double h)
     return hf;
 }
 
-void contact_patch(const ContactModel *m, double sinkage, double cut_front,
-                   double cut_rear, ContactPatch *out)
+/* The patch from its two halves (sinkage s clamped, cuts cf, cr clamped to
+ * [0, s]); out has the no-contact values. */
+static void patch_from_halves(const ContactModel *m, double sinkage, double s, double cf, double cr,
+                              const Half *front, const Half *rear, ContactPatch *out)
 {
     const double R = m->radius;
-    out->sinkage = sinkage;
-    out->V = out->Vh = out->area = 0.0;
-    out->length_front = out->length_rear = 0.0;
-    out->xc = 0.0;
-    out->zc = -R;            /* no contact: lowest rim point, alpha = 0 */
-    out->Fn = out->dFn_dz = 0.0;
-    out->sin_alpha = 0.0;
-    out->cos_alpha = 1.0;
-    if (!(sinkage > 0.0)) return;
-
-    /* Assumption: sinkage beyond R is clamped to R (see clamp_depth). */
-    const double s = sinkage < R ? sinkage : R;
-    const double cf = cut_front > 0.0 ? (cut_front < s ? cut_front : s) : 0.0;
-    const double cr = cut_rear > 0.0 ? (cut_rear < s ? cut_rear : s) : 0.0;
-
-    Half halves[2];
-    if (m->method == CONTACT_QUADRATURE) {
-        halves[0] = half_quadrature(m, s - cf);
-        halves[1] = half_quadrature(m, s - cr);
-    } else {
-        const double h[2] = {s - cf, s - cr};
-        halves_closed_form(m, h, halves);
-    }
-    const Half front = halves[0], rear = halves[1];
-
-    out->V = front.V + rear.V;
-    out->Vh = front.Vh + rear.Vh;
-    out->length_front = front.L;
-    out->length_rear = rear.L;
-    out->area = m->width * (front.L + rear.L);
+    out->V = front->V + rear->V;
+    out->Vh = front->Vh + rear->Vh;
+    out->length_front = front->L;
+    out->length_rear = rear->L;
+    out->area = m->width * (front->L + rear->L);
     out->Fn = m->kh * out->Vh;
     /* Sinkage beyond R is clamped: no stiffness there.  A half cut to
      * nothing (cut >= sinkage) has h = 0 and dVh = 0. */
-    if (sinkage < R) out->dFn_dz = m->kh * (front.dVh + rear.dVh);
+    if (sinkage < R) out->dFn_dz = m->kh * (front->dVh + rear->dVh);
     if (!(out->Vh > 0.0)) return;
 
     /* A cut lowers that half's surface: z = -(R - s) - cut. */
-    const double zf = -(R - s) - cf - front.dbar;
-    const double zr = -(R - s) - cr - rear.dbar;
+    const double zf = -(R - s) - cf - front->dbar;
+    const double zr = -(R - s) - cr - rear->dbar;
     /* Moments of the hypervolume; the centroid is (mx, mz) / Vh. */
-    const double mx = front.Vh * front.xbar - rear.Vh * rear.xbar;
-    const double mz = front.Vh * zf + rear.Vh * zr;
+    const double mx = front->Vh * front->xbar - rear->Vh * rear->xbar;
+    const double mz = front->Vh * zf + rear->Vh * zr;
     const double inv_vh = 1.0 / out->Vh;
     out->xc = mx * inv_vh;
     out->zc = mz * inv_vh;
@@ -433,6 +412,57 @@ void contact_patch(const ContactModel *m, double sinkage, double cut_front,
     const double scale = m2 > 1e-280 ? 1.0 : inv_vh;
     out->sin_alpha = mx * scale * inv_rho;
     out->cos_alpha = -mz * scale * inv_rho;
+}
+
+/* contact_patches for n patches (a constant 1 from contact_patch, which
+ * GCC then compiles without the loops' overhead). */
+static inline void patches(const ContactModel *m, int n, const double *sinkage, const double *cut_front,
+                           const double *cut_rear, ContactPatch *out)
+{
+    const double R = m->radius;
+    double s[CONTACT_BATCH], cf[CONTACT_BATCH], cr[CONTACT_BATCH], h[2 * CONTACT_BATCH];
+    int live[CONTACT_BATCH], n_live = 0;        /* the patches in the soil */
+    for (int i = 0; i < n; ++i) {
+        ContactPatch *o = &out[i];
+        o->sinkage = sinkage[i];
+        o->V = o->Vh = o->area = 0.0;
+        o->length_front = o->length_rear = 0.0;
+        o->xc = 0.0;
+        o->zc = -R;            /* no contact: lowest rim point, alpha = 0 */
+        o->Fn = o->dFn_dz = 0.0;
+        o->sin_alpha = 0.0;
+        o->cos_alpha = 1.0;
+        if (!(sinkage[i] > 0.0)) continue;
+        /* Assumption: sinkage beyond R is clamped to R (see clamp_depth). */
+        const int k = n_live++;
+        live[k] = i;
+        s[k] = sinkage[i] < R ? sinkage[i] : R;
+        cf[k] = cut_front[i] > 0.0 ? (cut_front[i] < s[k] ? cut_front[i] : s[k]) : 0.0;
+        cr[k] = cut_rear[i] > 0.0 ? (cut_rear[i] < s[k] ? cut_rear[i] : s[k]) : 0.0;
+        h[2 * k] = s[k] - cf[k];
+        h[2 * k + 1] = s[k] - cr[k];
+    }
+    Half halves[2 * CONTACT_BATCH];
+    if (m->method == CONTACT_QUADRATURE)
+        for (int k = 0; k < 2 * n_live; ++k) halves[k] = half_quadrature(m, h[k]);
+    else
+        halves_closed_form(m, 2 * n_live, h, halves);
+    for (int k = 0; k < n_live; ++k)
+        patch_from_halves(m, sinkage[live[k]], s[k], cf[k], cr[k], &halves[2 * k], &halves[2 * k + 1],
+                          &out[live[k]]);
+}
+
+void contact_patch(const ContactModel *m, double sinkage, double cut_front,
+                   double cut_rear, ContactPatch *out)
+{
+    patches(m, 1, &sinkage, &cut_front, &cut_rear, out);
+}
+
+void contact_patches(const ContactModel *m, int n, const double *sinkage, const double *cut_front,
+                     const double *cut_rear, ContactPatch *out)
+{
+    for (int i = 0; i < n; i += CONTACT_BATCH)
+        patches(m, n - i < CONTACT_BATCH ? n - i : CONTACT_BATCH, sinkage + i, cut_front + i, cut_rear + i, out + i);
 }
 
 /* ------------------------------------------------------------------------
@@ -473,70 +503,98 @@ static void tanh_ratio(double r, double *th, double *g, double *h)
     *h = (r * (1.0 - t * t) - t) * (inv_r * inv_r * inv_r);
 }
 
+/* contact_shears for n wheels (a constant 1 from contact_shear), stage by
+ * stage: the slips (a division, a square root) for all, then tanh (an exp,
+ * a division) for all, then the forces and Jacobians. */
+static inline void shears(const ContactModel *m, int n, const ShearInput *in, ShearForce *out, int jacobians)
+{
+    const double kx = m->inv_Kvx, ky = m->inv_Kvy, eps = m->slip_v_eps;
+    double Fmax[CONTACT_BATCH], inv_den[CONTACT_BATCH], dden_dv[CONTACT_BATCH], dden_dw[CONTACT_BATCH];
+    double s_long[CONTACT_BATCH], s_lat[CONTACT_BATCH], ql[CONTACT_BATCH], qt[CONTACT_BATCH], r[CONTACT_BATCH];
+    for (int k = 0; k < n; ++k) {
+        /* Assumption: a negative limit (only from negative inputs) is treated
+         * as 0, so the shear force can never push along the slip. */
+        Fmax[k] = in[k].area * m->cohesion + in[k].Fn * m->tan_phi;
+        if (!(Fmax[k] > 0.0)) Fmax[k] = 0.0;
+
+        /* den = max(|omega_r|, |v_long|, eps) with its derivative along the
+         * active branch (ties go to omega_r, then v_long). */
+        const double omega_r = in[k].omega_r, v_long = in[k].v_long;
+        const double aw = fabs(omega_r), av = fabs(v_long);
+        double den = eps;
+        dden_dv[k] = dden_dw[k] = 0.0;
+        if (aw >= av && aw >= eps) {
+            den = aw;
+            dden_dw[k] = omega_r > 0.0 ? 1.0 : -1.0;
+        } else if (av >= eps) {
+            den = av;
+            dden_dv[k] = v_long > 0.0 ? 1.0 : -1.0;
+        }
+        inv_den[k] = 1.0 / den;
+        s_long[k] = (omega_r - v_long) * inv_den[k];
+        s_lat[k] = -in[k].v_lat * inv_den[k];
+        ql[k] = s_long[k] * kx;
+        qt[k] = s_lat[k] * ky;
+        /* |q| by sqrt of the squares (glibc's hypot is several times dearer);
+         * hypot only where the squares could overflow (absurd Kvx). */
+        const double aql = fabs(ql[k]), aqt = fabs(qt[k]);
+        r[k] = (aql < 1e150 && aqt < 1e150) ? sqrt(ql[k] * ql[k] + qt[k] * qt[k]) : hypot(ql[k], qt[k]);
+    }
+    double th[CONTACT_BATCH], g[CONTACT_BATCH], h[CONTACT_BATCH];
+    for (int k = 0; k < n; ++k) tanh_ratio(r[k], &th[k], &g[k], &h[k]);
+
+    for (int k = 0; k < n; ++k) {
+        if (qt[k] == 0.0) {
+            /* straight running: Eqn 5 verbatim (r = |ql|, tanh is odd) */
+            out[k].F_long = Fmax[k] * copysign(th[k], ql[k]);
+            out[k].F_lat = 0.0;
+        } else {
+            out[k].F_long = Fmax[k] * g[k] * ql[k];
+            out[k].F_lat = Fmax[k] * g[k] * qt[k];
+        }
+        if (!jacobians) continue;
+
+        /* dF/dq = Fmax (g I + h q q^T) */
+        const double M00 = Fmax[k] * (g[k] + h[k] * ql[k] * ql[k]);
+        const double M01 = Fmax[k] * h[k] * ql[k] * qt[k];
+        const double M11 = Fmax[k] * (g[k] + h[k] * qt[k] * qt[k]);
+
+        /* dq/d(v_long, v_lat, omega_r); dql/dv_lat = 0.  Plain scalars: built
+         * as arrays, GCC vectorised the products below through a 16-byte load
+         * of two 8-byte stores, a store-forwarding stall that perf showed as
+         * 40 % of this function. */
+        const double dql_v = kx * (-1.0 - s_long[k] * dden_dv[k]) * inv_den[k];
+        const double dql_w = kx * (1.0 - s_long[k] * dden_dw[k]) * inv_den[k];
+        const double dqt_v = ky * (-s_lat[k] * dden_dv[k]) * inv_den[k];
+        const double dqt_t = -ky * inv_den[k];
+        const double dqt_w = ky * (-s_lat[k] * dden_dw[k]) * inv_den[k];
+        double *jac = out[k].jac;
+        jac[0] = M00 * dql_v + M01 * dqt_v;
+        jac[1] = M01 * dqt_t;
+        jac[2] = M00 * dql_w + M01 * dqt_w;
+        jac[3] = M01 * dql_v + M11 * dqt_v;
+        jac[4] = M11 * dqt_t;
+        jac[5] = M01 * dql_w + M11 * dqt_w;
+    }
+}
+
 void contact_shear(const ContactModel *m, double Fn, double area,
                    double v_long, double v_lat, double omega_r,
                    double *F_long, double *F_lat, double *jac)
 {
-    /* Assumption: a negative limit (only from negative inputs) is treated
-     * as 0, so the shear force can never push along the slip. */
-    double Fmax = area * m->cohesion + Fn * m->tan_phi;
-    if (!(Fmax > 0.0)) Fmax = 0.0;
+    const ShearInput in = {Fn, area, v_long, v_lat, omega_r};
+    ShearForce out;
+    shears(m, 1, &in, &out, jac != NULL);
+    *F_long = out.F_long;
+    *F_lat = out.F_lat;
+    if (jac)
+        for (int i = 0; i < 6; ++i) jac[i] = out.jac[i];
+}
 
-    /* den = max(|omega_r|, |v_long|, eps) with its derivative along the
-     * active branch (ties go to omega_r, then v_long). */
-    const double aw = fabs(omega_r), av = fabs(v_long), eps = m->slip_v_eps;
-    double den = eps, dden_dv = 0.0, dden_dw = 0.0;
-    if (aw >= av && aw >= eps) {
-        den = aw;
-        dden_dw = omega_r > 0.0 ? 1.0 : -1.0;
-    } else if (av >= eps) {
-        den = av;
-        dden_dv = v_long > 0.0 ? 1.0 : -1.0;
-    }
-
-    const double kx = m->inv_Kvx, ky = m->inv_Kvy;
-    const double inv_den = 1.0 / den;
-    const double s_long = (omega_r - v_long) * inv_den;
-    const double s_lat = -v_lat * inv_den;
-    const double ql = s_long * kx, qt = s_lat * ky;
-    /* |q| by sqrt of the squares (glibc's hypot is several times dearer);
-     * hypot only where the squares could overflow (absurd Kvx). */
-    const double aql = fabs(ql), aqt = fabs(qt);
-    const double r = (aql < 1e150 && aqt < 1e150) ? sqrt(ql * ql + qt * qt) : hypot(ql, qt);
-    double th, g, h;
-    tanh_ratio(r, &th, &g, &h);
-
-    if (qt == 0.0) {
-        /* straight running: Eqn 5 verbatim (r = |ql|, tanh is odd) */
-        *F_long = Fmax * copysign(th, ql);
-        *F_lat = 0.0;
-    } else {
-        *F_long = Fmax * g * ql;
-        *F_lat = Fmax * g * qt;
-    }
-
-    if (jac == NULL) return;
-
-    /* dF/dq = Fmax (g I + h q q^T) */
-    const double M00 = Fmax * (g + h * ql * ql);
-    const double M01 = Fmax * h * ql * qt;
-    const double M11 = Fmax * (g + h * qt * qt);
-
-    /* dq/d(v_long, v_lat, omega_r); dql/dv_lat = 0.  Plain scalars: built
-     * as arrays, GCC vectorised the products below through a 16-byte load
-     * of two 8-byte stores, a store-forwarding stall that perf showed as
-     * 40 % of this function. */
-    const double dql_v = kx * (-1.0 - s_long * dden_dv) * inv_den;
-    const double dql_w = kx * (1.0 - s_long * dden_dw) * inv_den;
-    const double dqt_v = ky * (-s_lat * dden_dv) * inv_den;
-    const double dqt_t = -ky * inv_den;
-    const double dqt_w = ky * (-s_lat * dden_dw) * inv_den;
-    jac[0] = M00 * dql_v + M01 * dqt_v;
-    jac[1] = M01 * dqt_t;
-    jac[2] = M00 * dql_w + M01 * dqt_w;
-    jac[3] = M01 * dql_v + M11 * dqt_v;
-    jac[4] = M11 * dqt_t;
-    jac[5] = M01 * dql_w + M11 * dqt_w;
+void contact_shears(const ContactModel *m, int n, const ShearInput *in, ShearForce *out, int jacobians)
+{
+    for (int i = 0; i < n; i += CONTACT_BATCH)
+        shears(m, n - i < CONTACT_BATCH ? n - i : CONTACT_BATCH, in + i, out + i, jacobians);
 }
 
 /* ------------------------------------------------------------------------

@@ -91,6 +91,18 @@ int contact_model_prepare(ContactModel *m, char *err, size_t errlen);
 void contact_patch(const ContactModel *m, double sinkage, double cut_front,
                    double cut_rear, ContactPatch *out);
 
+/* How many patches (and shears) contact_patches (contact_shears) computes
+ * side by side: a rover's four wheels. */
+enum { CONTACT_BATCH = 4 };
+
+/* contact_patch for n patches, sinkage[i], cut_front[i], cut_rear[i] into
+ * out[i], the same values bit for bit.  Faster than n calls: each patch is
+ * a chain of dependent library calls (sqrt, atan, log, exp, divisions),
+ * and computed stage by stage together, CONTACT_BATCH at a time, the
+ * chains overlap in the processor. */
+void contact_patches(const ContactModel *m, int n, const double *sinkage, const double *cut_front,
+                     const double *cut_rear, ContactPatch *out);
+
 /* Reference: quadrature of the hypervolume of ONE half-patch of depth h
  * (m) with exponent eta; returns m^(2+eta).  Also the exact plain volume of
  * a half segment.  Exposed for tests and the Eqn 3 fit. */
@@ -111,6 +123,21 @@ double contact_half_volume(double radius, double width, double h);
 void contact_shear(const ContactModel *m, double Fn, double area,
                    double v_long, double v_lat, double omega_r,
                    double *F_long, double *F_lat, double *jac);
+
+/* contact_shear's arguments and results, for contact_shears. */
+typedef struct {
+    double Fn, area;                    /* N, m^2 */
+    double v_long, v_lat, omega_r;      /* m/s */
+} ShearInput;
+typedef struct {
+    double F_long, F_lat;               /* N */
+    double jac[6];                      /* d(F_long, F_lat)/d(v_long, v_lat, omega_r), row-major 2x3 */
+} ShearForce;
+
+/* contact_shear for n wheels, in[i] into out[i] (the Jacobian only if
+ * jacobians), the same values bit for bit; side by side, CONTACT_BATCH at
+ * a time, as contact_patches. */
+void contact_shears(const ContactModel *m, int n, const ShearInput *in, ShearForce *out, int jacobians);
 
 /* Rear/front cuts implied by the memory at the current sinkage:
  * the half the wheel has rolled over (rear when travel > 0) is cut by

@@ -310,7 +310,7 @@ void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
     Frames fr;
     kinematics(m, ev, &fr);
     if (matrices) assemble_bodies(m, ev, &fr);
-    for (int wh = 0; wh < NUM_WHEELS; ++wh) rover_wheel_contact(m, ev, wh, matrices);
+    rover_wheel_contacts(m, ev, matrices);
 }
 
 /* ---------------------------------------------------------- drive, drawbar */

@@ -5,7 +5,7 @@
  *                          the life cycle and the hooks of the FMI layer
  *   rover_dynamics.c       kinematics, the bodies' mass matrix and forces,
  *                          the drive, the drawbar, the outputs
- *   rover_wheel_contact.c  one wheel's contact with the soil (both contact
+ *   rover_wheel_contact.c  the wheels' contacts with the soil (both contact
  *                          laws) and the model extensions acting there
  *   rover_step.c           a communication step: the fixed step, the reuse
  *                          of an evaluation, the soil memory's update, the
@@ -56,10 +56,11 @@ enum { EVAL_FORCES = 0, EVAL_MATRICES = 1 };
  * with the registration offsets (terrain.offset*) applied. */
 double rover_terrain_at(const Model *m, double x, double y, double n[3]);
 
-/* Contact of wheel w: fills ev->wheel[w]; with matrices (EVAL_MATRICES),
- * adds its generalised force to ev->Q, its damping to ev->D and its
- * stiffness to ev->K.  Needs the kinematics of ev (rover_evaluate_passive). */
-void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices);
+/* The four wheels' contacts: fills ev->wheel; with matrices
+ * (EVAL_MATRICES), adds their generalised forces to ev->Q, their damping
+ * to ev->D and their stiffness to ev->K, wheel by wheel in order.  Needs
+ * the kinematics of ev (rover_evaluate_passive). */
+void rover_wheel_contacts(const Model *m, Eval *ev, int matrices);
 
 /* rover_dynamics.c */
 

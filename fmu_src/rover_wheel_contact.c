@@ -302,13 +302,12 @@ typedef struct {
     double nvec[3];                /* Eqn 6: from the centroid towards the hub */
     double t[3];                   /* tangential direction of Eqns 8-9 */
     double Jp[3][NU];              /* velocity Jacobian of the rim (or lug tip) point on the centroid ray */
-    double jac[6];                 /* d(F_long, F_lat) / d(v_long, v_lat, omega (R + h)) */
 } ShearGeometry;
 
-/* The shear forces and the wheel's total force into wc. */
-static void contact_forces(const WheelSoil *ws, double Jh[3][NU], double Jw[3][NU], int sp,
-                           const ContactFrame *cf, const WheelSoilInput *in, const WheelSoilContact *sc,
-                           int matrices, WheelContact *wc, ShearGeometry *sg)
+/* The rim point's geometry into sg; returns its velocity along l, the
+ * lateral slip velocity of the shear law (m/s). */
+static double shear_geometry(double Jh[3][NU], double Jw[3][NU], int sp, const ContactFrame *cf,
+                             const WheelSoilContact *sc, ShearGeometry *sg)
 {
     const double sa = sc->sin_alpha, ca = sc->cos_alpha;
     double r_rim[3];
@@ -325,25 +324,30 @@ static void contact_forces(const WheelSoil *ws, double Jh[3][NU], double Jw[3][N
     double v_rim[3];                                 /* Jp u: the hub's velocity + omega x r_rim */
     v3_cross(v_rim, cf->omega, r_rim);
     v3_add(v_rim, cf->v_hub, v_rim);
-    const double v_lat = v3_dot(cf->l, v_rim);
-    double F_long, F_lat;
-    wheel_soil_shear(ws, sc, in, v_lat, &F_long, &F_lat, matrices ? sg->jac : NULL);
+    return v3_dot(cf->l, v_rim);
+}
+
+/* The wheel's forces and its total force into wc. */
+static void contact_forces(const ContactFrame *cf, const WheelSoilContact *sc, const ShearForce *sh,
+                           const ShearGeometry *sg, WheelContact *wc)
+{
     wc->Fn = sc->Fn;
-    wc->F_long = F_long;
-    wc->F_lat = F_lat;
-    wc->sin_alpha = sa;
-    wc->cos_alpha = ca;
-    for (int i = 0; i < 3; ++i) wc->force[i] = sc->Fn * sg->nvec[i] + F_long * sg->t[i] + F_lat * cf->l[i];
+    wc->F_long = sh->F_long;
+    wc->F_lat = sh->F_lat;
+    wc->sin_alpha = sc->sin_alpha;
+    wc->cos_alpha = sc->cos_alpha;
+    for (int i = 0; i < 3; ++i)
+        wc->force[i] = sc->Fn * sg->nvec[i] + sh->F_long * sg->t[i] + sh->F_lat * cf->l[i];
 }
 
 /* The contact's generalised force (Q), damping (D = -dQ/du of the shear)
  * and stiffness (K = -dQ/dq of the normal force). */
 static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double Jw[3][NU], int sp,
-                             const ContactFrame *cf, const WheelSoilContact *sc, ShearGeometry *sg,
-                             const WheelContact *wc)
+                             const ContactFrame *cf, const WheelSoilContact *sc, const ShearForce *sh,
+                             ShearGeometry *sg, const WheelContact *wc)
 {
     const ContactModel *cm = &m->d.contact;
-    const double *jac = sg->jac;
+    const double *jac = sh->jac;
     /* The rows through the rim point (the force, the lateral and the
      * tangential direction) and through the hub (the heading, the soil
      * normal, and the normal force's direction or, with Wong-Reece, the
@@ -402,40 +406,77 @@ static void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU], double 
     add_outer_hub(ev->K, hub[2], sc->kn, a_s);
 }
 
-void rover_wheel_contact(const Model *m, Eval *ev, int w, int matrices)
+/* The four contacts in phases, each a loop over the wheels, so that the
+ * wheels' independent chains of dependent library calls (the terrain
+ * lookup, the patch's atan, log and exp, the shear's exp, the divisions and
+ * square roots between them) sit side by side and the processor overlaps
+ * them; one wheel after another, each chain would wait for the one before.
+ * The wheels in the soil go through phases 2 to 5 as n compact entries
+ * (k: wheel[k]). */
+void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
 {
-    double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
-    double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
-    const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
-    WheelContact *wc = &ev->wheel[w];
-    /* out of the soil: no slip, no force (field by field: GCC makes a
-     * memset or a cleared struct of this size a rep stos, slow to start) */
-    wc->in_contact = 0;
-    wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
-    wc->cos_alpha = 1.0;
-    wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
-
-    ContactFrame cf;
-    WheelSoilInput in;
-    if (!contact_frame(m, ev, w, Jh, sp, wc, &cf, &in)) return;
-    wc->in_contact = 1;
     const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
                           m->p.grouser_thrustGain, m->p.grouser_lugHeight, m->p.slipSinkage_exponent,
                           m->p.grouser_thrustSlip, m->p.grouser_lugCount, m->p.grouser_rippleAmplitude};
-    in.spin = wheel_spin(m, ev, Jw, sp, &cf);
-    /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
-     * and chassis' pitch, a few degrees, shift the phase a little); the rear
-     * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
-     * ripple's dependence on the angle is explicit in the step (not in K):
-     * N omega h is small at the steps that resolve the ripple. */
-    in.spin_angle = m->s.spin_angle[side_of(w)];
-    in.lug_phase = w % 2 == 1 ? M_PI : 0.0;
-    WheelSoilContact sc;
-    wheel_soil_slip(&ws, &in, &sc);
-    wc->slip = sc.slip;
     const int jacobians = matrices == EVAL_MATRICES;
-    wheel_soil_normal(&ws, &m->s.memory[w], &in, jacobians, &sc);
-    ShearGeometry sg;
-    contact_forces(&ws, Jh, Jw, sp, &cf, &in, &sc, jacobians, wc, &sg);
-    if (jacobians) contact_matrices(m, ev, Jh, Jw, sp, &cf, &sc, &sg, wc);
+    int wheel[NUM_WHEELS], n = 0;
+    ContactFrame cf[NUM_WHEELS];
+    WheelSoilInput in[NUM_WHEELS];
+    WheelSoilContact sc[NUM_WHEELS];
+    ContactMemory mem[NUM_WHEELS];
+
+    /* 1. Wheel by wheel: the contact frame, the sinkage, the spin and the slip. */
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
+        double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
+        const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
+        WheelContact *wc = &ev->wheel[w];
+        /* out of the soil: no slip, no force (field by field: GCC makes a
+         * memset or a cleared struct of this size a rep stos, slow to start) */
+        wc->in_contact = 0;
+        wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
+        wc->cos_alpha = 1.0;
+        wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
+        if (!contact_frame(m, ev, w, Jh, sp, wc, &cf[n], &in[n])) continue;
+        wc->in_contact = 1;
+        in[n].spin = wheel_spin(m, ev, Jw, sp, &cf[n]);
+        /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
+         * and chassis' pitch, a few degrees, shift the phase a little); the rear
+         * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
+         * ripple's dependence on the angle is explicit in the step (not in K):
+         * N omega h is small at the steps that resolve the ripple. */
+        in[n].spin_angle = m->s.spin_angle[side_of(w)];
+        in[n].lug_phase = w % 2 == 1 ? M_PI : 0.0;
+        wheel_soil_slip(&ws, &in[n], &sc[n]);
+        wc->slip = sc[n].slip;
+        mem[n] = m->s.memory[w];
+        wheel[n++] = w;
+    }
+
+    /* 2. The normal forces, side by side. */
+    wheel_soil_normals(&ws, n, mem, in, jacobians, sc);
+
+    /* 3. The rim points the shear acts on, and their lateral slip velocities. */
+    ShearGeometry sg[NUM_WHEELS];
+    double v_lat[NUM_WHEELS];
+    for (int k = 0; k < n; ++k) {
+        const int w = wheel[k];
+        v_lat[k] = shear_geometry(ev->Jv[BODY_WHEEL0 + w], ev->Jw[BODY_WHEEL0 + w], U_SPIN_L + side_of(w), &cf[k],
+                                  &sc[k], &sg[k]);
+    }
+
+    /* 4. The shear forces, side by side. */
+    ShearForce sh[NUM_WHEELS];
+    wheel_soil_shears(&ws, n, sc, in, v_lat, jacobians, sh);
+
+    /* 5. Wheel by wheel, in order (so that Q, D and K sum the wheels in the
+     * same order whichever are in the soil): the forces and the matrices. */
+    for (int k = 0; k < n; ++k) {
+        const int w = wheel[k];
+        WheelContact *wc = &ev->wheel[w];
+        contact_forces(&cf[k], &sc[k], &sh[k], &sg[k], wc);
+        if (jacobians)
+            contact_matrices(m, ev, ev->Jv[BODY_WHEEL0 + w], ev->Jw[BODY_WHEEL0 + w], U_SPIN_L + side_of(w), &cf[k],
+                             &sc[k], &sh[k], &sg[k], wc);
+    }
 }

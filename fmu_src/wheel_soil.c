@@ -153,34 +153,31 @@ void wheel_soil_slip(const WheelSoil *ws, const WheelSoilInput *in, WheelSoilCon
     c->shear_radius = ws->law == CONTACT_LAW_WONG_REECE ? cm->radius : cm->radius + ws->lug_height;
 }
 
-void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const WheelSoilInput *in,
-                       int derivatives, WheelSoilContact *c)
+/* Wong-Reece: the normal force and the rest of stage 2 from that law. */
+static void normal_wong_reece(const WheelSoil *ws, const WheelSoilInput *in, int derivatives, WheelSoilContact *c)
 {
-    const ContactModel *cm = ws->contact;
-    c->wong_reece = ws->law == CONTACT_LAW_WONG_REECE;
-    if (c->wong_reece) {
-        wong_reece_contact(ws, in->sinkage, c->slip, in->v_long, c->omega_r, c->shear_factor, derivatives, &c->wr);
-        c->Fn = c->wr.Fn;
-        c->sin_alpha = c->wr.sin_alpha;
-        c->cos_alpha = c->wr.cos_alpha;
-        c->area = c->wr.area;
-        c->support = c->wr.Fz;        /* the lateral law's normal load */
-        c->kn = c->wr.kz;
-        return;
-    }
-    double cut_front, cut_rear;
-    contact_cuts(cm, mem, in->sinkage, &cut_front, &cut_rear);
-    ContactPatch patch;
-    contact_patch(cm, in->sinkage, cut_front, cut_rear, &patch);
-    c->Fn = c->kh_factor * patch.Fn;
-    c->area = patch.area;
+    wong_reece_contact(ws, in->sinkage, c->slip, in->v_long, c->omega_r, c->shear_factor, derivatives, &c->wr);
+    c->Fn = c->wr.Fn;
+    c->sin_alpha = c->wr.sin_alpha;
+    c->cos_alpha = c->wr.cos_alpha;
+    c->area = c->wr.area;
+    c->support = c->wr.Fz;        /* the lateral law's normal load */
+    c->kn = c->wr.kz;
+}
+
+/* Volumetric: stage 2 from the contact patch at the wheel's sinkage. */
+static void normal_from_patch(const WheelSoil *ws, const ContactMemory *mem, const WheelSoilInput *in,
+                              const ContactPatch *patch, WheelSoilContact *c)
+{
+    c->Fn = c->kh_factor * patch->Fn;
+    c->area = patch->area;
     c->support = c->Fn;
     /* Normal stiffness dFn/dz at fixed cuts, from contact_patch. */
-    c->kn = c->kh_factor * patch.dFn_dz;
+    c->kn = c->kh_factor * patch->dFn_dz;
     /* The tilt alpha times the rolling factor; the usual factors +-1 and 0
      * need no trigonometry. */
-    const double roll = contact_rolling_factor(cm, mem, in->v_long);
-    double sa = patch.sin_alpha, ca = patch.cos_alpha;
+    const double roll = contact_rolling_factor(ws->contact, mem, in->v_long);
+    double sa = patch->sin_alpha, ca = patch->cos_alpha;
     if (roll == 0.0) {
         sa = 0.0;
         ca = 1.0;
@@ -195,11 +192,46 @@ void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const Whee
     c->cos_alpha = ca;
 }
 
-void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const WheelSoilInput *in, double v_lat,
-                      double *F_long, double *F_lat, double *jac)
+void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const WheelSoilInput *in,
+                       int derivatives, WheelSoilContact *c)
 {
-    const double omega_shear = c->shear_radius * in->spin;
-    contact_shear(ws->contact, c->support, c->area, in->v_long, v_lat, omega_shear, F_long, F_lat, jac);
+    c->wong_reece = ws->law == CONTACT_LAW_WONG_REECE;
+    if (c->wong_reece) {
+        normal_wong_reece(ws, in, derivatives, c);
+        return;
+    }
+    double cut_front, cut_rear;
+    contact_cuts(ws->contact, mem, in->sinkage, &cut_front, &cut_rear);
+    ContactPatch patch;
+    contact_patch(ws->contact, in->sinkage, cut_front, cut_rear, &patch);
+    normal_from_patch(ws, mem, in, &patch, c);
+}
+
+void wheel_soil_normals(const WheelSoil *ws, int n, const ContactMemory *mem, const WheelSoilInput *in,
+                        int derivatives, WheelSoilContact *c)
+{
+    for (int k = 0; k < n; ++k) c[k].wong_reece = ws->law == CONTACT_LAW_WONG_REECE;
+    if (ws->law == CONTACT_LAW_WONG_REECE) {      /* its integrations are most of its time: one by one */
+        for (int k = 0; k < n; ++k) normal_wong_reece(ws, &in[k], derivatives, &c[k]);
+        return;
+    }
+    for (int i = 0; i < n; i += CONTACT_BATCH) {
+        const int nb = n - i < CONTACT_BATCH ? n - i : CONTACT_BATCH;
+        double sinkage[CONTACT_BATCH], cut_front[CONTACT_BATCH], cut_rear[CONTACT_BATCH];
+        for (int k = 0; k < nb; ++k) {
+            sinkage[k] = in[i + k].sinkage;
+            contact_cuts(ws->contact, &mem[i + k], sinkage[k], &cut_front[k], &cut_rear[k]);
+        }
+        ContactPatch patch[CONTACT_BATCH];
+        contact_patches(ws->contact, nb, sinkage, cut_front, cut_rear, patch);
+        for (int k = 0; k < nb; ++k) normal_from_patch(ws, &mem[i + k], &in[i + k], &patch[k], &c[i + k]);
+    }
+}
+
+/* The shear law's forces as the contact law applies them: scaled by the
+ * shear factor, and with Wong-Reece its own traction. */
+static void shear_as_applied(const WheelSoilContact *c, double *F_long, double *F_lat, double *jac)
+{
     if (c->shear_factor != 1.0) {       /* soil patch strength, grouser thrust: F_taumax scales */
         *F_long *= c->shear_factor;
         *F_lat *= c->shear_factor;
@@ -215,6 +247,31 @@ void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const Whee
          * Jacobian row goes). */
         *F_long = c->wr.F_long;
         if (jac) jac[0] = jac[1] = jac[2] = 0.0;
+    }
+}
+
+void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const WheelSoilInput *in, double v_lat,
+                      double *F_long, double *F_lat, double *jac)
+{
+    const double omega_shear = c->shear_radius * in->spin;
+    contact_shear(ws->contact, c->support, c->area, in->v_long, v_lat, omega_shear, F_long, F_lat, jac);
+    shear_as_applied(c, F_long, F_lat, jac);
+}
+
+void wheel_soil_shears(const WheelSoil *ws, int n, const WheelSoilContact *c, const WheelSoilInput *in,
+                       const double *v_lat, int jacobians, ShearForce *out)
+{
+    for (int i = 0; i < n; i += CONTACT_BATCH) {
+        const int nb = n - i < CONTACT_BATCH ? n - i : CONTACT_BATCH;
+        ShearInput sh[CONTACT_BATCH];
+        for (int k = 0; k < nb; ++k) {
+            const WheelSoilContact *ck = &c[i + k];
+            sh[k] = (ShearInput){ck->support, ck->area, in[i + k].v_long, v_lat[i + k],
+                                 ck->shear_radius * in[i + k].spin};
+        }
+        contact_shears(ws->contact, nb, sh, out + i, jacobians);
+        for (int k = 0; k < nb; ++k)
+            shear_as_applied(&c[i + k], &out[i + k].F_long, &out[i + k].F_lat, jacobians ? out[i + k].jac : NULL);
     }
 }
 

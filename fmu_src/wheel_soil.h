@@ -134,4 +134,16 @@ void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const Whee
 void wheel_soil_shear(const WheelSoil *ws, const WheelSoilContact *c, const WheelSoilInput *in, double v_lat,
                       double *F_long, double *F_lat, double *jac);
 
+/* Stages 2 and 3 for n wheels side by side (a rover's four): mem[i],
+ * in[i], c[i] (and v_lat[i], out[i]) are wheel i's, the results those of
+ * wheel_soil_normal and wheel_soil_shear bit for bit (out[i].jac only if
+ * jacobians).  The volumetric law's patches and the shear laws are
+ * computed together (contact_patches, contact_shears), so that the
+ * wheels' chains of dependent library calls overlap; the Wong-Reece law's
+ * integrations one wheel after another. */
+void wheel_soil_normals(const WheelSoil *ws, int n, const ContactMemory *mem, const WheelSoilInput *in,
+                        int derivatives, WheelSoilContact *c);
+void wheel_soil_shears(const WheelSoil *ws, int n, const WheelSoilContact *c, const WheelSoilInput *in,
+                       const double *v_lat, int jacobians, ShearForce *out);
+
 #endif
