@@ -319,31 +319,28 @@ typedef struct {
 static void halves_closed_form(const ContactModel *m, int n, const double *h, Half *hf)
 {
     const double R = m->radius, b = m->width, p = m->vh_exp;
-    double x[2 * CONTACT_BATCH], t[2 * CONTACT_BATCH], ratio[2 * CONTACT_BATCH];
+    double x[2 * CONTACT_BATCH], t[2 * CONTACT_BATCH];
     for (int k = 0; k < n; ++k) {
         hf[k].L = hf[k].V = hf[k].Vh = hf[k].dVh = hf[k].xbar = hf[k].dbar = 0.0;
-        x[k] = t[k] = ratio[k] = 0.0;
         if (!(h[k] > 0.0)) continue;
         hf[k].L = chord_half(R, h[k]);
         x[k] = segment_angle_arg(R, h[k], hf[k].L);
     }
     for (int k = 0; k < n; ++k)
-        if (h[k] > 0.0) t[k] = 2.0 * atan(x[k]);
-    for (int k = 0; k < n; ++k) {
-        if (!(h[k] > 0.0)) continue;
-        hf[k].V = half_volume_from_angle(R, m->inv_R2, b, h[k], hf[k].L, t[k]);
-    }
+        t[k] = h[k] > 0.0 ? 2.0 * atan(x[k]) : 0.0;
+    for (int k = 0; k < n; ++k)
+        if (h[k] > 0.0) hf[k].V = half_volume_from_angle(R, m->inv_R2, b, h[k], hf[k].L, t[k]);
     /* Eqn 3 applied to each half as if it were half of a symmetric segment
      * of the same depth (V = 2 V_half): for symmetric contact the sum of
      * the halves is exactly the paper's Eqn 3.  The power as
      * exp(p (ln 2V - ln Vint)) with ln Vint prepared: the same value as
      * pow(2V / Vint, p) to rounding (|p ln(2V/Vint)| is small), at about
      * half the cost of glibc's pow, which took a quarter of the time. */
-    double lg[2 * CONTACT_BATCH];
+    double lg[2 * CONTACT_BATCH], ratio[2 * CONTACT_BATCH];
     for (int k = 0; k < n; ++k)
         lg[k] = hf[k].V > 0.0 ? log(2.0 * hf[k].V) : 0.0;     /* V may underflow at tiny h */
     for (int k = 0; k < n; ++k)
-        if (hf[k].V > 0.0) ratio[k] = exp(p * (lg[k] - m->log_Vint));   /* Vh / V */
+        ratio[k] = hf[k].V > 0.0 ? exp(p * (lg[k] - m->log_Vint)) : 0.0;   /* Vh / V */
     for (int k = 0; k < n; ++k) {
         if (!(hf[k].V > 0.0)) continue;
         hf[k].Vh = hf[k].V * ratio[k];
@@ -521,15 +518,16 @@ static inline void shears(const ContactModel *m, int n, const ShearInput *in, Sh
          * active branch (ties go to omega_r, then v_long). */
         const double omega_r = in[k].omega_r, v_long = in[k].v_long;
         const double aw = fabs(omega_r), av = fabs(v_long);
-        double den = eps;
-        dden_dv[k] = dden_dw[k] = 0.0;
+        double den = eps, dv = 0.0, dw = 0.0;      /* scalars: a loop clearing the arrays became a memset */
         if (aw >= av && aw >= eps) {
             den = aw;
-            dden_dw[k] = omega_r > 0.0 ? 1.0 : -1.0;
+            dw = omega_r > 0.0 ? 1.0 : -1.0;
         } else if (av >= eps) {
             den = av;
-            dden_dv[k] = v_long > 0.0 ? 1.0 : -1.0;
+            dv = v_long > 0.0 ? 1.0 : -1.0;
         }
+        dden_dv[k] = dv;
+        dden_dw[k] = dw;
         inv_den[k] = 1.0 / den;
         s_long[k] = (omega_r - v_long) * inv_den[k];
         s_lat[k] = -in[k].v_lat * inv_den[k];

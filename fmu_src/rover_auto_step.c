@@ -314,40 +314,53 @@ static double error_ratio(const Model *m, const StepIncrement *inc)
     return worst / m->p.solver_tolerance;
 }
 
-/* Wheel w's sinkage at the end of the step inc, for the soil memory: the
- * contact's sinkage (rover_wheel_contact.c: R less the hub's height above
- * the terrain's tangent plane under it, along the plane's normal, over the
- * length of that normal within the wheel's mid-plane, less a rear wheel's
- * rut) where the step's displacements carry the hub (by its velocity
- * Jacobian) and the axle (by the rotation): exact in the terrain's shape,
- * to O(h^2) in the motion.  The rut is the start's (ev), as is the sinkage
- * of a wheel lying on its side. */
-static double sinkage_at_end(const Model *m, const Eval *ev, const StepIncrement *inc, int w)
+/* The wheels' sinkages at the end of the step inc, for the soil memory:
+ * each contact's sinkage (rover_wheel_contact.c: R less the hub's height
+ * above the terrain's tangent plane under it, along the plane's normal,
+ * over the length of that normal within the wheel's mid-plane, less a rear
+ * wheel's rut) where the step's displacements carry the hub (by its
+ * velocity Jacobian) and the axle (by the rotation): exact in the
+ * terrain's shape, to O(h^2) in the motion.  The rut is the start's (ev),
+ * as is the sinkage of a wheel lying on its side.  The wheels side by
+ * side, as the contacts: the four hubs, then the four terrain lookups,
+ * then the four sinkages, so that their chains overlap. */
+static void sinkages_at_end(const Model *m, const Eval *ev, const StepIncrement *inc, double sinkage[NUM_WHEELS])
 {
-    const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
-    double hub[3], e[3], n[3];
-    /* hub + Jv dq over Jv's structural non-zeros (a hub's rows: [1 | -[r]x | c | 0 0], the diagonal
-     * of -[r]x exactly 0), in the order of the dense sum: its other terms add exact zeros */
-    for (int i = 0; i < 3; ++i) {
-        double x = ev->hub[w][i] + inc->dq[U_VX + i];
-        for (int j = 0; j < 3; ++j)
-            if (j != i) x += Jv[i][U_WX + j] * inc->dq[U_WX + j];
-        hub[i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
-    }
-    v3_cross(e, &inc->dq[U_WX], ev->e);
+    double e[3], hub[NUM_WHEELS][3], n[NUM_WHEELS][3], zt[NUM_WHEELS];
+    v3_cross(e, &inc->dq[U_WX], ev->e);                /* the axle, the same for every wheel */
     v3_add(e, e, ev->e);
     v3_normalize(e);
-    const double zt = rover_terrain_at(m, hub[0], hub[1], n), ne = v3_dot(n, e);
-    const double in_plane2 = 1.0 - ne * ne, in_plane = sqrt(in_plane2 > 0.0 ? in_plane2 : 0.0);   /* no fmax call */
-    if (in_plane < 1e-6) return ev->wheel[w].sinkage;
-    const double R = m->d.contact.radius, sinkage = R - (hub[2] - zt) * n[2] / in_plane;
-    if (w % 2 == 0 || !(m->p.multipass_rutFraction > 0)) return sinkage;
-    /* a rear wheel in its rut: the start's rut depth, the start's sinkage without it */
-    double n0[3];
-    const double zt0 = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n0), ne0 = v3_dot(n0, ev->e);
-    const double in_plane0 = sqrt(fmax(0.0, 1.0 - ne0 * ne0));
-    if (in_plane0 < 1e-6) return ev->wheel[w].sinkage;
-    return sinkage - (R - (ev->hub[w][2] - zt0) * n0[2] / in_plane0 - ev->wheel[w].sinkage);
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
+        /* hub + Jv dq over Jv's structural non-zeros (a hub's rows: [1 | -[r]x | c | 0 0], the
+         * diagonal of -[r]x exactly 0), in the order of the dense sum: its other terms add exact
+         * zeros */
+        for (int i = 0; i < 3; ++i) {
+            double x = ev->hub[w][i] + inc->dq[U_VX + i];
+            for (int j = 0; j < 3; ++j)
+                if (j != i) x += Jv[i][U_WX + j] * inc->dq[U_WX + j];
+            hub[w][i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
+        }
+    }
+    for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, hub[w][0], hub[w][1], n[w]);
+    const double R = m->d.contact.radius;
+    int on_side[NUM_WHEELS];
+    for (int w = 0; w < NUM_WHEELS; ++w) {
+        const double ne = v3_dot(n[w], e);
+        const double in_plane2 = 1.0 - ne * ne, in_plane = sqrt(in_plane2 > 0.0 ? in_plane2 : 0.0);  /* no fmax call */
+        on_side[w] = in_plane < 1e-6;
+        sinkage[w] = on_side[w] ? ev->wheel[w].sinkage : R - (hub[w][2] - zt[w]) * n[w][2] / in_plane;
+    }
+    if (!(m->p.multipass_rutFraction > 0)) return;
+    for (int w = 1; w < NUM_WHEELS; w += 2) {
+        if (on_side[w]) continue;
+        /* a rear wheel in its rut: the start's rut depth, the start's sinkage without it */
+        double n0[3];
+        const double zt0 = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n0), ne0 = v3_dot(n0, ev->e);
+        const double in_plane0 = sqrt(fmax(0.0, 1.0 - ne0 * ne0));
+        if (in_plane0 < 1e-6) sinkage[w] = ev->wheel[w].sinkage;
+        else sinkage[w] -= R - (ev->hub[w][2] - zt0) * n0[2] / in_plane0 - ev->wheel[w].sinkage;
+    }
 }
 
 /* Moves the state on by inc over h (ev: the step's start's evaluation, for
@@ -371,9 +384,10 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     /* The soil memory over the step: where the wheel ends deeper than its memory, the memory is
      * the end's sinkage; where it stays shallower, the memory relaxes towards the sinkage, and
      * the mean of the start's and the end's is its mean over the step (trapezoidal rule). */
-    double sinkage[NUM_WHEELS];
+    double sinkage[NUM_WHEELS], end[NUM_WHEELS];
+    sinkages_at_end(m, ev, inc, end);
     for (int w = 0; w < NUM_WHEELS; ++w) {
-        const double z0 = ev->wheel[w].sinkage, z1 = sinkage_at_end(m, ev, inc, w), zmax = s->memory[w].zmax;
+        const double z0 = ev->wheel[w].sinkage, z1 = end[w], zmax = s->memory[w].zmax;
         const double mean = 0.5 * (z0 + z1);
         /* fmin(mean, zmax) without its library call (a NaN zmax gives the mean, as fmin does) */
         sinkage[w] = z1 >= zmax || !(z0 > 0) || !(z1 > 0) ? z1 : !(mean >= zmax) ? mean : zmax;

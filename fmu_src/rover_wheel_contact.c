@@ -251,16 +251,17 @@ typedef struct {
 } ContactFrame;
 
 /* The contact frame, the sinkage (with a rear wheel's rut), the local soil
- * factors and the forward speed into cf and in (v_long also into wc).
+ * factors and the forward speed into cf and in (v_long also into wc), from
+ * the terrain's elevation zt and normal n under the hub.
  * Returns 1 if the wheel is in the soil, 0 if not (then the slip, forces
  * and the rest of wc stay 0). */
-static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], int sp, WheelContact *wc,
-                         ContactFrame *cf, WheelSoilInput *in)
+static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], int sp, double zt,
+                         const double n[3], WheelContact *wc, ContactFrame *cf, WheelSoilInput *in)
 {
     const Params *p = &m->p;
     const double R = m->d.contact.radius;
     const double *H = ev->hub[w];
-    const double zt = rover_terrain_at(m, H[0], H[1], cf->n);
+    v3_copy(cf->n, n);
     const double hub_height = (H[2] - zt) * cf->n[2];
     v3_copy(cf->np, cf->n);
     v3_axpy(cf->np, -v3_dot(cf->n, ev->e), ev->e);
@@ -425,7 +426,10 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
     WheelSoilContact sc[NUM_WHEELS];
     ContactMemory mem[NUM_WHEELS];
 
-    /* 1. Wheel by wheel: the contact frame, the sinkage, the spin and the slip. */
+    /* 1. The terrain under each hub, then wheel by wheel the contact frame,
+     * the sinkage, the spin and the slip. */
+    double zt[NUM_WHEELS], normal[NUM_WHEELS][3];
+    for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], normal[w]);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
         double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
@@ -437,7 +441,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
         wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
         wc->cos_alpha = 1.0;
         wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
-        if (!contact_frame(m, ev, w, Jh, sp, wc, &cf[n], &in[n])) continue;
+        if (!contact_frame(m, ev, w, Jh, sp, zt[w], normal[w], wc, &cf[n], &in[n])) continue;
         wc->in_contact = 1;
         in[n].spin = wheel_spin(m, ev, Jw, sp, &cf[n]);
         /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's

@@ -210,9 +210,11 @@ void wheel_soil_normal(const WheelSoil *ws, const ContactMemory *mem, const Whee
 void wheel_soil_normals(const WheelSoil *ws, int n, const ContactMemory *mem, const WheelSoilInput *in,
                         int derivatives, WheelSoilContact *c)
 {
-    for (int k = 0; k < n; ++k) c[k].wong_reece = ws->law == CONTACT_LAW_WONG_REECE;
     if (ws->law == CONTACT_LAW_WONG_REECE) {      /* its integrations are most of its time: one by one */
-        for (int k = 0; k < n; ++k) normal_wong_reece(ws, &in[k], derivatives, &c[k]);
+        for (int k = 0; k < n; ++k) {
+            c[k].wong_reece = 1;
+            normal_wong_reece(ws, &in[k], derivatives, &c[k]);
+        }
         return;
     }
     for (int i = 0; i < n; i += CONTACT_BATCH) {
@@ -224,7 +226,10 @@ void wheel_soil_normals(const WheelSoil *ws, int n, const ContactMemory *mem, co
         }
         ContactPatch patch[CONTACT_BATCH];
         contact_patches(ws->contact, nb, sinkage, cut_front, cut_rear, patch);
-        for (int k = 0; k < nb; ++k) normal_from_patch(ws, &mem[i + k], &in[i + k], &patch[k], &c[i + k]);
+        for (int k = 0; k < nb; ++k) {
+            c[i + k].wong_reece = 0;
+            normal_from_patch(ws, &mem[i + k], &in[i + k], &patch[k], &c[i + k]);
+        }
     }
 }
 
