@@ -432,7 +432,6 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
     for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], normal[w]);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
-        double (*Jw)[NU] = ev->Jw[BODY_WHEEL0 + w];   /* the wheel's angular velocity Jacobian */
         const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
         WheelContact *wc = &ev->wheel[w];
         /* out of the soil: no slip, no force (field by field: GCC makes a
@@ -443,18 +442,21 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
         wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
         if (!contact_frame(m, ev, w, Jh, sp, zt[w], normal[w], wc, &cf[n], &in[n])) continue;
         wc->in_contact = 1;
-        in[n].spin = wheel_spin(m, ev, Jw, sp, &cf[n]);
+        mem[n] = m->s.memory[w];
+        wheel[n++] = w;
+    }
+    for (int k = 0; k < n; ++k) {
+        const int w = wheel[k];
+        in[k].spin = wheel_spin(m, ev, ev->Jw[BODY_WHEEL0 + w], U_SPIN_L + side_of(w), &cf[k]);
         /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
          * and chassis' pitch, a few degrees, shift the phase a little); the rear
          * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
          * ripple's dependence on the angle is explicit in the step (not in K):
          * N omega h is small at the steps that resolve the ripple. */
-        in[n].spin_angle = m->s.spin_angle[side_of(w)];
-        in[n].lug_phase = w % 2 == 1 ? M_PI : 0.0;
-        wheel_soil_slip(&ws, &in[n], &sc[n]);
-        wc->slip = sc[n].slip;
-        mem[n] = m->s.memory[w];
-        wheel[n++] = w;
+        in[k].spin_angle = m->s.spin_angle[side_of(w)];
+        in[k].lug_phase = w % 2 == 1 ? M_PI : 0.0;
+        wheel_soil_slip(&ws, &in[k], &sc[k]);
+        ev->wheel[w].slip = sc[k].slip;
     }
 
     /* 2. The normal forces, side by side. */
