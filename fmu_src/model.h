@@ -72,6 +72,7 @@ typedef struct {
     double pivot[2][3];            /* rocker pivots in the chassis frame (left, right) */
     double rocker_cg[3];           /* rocker CG in the rocker frame (from the pivot) */
     double hub[2][3];              /* front, rear hub in the rocker frame */
+    double side_mass, side_cg[3], side_I[9];   /* a side's rocker and wheels as one body (rover_side_body) */
 } Derived;
 
 typedef struct {

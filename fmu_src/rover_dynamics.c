@@ -1,7 +1,7 @@
 /*
  * The rover's dynamics (rover_internal.h): the kinematics of its seven
  * parts (chassis, two rockers, four wheels), their mass matrix, gravity, bias and gyroscopic forces (each
- * side's rocker and wheels assembled as one body, side_body), the drive,
+ * side's rocker and wheels assembled as one body, rover_side_body), the drive,
  * the rocker differential's friction and the drawbar, and the outputs.
  * The contacts are rover_wheel_contact.c's.
  */
@@ -45,7 +45,7 @@ static void point_jacobian(const Eval *ev, const double pos[3], const double x[3
  * and Jw = [0, I, sb e, 0].  The assembly below multiplies these blocks out
  * instead of forming the 3 x 9 matrices (most of their 54 entries are 0 or
  * 1).  The bodies are the chassis and each side's rocker with its two
- * wheels (side_body); the wheels' spin adds its own terms (assemble_bodies). */
+ * wheels (rover_side_body); the wheels' spin adds its own terms (assemble_bodies). */
 typedef struct {
     double mass, r[3], I[9];       /* kg; m; world inertia about the CG, kg m^2 */
     double cb[3];                  /* CG velocity per unit rocker rate, m/rad (0: chassis) */
@@ -142,11 +142,10 @@ static void add_body(const Eval *ev, const BodyCommon *c, const Body *b, double 
  * mass matrix, gravity and bias forces at the rocker's motion are those of
  * one body with their total mass, at their CG, with their inertia about it.
  * Mass (kg), CG (rocker frame, from the pivot, m) and that inertia (rocker
- * frame, kg m^2); the same for both sides. */
-static void side_body(const Model *m, double *mass, double cg[3], double I[9])
+ * frame, kg m^2); the same for both sides.  (rover_internal.h: derived from
+ * the parameters once, not each evaluation.) */
+void rover_side_body(const Params *p, const Derived *d, double *mass, double cg[3], double I[9])
 {
-    const Params *p = &m->p;
-    const Derived *d = &m->d;
     const double mr = p->rover_rockerMass, mw = p->wheel_mass;
     const double It = d->wheel_inertia_transverse, Is = p->wheel_inertia;
     const double part_mass[3] = {mr, mw, mw};
@@ -258,9 +257,8 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
     b.side = -1;
     b.spin_rate = 0;
     add_body(ev, &common, &b, ev->M, ev->Q);
-    /* each side's rocker with its wheels (side_body), turning with the rocker */
-    double side_mass, side_cg[3], side_I[9];
-    side_body(m, &side_mass, side_cg, side_I);
+    /* each side's rocker with its wheels (rover_side_body), turning with the rocker */
+    const double side_mass = d->side_mass, *side_cg = d->side_cg, *side_I = d->side_I;
     /* principal axes along the rocker frame's (the model's geometry, its parts in the x-z
      * plane, symmetric fore and aft): R diag R^T, the same values with fewer products */
     const int side_diagonal = side_I[1] == 0 && side_I[2] == 0 && side_I[3] == 0 && side_I[5] == 0 &&

@@ -64,6 +64,12 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices);
 
 /* rover_dynamics.c */
 
+/* Each side's rocker with its two wheels as one body (the same for both
+ * sides): its mass (kg), CG (rocker frame, from the pivot, m) and inertia
+ * about the CG (rocker frame, kg m^2), from the parameters p and the rest
+ * of the derived data d. */
+void rover_side_body(const Params *p, const Derived *d, double *mass, double cg[3], double I[9]);
+
 /* Drive torque per side (N m, on the motor side) and its derivative in the
  * side's wheel spin (0 when saturated), from the drive mode and inputs. */
 void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2]);

@@ -61,6 +61,7 @@ static void derive(Model *m)
     v3_set(d->rocker_cg, 0, 0, -hp);
     v3_set(d->hub[0], L / 2, 0, -hp);
     v3_set(d->hub[1], -L / 2, 0, -hp);
+    rover_side_body(p, d, &d->side_mass, d->side_cg, d->side_I);
 }
 
 /* --------------------------------------------------- static equilibrium */
