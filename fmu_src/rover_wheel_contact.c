@@ -1,12 +1,13 @@
 /*
- * One wheel's contact with the soil (rover_internal.h): the contact frame
- * on the terrain, the rover's kinematics at the contact, and the
- * generalised force, damping and stiffness for the linearly implicit
- * integrator.  The force law itself (slip, normal force and tilt from
- * the volumetric or Wong-Reece law, shear, slip-sinkage, grousers) is
- * wheel_soil.c's, shared with the single-wheel rig.  The model extensions
- * that depend on where the wheel is live here: the soil patch, the
- * multi-pass rut and the terrain registration offsets.
+ * The wheels' contacts with the soil (rover_internal.h): each wheel's
+ * contact frame on the terrain, the rover's kinematics at the contact, and
+ * the generalised force, damping and stiffness for the linearly implicit
+ * integrator, the four wheels computed in phases side by side
+ * (rover_wheel_contacts).  The force law itself (slip, normal force and
+ * tilt from the volumetric or Wong-Reece law, shear, slip-sinkage,
+ * grousers) is wheel_soil.c's, shared with the single-wheel rig.  The model
+ * extensions that depend on where the wheel is live here: the soil patch,
+ * the multi-pass rut and the terrain registration offsets.
  */
 #include <math.h>
 #include <string.h>
