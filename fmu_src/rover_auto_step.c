@@ -126,8 +126,10 @@ static inline int lu_column(LU *lu, const int c)
 }
 
 /* LU factorisation of lu->a with partial pivoting, in place.  Returns -1
- * if singular. */
-static int lu_factor(LU *lu)
+ * if singular.  Out of line, as two_stage: inlined, their caller grew too
+ * large for GCC to keep its values in registers (the two out of line: 330
+ * fewer instructions an accepted step, 4 % less CPU time). */
+static NOINLINE int lu_factor(LU *lu)
 {
     _Static_assert(NU == 9, "lu_factor() unrolls its columns for NU = 9");
     for (int i = 0; i < NU; ++i) lu->order[i] = i;
@@ -217,8 +219,8 @@ typedef struct {
  * a = 1 where the integral integrates (anti-windup, decided at the step's
  * start), the integral's rate being a (ref - omega).  The first stage's
  * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1 plus
- * the correction in r_u. */
-static int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
+ * the correction in r_u.  Out of line (lu_factor says why). */
+static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
 {
     const State *s = &m->s;
     const double g = ROS_GAMMA * h;
