@@ -93,6 +93,35 @@ def test_a_signal_disagrees_only_beyond_its_floor():
     assert ScanConsistency("t3d", [at, above]).disagreeing() == [above]
 
 
+def test_the_gains_fit_poses_the_rover_once_and_gives_what_a_pose_per_evaluation_gives(monkeypatch):
+    """The attitude gains only scale the posed attitude, so the fit of the gains poses the rover on
+    the scan once for its training samples (and once more for every sample), and its gains and
+    block means are those of a fit that poses it anew at every evaluation, bit for bit."""
+    from scipy.optimize import least_squares
+
+    import juno.registration as registration
+    grid = _ground(0.85, 60.0)
+    traverse, block = _measured_traverse()
+    train = block % 2 == 0
+    fitted = traverse.subset(train)
+    lower, upper = [g[0] for g in registration.GAIN_LIMITS], [g[1] for g in registration.GAIN_LIMITS]
+    anew = least_squares(lambda g: registration.residuals(np.zeros(4), grid, fitted, H0, (g[0], g[1])),
+                         np.clip(np.ones(2), lower, upper), bounds=(lower, upper))
+    assert anew.nfev > 2        # the fit evaluates several gains: there is something to reuse
+    solves = []
+    solve = registration._Posing.solve
+    monkeypatch.setattr(registration._Posing, "solve", lambda self, offsets: solves.append(len(self.tr.x))
+                        or solve(self, offsets))
+    result = scan_consistency(grid, traverse, H0, train, block, "t3d")
+    assert solves == [len(fitted.x), len(traverse.x)]
+    assert result.gains == (float(anew.x[0]), float(anew.x[1]))
+    r = registration.residuals(np.zeros(4), grid, traverse, H0, result.gains)
+    n = len(traverse.x)
+    height = next(s for s in result.signals if s.signal == "height")
+    means = np.array([np.mean(r[:n][~train & (block == b)] * registration.SIGMA_Z) for b in np.unique(block[~train])])
+    assert height.rms == float(np.sqrt(np.mean(means ** 2)))
+
+
 def test_a_pose_that_cannot_be_compared_is_an_error_not_an_agreement():
     traverse, block = _measured_traverse()
     traverse.z[7] = np.nan
