@@ -188,20 +188,44 @@ def _bases(angle: np.ndarray, time: np.ndarray, starts: np.ndarray, nus: np.ndar
     return q
 
 
-def _scan_series(s: PeriodicSeries, lugs: np.ndarray) -> dict[int, tuple[float, float, float]]:
-    """Per tested N of one series: (2 q, the reference's degrees of freedom, amplitude in signal
-    units).  N's the run cannot test (aliased, or too few reference degrees of freedom) are left out."""
+@dataclass
+class _SeriesBases:
+    """What the scan of one series computes from its samples' times, blocks and wheel angles
+    alone, whatever the residual: the sample order by time, the blocks' first rows (``starts``),
+    the tested N's with their count of frequencies (the tested one, then its references) and
+    their references' degrees of freedom, the orthonormal bases of every frequency (_bases), and
+    each N's detrended regressors (made when first asked for)."""
+
+    order: np.ndarray
+    time: np.ndarray
+    angle: np.ndarray
+    starts: np.ndarray
+    plan: list[tuple[int, int, float]]        # (N, frequencies, reference dof)
+    q: np.ndarray
+    _regressors: dict[int, np.ndarray]
+
+    def regressors(self, n: int) -> np.ndarray:
+        """cos(N theta) and sin(N theta), detrended within each block (samples x 2)."""
+        if n not in self._regressors:
+            self._regressors[n] = _detrend_matrix(np.column_stack([np.cos(n * self.angle), np.sin(n * self.angle)]),
+                                                  self.time, self.starts)
+        return self._regressors[n]
+
+
+def _series_bases(s: PeriodicSeries, lugs: np.ndarray) -> _SeriesBases | None:
+    """The residual-independent part of the scan of ``s`` over the N's ``lugs``; None when the
+    run cannot test any N (too few samples, no angle turned, every N aliased or short of
+    references)."""
     order = np.argsort(s.time)
-    time, r, block, angle = s.time[order], s.residual[order], s.block[order], s.angle[order]
+    time, block, angle = s.time[order], s.block[order], s.angle[order]
     starts = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
-    if len(r) < 20:
-        return {}
+    if len(time) < 20:
+        return None
     turned = float(np.ptp(angle))
     if turned <= 0:
-        return {}
+        return None
     cell = 2.0 * np.pi / turned
     nyquist = 0.5 / s.sample_interval
-    r = _detrend_matrix(r[:, None], time, starts)[:, 0]
     offsets = cell * np.arange(GUARD_CELLS + 1, GUARD_CELLS + REFERENCE_CELLS + 1)
     # Per N, the tested frequency and its references, in pairs symmetric about it (a spectrum
     # that falls with frequency then raises the reference, never lowers it); a pair whose lower
@@ -215,26 +239,62 @@ def _scan_series(s: PeriodicSeries, lugs: np.ndarray) -> dict[int, tuple[float, 
         if len(kept) >= 2:
             plan.append((int(n), np.concatenate([[float(n)], n - kept, n + kept])))
     if not plan:
-        return {}
+        return None
     q = _bases(angle, time, starts, np.concatenate([nus for _n, nus in plan]))
-    proj = (q[:, :, 0] @ r) ** 2 + (q[:, :, 1] @ r) ** 2
-    out: dict[int, tuple[float, float, float]] = {}
+    counted = []
     first = 0
     for n, nus in plan:
-        qn, pn = q[first:first + len(nus)], proj[first:first + len(nus)]
+        qn = q[first:first + len(nus)]
         first += len(nus)
         # The reference is r' Q r with Q = mean over the m references of P_j / 2 (P_j the
         # projection on reference j): E = tr(Q) sigma^2 = sigma^2, Var = 2 tr(Q^2) sigma^4, and
         # tr(P_j P_k) = ||U_j' U_k||_F^2 for orthonormal bases U.
         m = len(nus) - 1
-        u = qn[1:].transpose(1, 0, 2).reshape(len(r), 2 * m)
-        dof = 4.0 * m * m / float(np.sum((u.T @ u) ** 2))
+        u = qn[1:].transpose(1, 0, 2).reshape(len(time), 2 * m)
+        counted.append((n, len(nus), 4.0 * m * m / float(np.sum((u.T @ u) ** 2))))
+    return _SeriesBases(order, time, angle, starts, counted, q, {})
+
+
+class PeriodicBases:
+    """The residual-independent part of the scans of series (_SeriesBases), kept for the scans of
+    other residuals on the same samples: the periodic test of several models of one campaign
+    (the base model's and the one with its named causes) scans the same held-out samples at the
+    same wheel angles, and only the residuals differ.  A series is recognised by its contents
+    (times, blocks, angles, sample interval, fastest spin) and the N's scanned, so a kept part is
+    used only where it would be computed again, the same numbers."""
+
+    def __init__(self) -> None:
+        self._kept: dict[tuple, _SeriesBases | None] = {}
+
+    def of(self, s: PeriodicSeries, lugs: np.ndarray) -> _SeriesBases | None:
+        """_series_bases of ``s`` over ``lugs``, computed once."""
+        key = tuple((a.dtype.str, a.shape, a.tobytes()) for a in (s.time, s.block, s.angle, np.asarray(lugs))) \
+            + (float(s.sample_interval), float(s.fastest_spin))
+        if key not in self._kept:
+            self._kept[key] = _series_bases(s, lugs)
+        return self._kept[key]
+
+
+def _scan_series(s: PeriodicSeries, lugs: np.ndarray, bases: PeriodicBases | None = None
+                 ) -> dict[int, tuple[float, float, float]]:
+    """Per tested N of one series: (2 q, the reference's degrees of freedom, amplitude in signal
+    units).  N's the run cannot test (aliased, or too few reference degrees of freedom) are left
+    out.  ``bases``: the residual-independent parts already computed (PeriodicBases)."""
+    b = bases.of(s, lugs) if bases is not None else _series_bases(s, lugs)
+    if b is None:
+        return {}
+    r = _detrend_matrix(s.residual[b.order][:, None], b.time, b.starts)[:, 0]
+    proj = (b.q[:, :, 0] @ r) ** 2 + (b.q[:, :, 1] @ r) ** 2
+    out: dict[int, tuple[float, float, float]] = {}
+    first = 0
+    for n, count, dof in b.plan:
+        pn = proj[first:first + count]
+        first += count
         reference = float(np.mean(pn[1:])) / 2.0
         if dof < MIN_DOF or reference <= 0:
             continue
         # The ripple's amplitude: the least squares coefficients of cos(N theta) and sin(N theta).
-        x = _detrend_matrix(np.column_stack([np.cos(n * angle), np.sin(n * angle)]), time, starts)
-        coef, *_ = np.linalg.lstsq(x, r, rcond=None)
+        coef, *_ = np.linalg.lstsq(b.regressors(n), r, rcond=None)
         out[n] = (float(pn[0]) / reference, dof, float(np.hypot(*coef)))
     return out
 
@@ -252,11 +312,12 @@ def _sum_of_f_sf(z: float, dofs: Sequence[float]) -> float:
 
 
 def periodic_signal(series: Sequence[PeriodicSeries], unit: str, n_signals: int,
-                    lugs: tuple[int, int] = N_RANGE) -> PeriodicSignal | None:
+                    lugs: tuple[int, int] = N_RANGE, bases: PeriodicBases | None = None) -> PeriodicSignal | None:
     """The scan (module docstring) of one signal over its runs' ``series``; None when no run can
-    test any N.  ``n_signals``: how many signals the campaign tests (the Bonferroni factor)."""
+    test any N.  ``n_signals``: how many signals the campaign tests (the Bonferroni factor).
+    ``bases``: the residual-independent parts of scans made before (PeriodicBases), kept."""
     grid = np.arange(lugs[0], lugs[1] + 1)
-    scans = [_scan_series(s, grid) for s in series]
+    scans = [_scan_series(s, grid, bases) for s in series]
     tested = sorted({n for scan in scans for n in scan})
     if not tested:
         return None
@@ -278,11 +339,14 @@ def periodic_signal(series: Sequence[PeriodicSeries], unit: str, n_signals: int,
 
 
 def periodic_structure(series: Sequence[PeriodicSeries], units: dict[str, str] | None = None,
-                       lugs: tuple[int, int] = N_RANGE) -> PeriodicStructure:
+                       lugs: tuple[int, int] = N_RANGE, bases: PeriodicBases | None = None) -> PeriodicStructure:
     """The periodic test of every signal in ``series`` (grouped by signal; ``units``: signal ->
-    unit), at most FALSE_ALARM false reports over all of them."""
+    unit), at most FALSE_ALARM false reports over all of them.  ``bases``: where the scans'
+    residual-independent parts are kept for the tests of other models on the same samples
+    (PeriodicBases); each test computes its own without."""
     names = sorted({s.signal for s in series})
-    found = [periodic_signal([s for s in series if s.signal == name], (units or {}).get(name, ""), len(names), lugs)
+    found = [periodic_signal([s for s in series if s.signal == name], (units or {}).get(name, ""), len(names), lugs,
+                             bases)
              for name in names]
     return PeriodicStructure([f for f in found if f is not None], FALSE_ALARM / max(len(names), 1))
 

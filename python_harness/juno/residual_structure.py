@@ -58,7 +58,8 @@ import numpy as np
 
 from .campaign import Campaign, RunData, read_run
 from .identify import PreparedRun, run_residuals
-from .periodic_structure import PeriodicSignal, PeriodicStructure, periodic_structure, series_of_residuals
+from .periodic_structure import (PeriodicBases, PeriodicSignal, PeriodicStructure, periodic_structure,
+                                 series_of_residuals)
 from .rover_model import SOIL_PARAMETERS
 from .sensor_noise import column_noise
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
@@ -357,15 +358,17 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
                        meta: Mapping[str, np.ndarray], train: np.ndarray, residuals: np.ndarray,
                        params: Mapping[str, object], seed: int = 0, replicas: int = REPLICAS,
                        wheel_radius: float | None = None, workers: int | None = 1,
-                       data: Mapping[str, RunData] | None = None, pool: TaskPool | None = None
-                       ) -> ResidualStructure:
+                       data: Mapping[str, RunData] | None = None, pool: TaskPool | None = None,
+                       periodic_bases: PeriodicBases | None = None) -> ResidualStructure:
     """The structure test (module docstring) of the model with FMU parameters ``params``, whose
     scaled residuals over ``prepared`` (labelled by ``meta``, training blocks ``train``) are
     ``residuals``.  Deterministic for a given ``seed``, whatever ``workers`` (local processes
     simulating the replicas: juno.parallel; 1 = in this process with ``fmu``, None = one per
-    core), or the tasks of ``pool``, already open.  ``data``: the measured runs (run id -> RunData) when the caller has read them
-    already.  Raises SimulationError if a replica cannot be simulated (a model that cannot
-    replay its own runs with noise a sensor's size)."""
+    core), or the tasks of ``pool``, already open.  ``data``: the measured runs (run id -> RunData)
+    when the caller has read them already.  ``periodic_bases``: where the periodic test keeps what
+    does not depend on the residuals, for the tests of other models on the same runs
+    (juno.periodic_structure.PeriodicBases).  Raises SimulationError if a replica cannot be
+    simulated (a model that cannot replay its own runs with noise a sensor's size)."""
     tested = [p for p in prepared if p.kind == "drawbar"]
     runs = [p.run_id for p in tested]
     if not tested:
@@ -417,7 +420,8 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     signals = [_test_signal(str(sig), units, observed, null_means, noise, sigma_of, covariates,
                             means_by_signal, len(np.unique(units.unit_signal)))
                for sig in np.unique(units.unit_signal)]
-    periodic = periodic_structure(series_of_residuals(prepared, meta, train, residuals, data, noise), UNITS)
+    periodic = periodic_structure(series_of_residuals(prepared, meta, train, residuals, data, noise), UNITS,
+                                  bases=periodic_bases)
     return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs, periodic)
 
 

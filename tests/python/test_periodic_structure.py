@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
-from juno.periodic_structure import (FALSE_ALARM, MATERIAL_FRACTION, PeriodicSeries, periodic_signal,
+from juno.periodic_structure import (FALSE_ALARM, MATERIAL_FRACTION, PeriodicBases, PeriodicSeries, periodic_signal,
                                      periodic_structure, wheel_angle)
 
 SIGMA = 3.0          # N m, torque sensor noise
@@ -96,6 +96,26 @@ def test_noise_alone_gives_findings_no_more_often_than_the_stated_rate(noise):
     p = np.array([r.p_value for r in results])
     assert np.sum(p < 0.1) <= binom.ppf(0.999, seeds, 0.1)
     assert sum(r.significant for r in results) <= binom.ppf(0.999, seeds, FALSE_ALARM / 2)
+
+
+def test_the_tests_of_two_models_on_the_same_samples_share_their_bases_and_give_each_its_own_result(monkeypatch):
+    """Two models' residuals on the same held-out samples and wheel angles (one with a ripple, one
+    without): with their bases kept (PeriodicBases) each gets the result it gets alone, bit for
+    bit, and each run's bases are computed once; a run whose angles differ gets its own."""
+    import juno.periodic_structure as periodic
+    rippled, plain = _campaign(7, ripple=1.5), _campaign(8)
+    other = [PeriodicSeries(**{**vars(s), "residual": r.residual}) for s, r in zip(rippled, plain)]
+    alone = [periodic_structure(runs, {"torque_left": "N m"}).to_json() for runs in (rippled, other)]
+    assert alone[0]["significant"] and not alone[1]["significant"]
+    made = []
+    series_bases = periodic._series_bases
+    monkeypatch.setattr(periodic, "_series_bases", lambda s, lugs: made.append(s.run) or series_bases(s, lugs))
+    bases = PeriodicBases()
+    shared = [periodic_structure(runs, {"torque_left": "N m"}, bases=bases).to_json() for runs in (rippled, other)]
+    assert shared == alone
+    assert made == ["dbp1", "dbp2"]
+    periodic_structure(plain, {"torque_left": "N m"}, bases=bases)      # other wheel angles: bases of their own
+    assert made == ["dbp1", "dbp2", "dbp1", "dbp2"]
 
 
 def test_lug_counts_aliased_by_the_sampling_are_not_tested():

@@ -33,6 +33,7 @@ from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate
 from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_candidate, registration_evidence,
                      registration_start)
 from ..parallel import BackgroundTask, TaskPool
+from ..periodic_structure import PeriodicBases
 from ..residual_structure import ResidualStructure, residual_structure
 from ..scan_consistency import ScanTests, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
@@ -228,9 +229,10 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
     runs; the bootstrap's replays run in ``workers`` local processes (None: one per core)."""
     models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
     data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
+    bases = PeriodicBases()     # the models' periodic tests scan the same samples at the same angles
     with JunoFMU(fmu_path) as fmu, TaskPool(workers) as pool:
         tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
-                                    m.params, data=data, pool=pool) for m in models]
+                                    m.params, data=data, pool=pool, periodic_bases=bases) for m in models]
     for m, t in zip(models, tests):
         found = ", ".join([f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()]
                           + [f"{r.signal} ripple at {r.lugs} per wheel revolution ({r.ratio:.2g} x noise)"
