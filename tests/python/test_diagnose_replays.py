@@ -8,7 +8,9 @@
   best) is the fit made in one session, bit for bit: the same optimum, residuals, evaluations
   and failures, and a batch of fits reports them in the order of its jobs.
 * A fit simulates each run only as far as its last training sample, and its residuals there are
-  the whole replay's, bit for bit (drawbar runs, and a terrain run replayed in segments).
+  the whole replay's, bit for bit (drawbar runs, and a terrain run replayed in segments); a run
+  it replays to its end anyway is the whole replay, which the result at the optimum reuses.
+* Fits made one after another in this process share one FMU instance, each the same fit.
 * The Jacobian SciPy asks for at the point it accepts with the budget spent is not simulated,
   and the fit is the same as the one that simulates it.
 """
@@ -149,6 +151,67 @@ def test_a_fit_simulates_each_run_only_as_far_as_its_training_samples(small_camp
     first = build_problem(campaign, fmu_path, None).prepared[0]
     short = training_part(build_problem(campaign, fmu_path, None), ("drawbar",)).prepared[0]
     assert first.duration > 4.5 and short.duration < 4.2, (first.duration, short.duration)
+
+
+def test_a_run_the_fit_replays_to_its_end_is_not_simulated_again_at_the_optimum(small_campaign, fmu_path,
+                                                                                 monkeypatch):
+    """A drawbar run whose last training sample needs its replay to the end is replayed by the fit
+    as itself (fitting.fit_part: compared on every sample, its training residuals picked), so the
+    result at the optimum finds that replay in the fit's ReplayCache; a run the fit replays only
+    to its last training sample (the first, whose last block is held out) is simulated there.
+    The result is the replay of every run at the optimum, bit for bit."""
+    from juno.diagnose.problem import residuals_by_run, training_run
+    from juno.simulator import JunoFMU
+    problem = build_problem(small_campaign(SEED).campaign, fmu_path, None)
+    whole, start = [], 0
+    for p in problem.prepared:
+        n = sum(len(v[0]) for v in p.targets.values())
+        if p.kind == "drawbar" and training_run(p, problem.train[start:start + n]).duration == p.duration:
+            whole.append(p.run_id)
+        start += n
+    drawbar = [p.run_id for p in problem.prepared if p.kind == "drawbar"]
+    assert whole and len(whole) < len(drawbar), (whole, drawbar)
+    part = fitting.fit_part(problem, ("drawbar",))
+    assert [p.run_id for p in part.prepared] == drawbar
+    assert all((q is p) == (p.run_id in whole) for p, q in zip(problem.prepared, part.prepared))
+    at_optimum: list[str] = []
+    result_at_optimum = fitting._result_at_optimum
+
+    def counted(session, *args):
+        simulate = session.fmu.simulate
+        session.fmu.simulate = lambda *a, **k: at_optimum.append("run") or simulate(*a, **k)
+        try:
+            return result_at_optimum(session, *args)
+        finally:
+            session.fmu.simulate = simulate
+    monkeypatch.setattr(fitting, "_result_at_optimum", counted)
+    res = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=3)
+    assert not res.error
+    assert len(at_optimum) == len(problem.prepared) - len(whole)
+    with JunoFMU(fmu_path) as fmu:
+        replayed, failures = residuals_by_run(fmu, problem, res.params)
+    assert not failures
+    np.testing.assert_array_equal(res.residuals, replayed)
+
+
+def test_serial_fits_share_one_fmu_instance_and_are_the_fits_made_each_with_its_own(small_campaign, fmu_path,
+                                                                                    monkeypatch):
+    """A batch fitted in this process opens the FMU once for all its fits (every replay resets the
+    instance), and each fit is the one fit_candidate makes with an FMU of its own, bit for bit."""
+    problem = build_problem(small_campaign(SEED, "drivetrain_loss").campaign, fmu_path, None)
+    jobs = [(problem, None, dict(PAPER_INITIAL), None, 2),
+            (problem, CANDIDATES["drivetrain_loss"], dict(PAPER_INITIAL), None, 2)]
+    alone = [fit_candidate(problem, c, soil, max_nfev=budget) for problem, c, soil, _ext, budget in jobs]
+    opened = []
+
+    class CountedFMU(fitting.JunoFMU):
+        def __init__(self, *args, **kwargs):
+            opened.append(args)
+            super().__init__(*args, **kwargs)
+    monkeypatch.setattr(fitting, "JunoFMU", CountedFMU)
+    batch = run_jobs(jobs, workers=1, scheduler=None, say=lambda m: None)
+    assert len(opened) == 1
+    assert [same_fits(a, b) for a, b in zip(alone, batch)] == [[], []]
 
 
 def test_the_jacobian_asked_for_with_the_budget_spent_is_not_simulated(small_campaign, fmu_path, monkeypatch):

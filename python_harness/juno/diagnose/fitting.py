@@ -18,7 +18,7 @@ from ..parallel import Task, TaskPool, local_fmu, map_tasks, resolve_workers
 from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
 from .problem import (Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds,
-                      training_part)
+                      training_run)
 
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
@@ -133,11 +133,11 @@ class _FitSession:
         self._training: dict[tuple[str, ...], Problem] = {}
 
     def training_problem(self, kinds: tuple[str, ...]) -> Problem:
-        """The runs of ``kinds`` with their training samples only, each simulated no further than
-        its last one (problem.training_part): what a fit on them evaluates.  Made once per
-        kinds, so that its replays are remembered (ReplayCache keys a run by its object)."""
+        """The runs of ``kinds`` as a fit on them evaluates them (fit_part), ``train`` marking the
+        training residuals among theirs.  Made once per kinds, so that its replays are remembered
+        (ReplayCache keys a run by its object)."""
         if kinds not in self._training:
-            self._training[kinds] = training_part(self.problem, kinds)
+            self._training[kinds] = fit_part(self.problem, kinds)
         return self._training[kinds]
 
     def fit(self, x_start: np.ndarray, kinds: tuple[str, ...], free: np.ndarray, iterations: int) -> np.ndarray:
@@ -161,8 +161,39 @@ class _FitSession:
         """fit_loss of the training residuals of the runs of ``kinds`` at ``x`` (one evaluation;
         infinite if a run fails)."""
         self.evaluations += 1
-        r = residuals_for(self.fmu, self.training_problem(kinds), self.space.params(x), kinds, self.replays)
-        return np.inf if r is None else fit_loss(r)
+        part = self.training_problem(kinds)
+        r = residuals_for(self.fmu, part, self.space.params(x), kinds, self.replays)
+        return np.inf if r is None else fit_loss(r[part.train])
+
+
+def fit_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
+    """The runs of ``kinds`` of ``problem`` as a fit evaluates them, ``train`` marking the
+    training residuals among the residuals they give.
+
+    A fit sees only the training samples, and a replay's samples depend only on what came before
+    them, so a run is simulated no further than its last training sample (problem.training_run:
+    the same numbers there as the whole replay; a held-out block at a run's end, 2 s of a 22 s
+    run, is work no fit uses).  A run whose last training sample needs its replay to the end is
+    the run itself, compared on every sample and its training residuals picked by ``train``
+    (the same simulation and numbers as training_run's): its replay at the fit's optimum is then
+    one the fit has made, which the result at the optimum finds in the fit's ReplayCache."""
+    runs, train, start = [], [], 0
+    for p in problem.prepared:
+        n = sum(len(v[0]) for v in p.targets.values())
+        mine = problem.train[start:start + n]
+        start += n
+        if p.kind not in kinds:
+            continue
+        short = training_run(p, mine)
+        if short.duration == p.duration and short.segments == p.segments:
+            runs.append(p)
+            train.append(mine)
+        else:
+            runs.append(short)
+            train.append(np.ones(int(np.sum(mine)), bool))
+    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs)
+    part.train = np.concatenate(train) if train else np.zeros(0, bool)
+    return part
 
 
 class _TrainingResiduals:
@@ -170,7 +201,8 @@ class _TrainingResiduals:
     search vector (the others as in ``x_start``) -> the training residuals of the runs of
     ``kinds``, FAILED_TRIAL_RESIDUAL on every sample when a run fails.
 
-    The runs are simulated only as far as their training samples go (_FitSession.training_problem).
+    The runs are simulated only as far as their training samples go, and the training residuals
+    picked from what they give (_FitSession.training_problem, fit_part).
     In the process that made it, each call is one evaluation of the session (counted, logged,
     its replays remembered).  Pickled, it carries only what a worker process needs to evaluate
     a point with that process's FMU (juno.parallel.local_fmu): the runs of ``kinds`` and the
@@ -185,7 +217,8 @@ class _TrainingResiduals:
         self.session: _FitSession | None = session
         self.problem = session.training_problem(kinds)
         self.space, self.x_start, self.free, self.kinds = session.space, x_start.copy(), free, kinds
-        self.n_train = int(np.sum(self.problem.train))
+        self.train = self.problem.train
+        self.n_train = int(np.sum(self.train))
         self.max_nfev = max_nfev
         self.steps = 0                     # evaluations SciPy counts (not a Jacobian's points)
         self._last: np.ndarray | None = None
@@ -208,7 +241,7 @@ class _TrainingResiduals:
             r, failure = residuals_or_failure(session.fmu, self.problem, self.space.params(x), self.kinds,
                                               session.replays)
             session.log.record(failure)
-        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r
+        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r[self.train]
         if session is not None and not self._in_jacobian:
             self.steps += 1
             self._last = out
@@ -247,13 +280,15 @@ class _TrainingResiduals:
 # ------------------------------------------------------------------ one model's fit
 
 def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dict[str, float],
-                  max_nfev: int = 60, start_ext: dict[str, float] | None = None, workers: int | None = 1
-                  ) -> FitResult:
+                  max_nfev: int = 60, start_ext: dict[str, float] | None = None, workers: int | None = 1,
+                  fmu: JunoFMU | None = None) -> FitResult:
     """Least squares of the soil parameters (and the candidate's) on the training residuals
     (the base model when ``candidate`` is None), at most ``max_nfev`` evaluations per fit.
     ``workers``: local processes over which each finite-difference Jacobian's points are
     evaluated (juno.parallel; 1: all in this process, None: one per core, but 1 inside a
-    worker process); the fit is the same either way.
+    worker process); the fit is the same either way.  ``fmu``: an instance of the FMU at
+    ``problem.fmu_path`` to fit with, left open (the fit is the same with any instance: every
+    replay resets it); else one is opened for the fit and closed after.
 
     A failed simulation during a least-squares fit gives that fit a constant stand-in residual;
     the fits' evaluations are logged (identify.EvaluationLog), and a fit over which more than
@@ -267,18 +302,21 @@ def fit_candidate(problem: Problem, candidate: Candidate | None, start_soil: dic
     def fitted(session: _FitSession) -> FitResult:
         x = _search(session, candidate, session.space.start(start_soil, start_ext), max_nfev)
         return _result_at_optimum(session, candidate, x, t0)
-    return _in_session(problem, candidate, log, fitted, lambda exc: _failed_fit(candidate, exc, t0, log), workers)
+    return _in_session(problem, candidate, log, fitted, lambda exc: _failed_fit(candidate, exc, t0, log), workers,
+                       fmu)
 
 
 _T = TypeVar("_T")
 
 
 def _in_session(problem: Problem, candidate: Candidate | None, log: EvaluationLog,
-                work: Callable[[_FitSession], _T], failed: Callable[[Exception], _T], workers: int | None = 1) -> _T:
-    """``work(session)`` in a fitting session of its own (its FMU opened here and closed after,
-    its Jacobians over ``workers`` local processes), or ``failed(error)`` if it raised: a
-    candidate that cannot be fitted is reported, not fatal."""
-    fmu = JunoFMU(problem.fmu_path)
+                work: Callable[[_FitSession], _T], failed: Callable[[Exception], _T], workers: int | None = 1,
+                fmu: JunoFMU | None = None) -> _T:
+    """``work(session)`` in a fitting session of its own (with ``fmu``, else an FMU opened here
+    and closed after; its Jacobians over ``workers`` local processes), or ``failed(error)`` if it
+    raised: a candidate that cannot be fitted is reported, not fatal."""
+    own = fmu is None
+    fmu = JunoFMU(problem.fmu_path) if own else fmu
     # One BLAS thread: the fit's matrices are (residuals x parameters), where threads gain
     # nothing and OpenBLAS's spinning takes CPU from the simulations (see identify_joint).
     blas = threadpool_limits(limits=1, user_api="blas")
@@ -291,7 +329,8 @@ def _in_session(problem: Problem, candidate: Candidate | None, log: EvaluationLo
         if pool is not None:
             pool.close()
         blas.restore_original_limits()
-        fmu.close()
+        if own:
+            fmu.close()
 
 
 def _failed_fit(candidate: Candidate | None, error: Exception | str, t0: float, log: EvaluationLog) -> FitResult:
@@ -390,19 +429,38 @@ FitJob = (tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | 
           | tuple[Problem, Candidate | None, dict[str, float], dict[str, float] | None, int])
 
 
-def _fit_job(args: FitJob, workers: int | None = 1) -> FitResult:
+def _fit_job(args: FitJob, workers: int | None = 1, fmu: JunoFMU | None = None) -> FitResult:
     """fit_candidate for one job (a picklable task for juno.parallel), its Jacobians evaluated
-    over ``workers`` local processes."""
+    over ``workers`` local processes, with ``fmu`` when given (else its own)."""
     problem, candidate, start_soil, start_ext, *budget = args
     return fit_candidate(problem, candidate, start_soil, max_nfev=budget[0] if budget else CANDIDATE_ITERATIONS,
-                         start_ext=start_ext, workers=workers)
+                         start_ext=start_ext, workers=workers, fmu=fmu)
+
+
+def _serial_fits(jobs: list[FitJob], said: Callable[[FitResult], None]) -> list[FitResult]:
+    """Every job fitted here, one after the other, with one FMU instance per FMU file for all of
+    them (opening one, unzipped, its description read and its library loaded, costs about two
+    replays; every replay resets it, so a fit is the same with any instance)."""
+    fmus: dict[str, JunoFMU] = {}
+
+    def fitted(job: FitJob) -> FitResult:
+        path = job[0].fmu_path
+        if path not in fmus:
+            fmus[path] = JunoFMU(path)
+        return _fit_job(job, 1, fmus[path])
+    try:
+        return map_tasks(fitted, jobs, workers=1, on_result=lambda i, res: said(res))
+    finally:
+        for fmu in fmus.values():
+            fmu.close()
 
 
 def run_jobs(jobs: list[FitJob], workers: int | None, scheduler: str | None,
              say: Callable[[str], None]) -> list[FitResult]:
     """Candidate fits, in the order of ``jobs``: local processes over the cores by default,
-    serially with ``workers=1`` (each fit whole, fit_candidate), or on the Dask cluster at
-    ``scheduler``.  A job without a budget gets CANDIDATE_ITERATIONS evaluations per fit.
+    serially with ``workers=1`` (each fit whole, fit_candidate, all with one FMU instance:
+    _serial_fits), or on the Dask cluster at ``scheduler``.  A job without a budget gets
+    CANDIDATE_ITERATIONS evaluations per fit.
 
     On more than one process each fit is a task (juno.parallel), and a fit whose coarse search
     makes short fits (a soil patch's places, Candidate.short_fits) is several: one task per
@@ -418,7 +476,7 @@ def run_jobs(jobs: list[FitJob], workers: int | None, scheduler: str | None,
         say(f"  {res.name}: held-out mse {res.test_mse:.4g} ({res.evaluations} evaluations, {res.wall_time:.0f} s)")
     parallel = scheduler is not None or resolve_workers(workers) > 1
     if not parallel:
-        return map_tasks(_fit_job, jobs, workers=1, on_result=lambda i, res: said(res))
+        return _serial_fits(jobs, said)
     if scheduler is None and len(jobs) == 1 and not _split(jobs[0]):
         res = _fit_job(jobs[0], workers)
         said(res)
