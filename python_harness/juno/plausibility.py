@@ -30,6 +30,13 @@ the campaign's ``rover`` entry):
   times its top speed). rpm are 9.55 times rad/s.
 * **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
   speed over 1 s exceeds twice that are not in metres.
+* **Turning.** A skid-steered rover turns towards its slower side: its yaw rate has the sign
+  of ``omega_right - omega_left`` (whichever way it drives), less what slopes add. Where a run
+  has ``yaw`` and both spins, the yaw rate over ``TURN_WINDOW`` (1 s) is correlated with the
+  spin difference over the windows where that is at least ``TURN_SPIN_DIFFERENCE`` (0.05
+  rad/s); at least ``TURN_WINDOWS`` (10) of them with a correlation below
+  ``-TURN_CORRELATION`` (-0.7) is an error: the spin columns swapped, or a clockwise yaw. A
+  run that hardly turns is not judged (swapped torque columns cannot be told at all).
 * **Ground datum.** Drawbar runs are on flat ground at z = 0; the chassis rides at about its
   centre of gravity's height (wheel radius + ``rover.cgHeight``, 0.53 m) above it, less the
   sinkage. A drawbar run whose median pos_z lies more than ``DATUM_LIMIT`` (2) times that height
@@ -180,6 +187,13 @@ RESIDUAL_TAIL = math.sqrt(1.3)
 SPAN_FRACTION = 0.25
 #: ... and is an error beyond this multiple of the span.
 ABSURD_SPAN = 10.0
+#: The turning check: yaw rates over TURN_WINDOW s against the sides' spin difference, in the
+#: windows (TURN_WINDOWS or more) where it is at least TURN_SPIN_DIFFERENCE rad/s (ten times the
+#: spin sensors' noise); a correlation below -TURN_CORRELATION is an error.
+TURN_WINDOW = 1.0
+TURN_SPIN_DIFFERENCE = 0.05
+TURN_WINDOWS = 10
+TURN_CORRELATION = 0.7
 #: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
 #: (above or below its flat ground at z = 0) is measured from another datum.
 DATUM_LIMIT = 2.0
@@ -527,6 +541,33 @@ def check_positions(run: RunData, file: str, limits: RoverLimits) -> list[Findin
     return out + check_ground_datum(run, file, limits)
 
 
+def check_turning(run: RunData, file: str) -> list[Finding]:
+    """A rover that turns against its wheels (module docstring, "Turning")."""
+    names = ("yaw", "omega_left", "omega_right")
+    if not all(run.has(n) for n in names):
+        return []
+    ty, yaw = run.samples("yaw")
+    if len(ty) < 2 or ty[-1] - ty[0] <= 2 * TURN_WINDOW:
+        return []
+    t = np.arange(ty[0] + TURN_WINDOW, ty[-1] - TURN_WINDOW, 0.5 * TURN_WINDOW)
+    unwrapped = np.unwrap(yaw)
+    rate = (np.interp(t + 0.5 * TURN_WINDOW, ty, unwrapped) - np.interp(t - 0.5 * TURN_WINDOW, ty, unwrapped)) \
+        / TURN_WINDOW
+    spins = aligned(run, ["omega_left", "omega_right"], t)
+    difference = spins["omega_right"] - spins["omega_left"]
+    material = np.isfinite(difference) & (np.abs(difference) >= TURN_SPIN_DIFFERENCE)
+    if int(np.sum(material)) < TURN_WINDOWS or np.std(rate[material]) == 0 or np.std(difference[material]) == 0:
+        return []
+    correlation = float(np.corrcoef(rate[material], difference[material])[0, 1])
+    if not correlation < -TURN_CORRELATION:
+        return []
+    return [Finding("error", file, "omega_left", f"the rover turns against its wheels: its yaw rate follows "
+                    f"omega_right - omega_left with correlation {correlation:.2f} over the {int(np.sum(material))} "
+                    f"{_g(TURN_WINDOW)} s windows where the sides' spins differ by {_g(TURN_SPIN_DIFFERENCE)} rad/s "
+                    "or more, and a skid-steered rover turns towards its slower side: are omega_left and "
+                    "omega_right swapped, or is yaw clockwise?")]
+
+
 def check_ground_datum(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """A drawbar run's heights measured from a datum other than its flat ground (module
     docstring, "Ground datum")."""
@@ -613,7 +654,8 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Every check of one run's columns; a column with an error gets no outlier warning on top."""
     found = (check_time(run, file) + check_angles(run, file, limits) + check_spins(run, file, limits)
              + check_torques(run, file, limits) + check_drawbar(run, file, limits)
-             + check_signs(run, file, limits) + check_positions(run, file, limits))
+             + check_signs(run, file, limits) + check_positions(run, file, limits)
+             + check_turning(run, file))
     with_error = {f.column for f in found if f.severity == "error"}
     columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
     return found + check_outliers(run, file, columns, limits)

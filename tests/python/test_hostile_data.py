@@ -377,3 +377,39 @@ def test_a_synthetic_campaign_with_a_heavy_run_raises_nothing(tmp_path, harness_
                       fmu=harness_fmu)
     findings = check_campaign(load_campaign(path))
     assert findings == [], "\n".join(f"{f.severity}: {f}" for f in findings)
+
+
+# ------------------------------------------------------------ a terrain run that turns
+
+@pytest.fixture(scope="module")
+def turning_campaign(tmp_path_factory, harness_fmu) -> Path:
+    """An alternative-design campaign, whose terrain run turns about the ridge by differential
+    spin (the default design's hardly turns)."""
+    from juno.synthesize import synthesize
+
+    return synthesize(tmp_path_factory.mktemp("turning") / "campaign", effect="none", seed=4501, design="alt",
+                      fmu=harness_fmu)
+
+
+def test_a_terrain_run_that_turns_with_its_wheels_raises_nothing(turning_campaign) -> None:
+    findings = check_campaign(load_campaign(turning_campaign))
+    assert findings == [], "\n".join(f"{f.severity}: {f}" for f in findings)
+
+
+@pytest.mark.parametrize("mistake", ["spin columns swapped", "yaw clockwise"])
+def test_a_rover_that_turns_against_its_wheels_is_refused(turning_campaign, tmp_path, mistake) -> None:
+    """A skid-steered rover turns towards its slower side; with the spin columns swapped, or a yaw
+    measured clockwise, the measured yaw rate follows the spin difference with the wrong sign.
+    The error names the run's file and the swap it suspects."""
+    root = tmp_path / "campaign"
+    shutil.copytree(turning_campaign, root)
+
+    def change(c):
+        if mistake == "spin columns swapped":
+            c["omega_left"], c["omega_right"] = c["omega_right"], c["omega_left"]
+        else:
+            c["yaw"] = -c["yaw"]
+    edit_run(root, "t3d", change)
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "omega_left")], errors
+    assert "turns against its wheels" in errors[0].message and "swapped" in errors[0].message
