@@ -49,6 +49,18 @@ static SoilLaws soil(int method, int law)
     return s;
 }
 
+/* The laws of soil(method, law) prepared into cm and wm; 0 (a failed check) if they do not. */
+static int prepared(int method, int law, ContactModel *cm, WongReeceModel *wm)
+{
+    const SoilLaws s = soil(method, law);
+    char err[256];
+    if (wheel_soil_prepare_laws(&s, cm, wm, err, sizeof err) != 0) {
+        CHECK(0, "the test's soil prepares: %s", err);
+        return 0;
+    }
+    return 1;
+}
+
 /* Eight patches, more than one batch: in the soil, out of it (0, below,
  * NaN), beyond the radius, a half cut to nothing, both halves cut, a
  * sinkage of a nanometre. */
@@ -71,14 +83,9 @@ static int same_patch(const ContactPatch *a, const ContactPatch *b)
 static void test_patches(void)
 {
     for (int method = CONTACT_CLOSED_FORM; method <= CONTACT_QUADRATURE; ++method) {
-        const SoilLaws s = soil(method, CONTACT_LAW_VOLUMETRIC);
         ContactModel cm;
         WongReeceModel wm;
-        char err[256];
-        if (wheel_soil_prepare_laws(&s, &cm, &wm, err, sizeof err) != 0) {
-            CHECK(0, "the test's soil prepares: %s", err);
-            return;
-        }
+        if (!prepared(method, CONTACT_LAW_VOLUMETRIC, &cm, &wm)) return;
         ContactPatch one[NP];
         for (int i = 0; i < NP; ++i) contact_patch(&cm, SINK[i], CUT_F[i], CUT_R[i], &one[i]);
         /* all eight at once, then every count from 1 to 5 from every start */
@@ -108,14 +115,9 @@ static const ShearInput SHEAR[NS] = {
 
 static void test_shears(void)
 {
-    const SoilLaws s = soil(CONTACT_CLOSED_FORM, CONTACT_LAW_VOLUMETRIC);
     ContactModel cm;
     WongReeceModel wm;
-    char err[256];
-    if (wheel_soil_prepare_laws(&s, &cm, &wm, err, sizeof err) != 0) {
-        CHECK(0, "the test's soil prepares: %s", err);
-        return;
-    }
+    if (!prepared(CONTACT_CLOSED_FORM, CONTACT_LAW_VOLUMETRIC, &cm, &wm)) return;
     int same = 1, same_forces = 1;
     ShearForce many[NS], forces[NS];
     contact_shears(&cm, NS, SHEAR, many, 1);
@@ -150,14 +152,9 @@ static void test_wheel_soil(void)
     static const ContactMemory MEM[NW] = {{0.022, 0.05}, {0.018, 0.0}, {0.025, 0.0}, {0.02, -0.03}, {0.03, 0.004}};
     static const double V_LAT[NW] = {0.0, 0.03, 0.0, -0.01, 0.002};
     for (int law = CONTACT_LAW_VOLUMETRIC; law <= CONTACT_LAW_WONG_REECE; ++law) {
-        const SoilLaws s = soil(CONTACT_CLOSED_FORM, law);
         ContactModel cm;
         WongReeceModel wm;
-        char err[256];
-        if (wheel_soil_prepare_laws(&s, &cm, &wm, err, sizeof err) != 0) {
-            CHECK(0, "the test's soil prepares: %s", err);
-            return;
-        }
+        if (!prepared(CONTACT_CLOSED_FORM, law, &cm, &wm)) return;
         const WheelSoil ws = {&cm, &wm, law, 0.3, 0.2, 0.01, 0.7, 0.1, 12.0, 0.05};
         WheelSoilContact one[NW], many[NW];
         double Fl[NW], Ft[NW], jac[NW][6];
