@@ -140,20 +140,6 @@ typedef struct {
     double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
 } Eval;
 
-/* What the input-independent part of an evaluation is computed from
- * (rover_evaluate_passive): a byte copy, compared byte for byte before
- * the evaluation at the end of one communication step is reused as the
- * first one of the next.  rut only counts when multipass is on. */
-typedef struct {
-    Params p;
-    Derived d;
-    Terrain terrain;
-    double pos[3], quat[4], beta, u[NU], spin_angle[2];
-    ContactMemory memory[NUM_WHEELS];
-    double path[2];
-    double rut[2][RUT_SAMPLES];
-} EvalKey;
-
 typedef struct {
     Params p;
     Derived d;
@@ -164,10 +150,12 @@ typedef struct {
     char *terrain_file;            /* owned (malloc), NULL = flat ground */
     Terrain terrain;
     /* The input-independent evaluation of the state at the end of the
-     * last model_do_step (or model_initialize), valid while eval_valid and
-     * the model still matches eval_key; model_do_step checks both. */
+     * last model_do_step (or model_initialize), valid while eval_valid:
+     * set there, cleared by every other write of what it is computed from
+     * (model_changed: a parameter, String variable or state set through
+     * the accessors; model_initialize, model_reset, model_free) and by a
+     * failed step. */
     Eval eval;
-    EvalKey eval_key;
     int eval_valid;
     /* Counts of internal steps since initialisation, for benchmarks: taken
      * (accepted) and rejected by the automatic step's error estimate. */

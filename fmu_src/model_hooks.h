@@ -79,6 +79,12 @@ void model_describe(const Model *m, char *buf, size_t n);
 void model_get_state(const Model *m, ModelState *st);
 void model_set_state(Model *m, const ModelState *st);
 
+/* Called by the accessors (model_vars.c) after they write anything but an
+ * input or the time: a parameter, a String variable, a whole state.  A
+ * model that keeps work from one step for the next (the rover: its
+ * end-of-step evaluation) forgets it here; the rig keeps none. */
+void model_changed(Model *m);
+
 /* A state from elsewhere (deserialised: a tool's storage, a crafted file)
  * must hold values the model itself could have had: parameters and inputs
  * within their declared ranges, and when it is to be stepped (stepping)

@@ -45,7 +45,8 @@ int model_get_real(const Model *m, unsigned vr, double *value)
 int model_set_real(Model *m, unsigned vr, double value)
 {
     switch (vr) {
-#define REAL(vr_, name, kind, unit, start, lo, hi, field, desc) case vr_: m->field = value; return 0;
+#define REAL(vr_, name, kind, unit, start, lo, hi, field, desc) \
+    case vr_: m->field = value; if (kind != INPUT) model_changed(m); return 0;
 #define INT(vr_, name, kind, start, lo, hi, field, desc)
 #define STR(vr_, name, kind, start, field, desc)
     JUNO_VARIABLES
@@ -74,7 +75,8 @@ int model_set_int(Model *m, unsigned vr, int value)
 {
     switch (vr) {
 #define REAL(vr_, name, kind, unit, start, lo, hi, field, desc)
-#define INT(vr_, name, kind, start, lo, hi, field, desc) case vr_: m->field = value; return 0;
+#define INT(vr_, name, kind, start, lo, hi, field, desc) \
+    case vr_: m->field = value; if (kind != INPUT) model_changed(m); return 0;
 #define STR(vr_, name, kind, start, field, desc)
     JUNO_VARIABLES
 #undef REAL
@@ -222,7 +224,7 @@ int model_set_string(Model *m, unsigned vr, const char *value)
     switch (vr) {
 #define REAL(vr_, name, kind, unit, start, lo, hi, field, desc)
 #define INT(vr_, name, kind, start, lo, hi, field, desc)
-#define STR(vr_, name, kind, start, field, desc) case vr_: return set_owned_string(&m->field, value);
+#define STR(vr_, name, kind, start, field, desc) case vr_: model_changed(m); return set_owned_string(&m->field, value);
     JUNO_VARIABLES
 #undef REAL
 #undef INT
@@ -262,6 +264,7 @@ void model_resolve_resources(Model *m, const char *resource_dir)
 #undef REAL
 #undef INT
 #undef STR
+    model_changed(m);
 }
 
 /* Both models keep the time in State and step at most solver.step at a time. */
@@ -295,6 +298,7 @@ void model_set_state(Model *m, const ModelState *st)
     m->in = st->in;
     m->s = st->s;
     m->out = st->out;
+    model_changed(m);
 }
 
 /* a and b agree to 1e-9 of their size: the same preparation, with another C library's last bits */

@@ -420,8 +420,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
     const double t_end = s->time + h_comm;
     if (!(h_comm > 0)) return snprintf(err, errlen, "communication step %g s must be positive", h_comm), -1;
     double h = fmin(s->step_next > 0 ? s->step_next : STEP_FIRST, m->p.solver_step);
-    const int reuse = m->eval_valid && rover_eval_key_matches(m);
-    if (!reuse) rover_evaluate_passive(m, ev, 1);
+    if (!m->eval_valid) rover_evaluate_passive(m, ev, 1);
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
     if (memcmp(&s->last_inputs, &m->in, sizeof m->in) != 0) s->last_step = 0;   /* its forces had other inputs */
@@ -471,8 +470,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
     }
     s->time = t_end;
-    rover_eval_key_store(m, reuse);                        /* the end's passive evaluation, for the next step */
-    m->eval_valid = 1;
+    m->eval_valid = 1;                               /* the end's passive evaluation, for the next step */
     rover_evaluate_inputs(m, ev, 0);                 /* the torques only: Q, D, K stay input-free */
     rover_outputs_from(m, ev);
     return 0;

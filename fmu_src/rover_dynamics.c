@@ -301,8 +301,9 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
         for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
 }
 
-/* From s.pos, quat, beta, u, memory, path, rut, the parameters, derived
- * data and terrain only (what EvalKey records). */
+/* From s.pos, quat, beta, u, spin_angle, memory, path, rut, the parameters,
+ * derived data and terrain only (what a write outside model_do_step must
+ * call model_changed for, rover_step.c). */
 void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
     Frames fr;

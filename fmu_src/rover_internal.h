@@ -84,9 +84,9 @@ void rover_side_body(const Params *p, const Derived *d, double *mass, double cg[
 void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2]);
 
 /* The part of an evaluation that does not depend on the inputs (what
- * EvalKey records): kinematics, the bodies' M and Q (with matrices) and
- * the contacts.  rover_evaluate_inputs adds the drive and drawbar terms;
- * rover_evaluate does both. */
+ * m->eval keeps between steps, rover_step.c): kinematics, the bodies' M
+ * and Q (with matrices) and the contacts.  rover_evaluate_inputs adds the
+ * drive and drawbar terms; rover_evaluate does both. */
 void rover_evaluate_passive(const Model *m, Eval *ev, int matrices);
 void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices);
 void rover_evaluate(const Model *m, Eval *ev, int matrices);
@@ -98,13 +98,6 @@ void rover_outputs_from(Model *m, const Eval *ev);
 
 /* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
 void rover_evaluate_end_of_step(Model *m);
-
-/* Whether m->eval holds the passive evaluation of the current state: nothing
- * it was computed from has changed (EvalKey); and the key stored for it
- * (key_current: the parameters', derived data's and terrain's part is the
- * model's already, only the state's is stored). */
-int rover_eval_key_matches(const Model *m);
-void rover_eval_key_store(Model *m, int key_current);
 
 /* The contact memory and the multi-pass rut over a step of length h, from
  * the evaluation ev of the step's start and each wheel's sinkage over the

@@ -325,7 +325,13 @@ void model_free(Model *m)
     terrain_free(&m->terrain);
     free(m->terrain_file);
     m->terrain_file = NULL;
+    m->eval_valid = 0;
 }
+
+/* The kept end-of-step evaluation (Model.eval) belongs to the parameters, derived data, terrain
+ * and state it was computed from; any of them written outside model_do_step makes the next step
+ * evaluate afresh. */
+void model_changed(Model *m) { m->eval_valid = 0; }
 
 void model_reset(Model *m)
 {

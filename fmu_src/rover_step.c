@@ -170,59 +170,30 @@ int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
  * so the input-independent part (rover_evaluate_passive, with matrices) is
  * kept in m->eval and the next step's first substep adds the input terms
  * to it (rover_evaluate_inputs), the same operations in the same order as
- * evaluating afresh.  It is used only if nothing it was computed from has
- * changed since, byte for byte (EvalKey: parameters, derived data, terrain, the
- * state it reads); fmi2SetFMUstate, a new parameter or terrain, or a
- * failed step make the next step evaluate afresh.
- *
- * key_current: the key's parameters, derived data and terrain are the
- * model's already (the step began by matching them, and a step changes
- * none of them), so only the state's part is stored. */
-void rover_eval_key_store(Model *m, int key_current)
-{
-    EvalKey *k = &m->eval_key;
-    const State *s = &m->s;
-    if (!key_current) {
-        memcpy(&k->p, &m->p, sizeof k->p);
-        memcpy(&k->d, &m->d, sizeof k->d);
-        memcpy(&k->terrain, &m->terrain, sizeof k->terrain);
-    }
-    memcpy(k->pos, s->pos, sizeof k->pos);
-    memcpy(k->quat, s->quat, sizeof k->quat);
-    k->beta = s->beta;
-    memcpy(k->u, s->u, sizeof k->u);
-    memcpy(k->spin_angle, s->spin_angle, sizeof k->spin_angle);
-    memcpy(k->memory, s->memory, sizeof k->memory);
-    memcpy(k->path, s->path, sizeof k->path);
-    if (m->p.multipass_rutFraction > 0) memcpy(k->rut, s->rut, sizeof k->rut);
-}
+ * evaluating afresh.  It is used only while m->eval_valid, which says that
+ * nothing it was computed from has changed since: set where it is computed
+ * (the end of model_do_step, model_initialize), cleared when a step starts
+ * (the state moves on; a failed step leaves it cleared) and by every other
+ * write of what rover_evaluate_passive reads: the parameters, the derived
+ * data, the terrain, and the state's pos, quat, beta, u, spin_angle,
+ * memory, path and rut.  Between steps only the life cycle
+ * (model_initialize, model_reset, model_free) and the accessors write
+ * them, and the accessors call model_changed after writing anything but an
+ * input or the time (which the passive part does not read): a parameter or
+ * String variable (fmi2SetReal, fmi2SetInteger, fmi2SetString) or a whole
+ * state (fmi2SetFMUstate, also of a deserialised state).  A flag set by the
+ * writers, not a comparison of the bytes, so that a step does not compare
+ * and copy some 1.4 kB of parameters and state; code that writes the model's
+ * fields directly (tests) calls model_changed as the accessors do. */
 
-int rover_eval_key_matches(const Model *m)
-{
-    const EvalKey *k = &m->eval_key;
-    const State *s = &m->s;
-    return memcmp(&k->p, &m->p, sizeof k->p) == 0 && memcmp(&k->d, &m->d, sizeof k->d) == 0 &&
-           memcmp(&k->terrain, &m->terrain, sizeof k->terrain) == 0 &&
-           memcmp(k->pos, s->pos, sizeof k->pos) == 0 && memcmp(k->quat, s->quat, sizeof k->quat) == 0 &&
-           memcmp(&k->beta, &s->beta, sizeof k->beta) == 0 && memcmp(k->u, s->u, sizeof k->u) == 0 &&
-           memcmp(k->spin_angle, s->spin_angle, sizeof k->spin_angle) == 0 &&
-           memcmp(k->memory, s->memory, sizeof k->memory) == 0 &&
-           memcmp(k->path, s->path, sizeof k->path) == 0 &&
-           (!(m->p.multipass_rutFraction > 0) || memcmp(k->rut, s->rut, sizeof k->rut) == 0);
-}
-
-/* The end-of-step evaluation: the outputs, and m->eval kept for reuse
- * (key_current: rover_eval_key_store). */
-static void evaluate_end_of_step(Model *m, int key_current)
+/* The end-of-step evaluation: the outputs, and m->eval kept for reuse. */
+void rover_evaluate_end_of_step(Model *m)
 {
     rover_evaluate_passive(m, &m->eval, 1);
-    rover_eval_key_store(m, key_current);
     m->eval_valid = 1;
     rover_evaluate_inputs(m, &m->eval, 0);          /* the torques only: Q, D, K stay input-free */
     rover_outputs_from(m, &m->eval);
 }
-
-void rover_evaluate_end_of_step(Model *m) { evaluate_end_of_step(m, 0); }
 
 /* The contact memory (max sinkage, distance rolled) and the multi-pass
  * rut over a step of length h, explicitly, from the evaluation ev of the
@@ -332,12 +303,12 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
     int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
     if (n < 1) n = 1;
     const double h = h_comm / n;
-    const int reuse = m->eval_valid && rover_eval_key_matches(m);
+    const int reuse = m->eval_valid;
     for (int i = 0; i < n; ++i) {
         if (substep(m, h, reuse && i == 0, err, errlen) != 0) return -1;
         m->steps_taken++;
     }
     m->s.time = t_end;
-    evaluate_end_of_step(m, reuse);
+    rover_evaluate_end_of_step(m);
     return 0;
 }

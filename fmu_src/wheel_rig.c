@@ -249,6 +249,9 @@ void model_reset(Model *m)
     model_set_defaults(m);
 }
 
+/* The rig keeps nothing from one step for the next. */
+void model_changed(Model *m) { (void)m; }
+
 void model_describe(const Model *m, char *buf, size_t n)
 {
     snprintf(buf, n, "%s law, static sinkage %.4f m under rig.load = %g N, moving mass %g kg, A1 = %.4f",

@@ -10,6 +10,8 @@
  *   - the model is set back to an earlier state (as fmi2SetFMUstate does)
  *     or a parameter changes between steps: the kept evaluation belongs to
  *     another state and must not be used.
+ * The accessors (model_set_state, model_set_real) are what clears it; the
+ * FMI functions that reach them are checked in test_eval_reuse_fmi.c.
  */
 #include <stdlib.h>
 #include <string.h>
@@ -92,24 +94,48 @@ static void test_multipass(void)
     model_free(a), model_free(b), free(a), free(b);
 }
 
-/* An earlier state put back (fmi2SetFMUstate), and a parameter changed
- * between steps: the next step must evaluate afresh. */
+/* An earlier state put back (model_set_state, as fmi2SetFMUstate does),
+ * and a parameter changed between steps (model_set_real): the next step
+ * must evaluate afresh.  Both go through the accessors, which are what
+ * tells the model that its kept evaluation no longer holds. */
 static void test_state_restored_and_parameter_changed(void)
 {
+    enum { VR_GRAVITY = 139, VR_THROTTLE_LEFT = 205 };
     Model *a = new_model(DRIVE_MOTOR, 0.01, 0.0), *b = new_model(DRIVE_MOTOR, 0.01, 0.0);
+    ModelState *early = (ModelState *)malloc(sizeof *early);
+    if (!early) exit(2);
     int k = lockstep(a, b, 0, 50, 0.01);
-    const State early = a->s;
-    const Outputs early_out = a->out;
+    model_get_state(a, early);
     if (k < 0) k = lockstep(a, b, 50, 50, 0.01);
-    a->s = early, a->out = early_out;           /* a keeps its evaluation of the later state */
-    b->s = early, b->out = early_out;
+    model_set_state(a, early);                  /* a kept its evaluation of the later state */
+    model_set_state(b, early);
+    CHECK(!a->eval_valid, "setting a state makes the next step evaluate afresh");
     if (k < 0) k = lockstep(a, b, 100, 50, 0.01);
     CHECK(k < 0, "state set back 50 steps: bit for bit afterwards (first difference at step %d)", k);
-    a->p.wheel_mass *= 1.5;                     /* read by the body assembly */
-    b->p.wheel_mass *= 1.5;
+    double g = 0;
+    model_get_real(a, VR_GRAVITY, &g);
+    model_set_real(a, VR_GRAVITY, 1.1 * g);     /* read by the body assembly (the bodies' weights) */
+    model_set_real(b, VR_GRAVITY, 1.1 * g);
+    CHECK(!a->eval_valid && a->p.env_gravity == 1.1 * g, "setting env.gravity makes the next step evaluate afresh");
     if (k < 0) k = lockstep(a, b, 150, 50, 0.01);
-    CHECK(k < 0, "wheel.mass changed between steps: bit for bit afterwards (first difference at step %d)", k);
-    model_free(a), model_free(b), free(a), free(b);
+    CHECK(k < 0, "env.gravity changed between steps: bit for bit afterwards (first difference at step %d)", k);
+    /* and the change is seen: a step from the same state with the old gravity ends elsewhere */
+    Model *c = new_model(DRIVE_MOTOR, 0.01, 0.0);
+    model_get_state(a, early);
+    model_set_state(c, early);
+    model_set_real(c, VR_GRAVITY, g);
+    char err[512];
+    set_inputs(a, 200), set_inputs(c, 200);
+    if (model_do_step(a, 0.01, err, sizeof err) != 0 || model_do_step(c, 0.01, err, sizeof err) != 0) {
+        printf("model_do_step: %s\n", err);
+        exit(2);
+    }
+    CHECK(memcmp(a->s.u, c->s.u, sizeof a->s.u) != 0, "a step with env.gravity %g m/s2 ends elsewhere than with %g",
+          1.1 * g, g);
+    /* an input set between steps keeps the kept evaluation: it reads no input */
+    model_set_real(a, VR_THROTTLE_LEFT, 0.3);
+    CHECK(a->eval_valid, "setting an input keeps the kept evaluation");
+    model_free(a), model_free(b), model_free(c), free(a), free(b), free(c), free(early);
 }
 
 int main(void)
