@@ -366,15 +366,22 @@ static void sinkages_at_end(const Model *m, const Eval *ev, const StepIncrement 
 }
 
 /* Moves the state on by inc over h (ev: the step's start's evaluation, for
- * the soil memory and the checks); -1 with a message if the new state
- * fails the checks of a diverging state. */
+ * the soil memory and the checks); -1 with a message, the state left as it
+ * was, if the new state would fail the checks of a diverging state (they
+ * read its time, position, velocities and rocker angle, checked before
+ * anything is written: so a rejected step needs no copy of the state). */
 static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
 {
     State *s = &m->s;
-    for (int i = 0; i < NU; ++i) s->u[i] += inc->du[i];
-    for (int i = 0; i < 3; ++i) s->pos[i] += inc->dq[U_VX + i];
+    double u[NU], pos[3];
+    for (int i = 0; i < NU; ++i) u[i] = s->u[i] + inc->du[i];
+    for (int i = 0; i < 3; ++i) pos[i] = s->pos[i] + inc->dq[U_VX + i];
+    const double beta = s->beta + inc->dq[U_BETA];
+    if (!rover_motion_is_sane(m, ev, s->time + h, pos, u, beta, err, errlen)) return -1;
+    memcpy(s->u, u, sizeof s->u);
+    memcpy(s->pos, pos, sizeof s->pos);
     quat_integrate_world(s->quat, &inc->dq[U_WX], 1.0);
-    s->beta += inc->dq[U_BETA];
+    s->beta = beta;
     for (int k = 0; k < 2; ++k) s->spin_angle[k] += inc->dq[U_SPIN_L + k];
     if (m->p.drive_mode == DRIVE_PID) {
         for (int k = 0; k < 2; ++k) s->pid_integral[k] += inc->dI[k];
@@ -396,36 +403,21 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     }
     rover_advance_soil_memory(m, ev, sinkage, h);
     s->time += h;
-    return rover_state_is_sane(m, ev, err, errlen) ? 0 : -1;
-}
-
-/* Copies the integrator state, the rut memory only when multipass is on
- * (it is 4 kB and unused otherwise). */
-static void state_copy(State *to, const State *from, int with_rut)
-{
-    if (with_rut) {
-        *to = *from;
-        return;
-    }
-    const size_t a = offsetof(State, rut), b = a + sizeof from->rut;
-    memcpy(to, from, a);
-    memcpy((char *)to + b, (const char *)from + b, sizeof *from - b);
+    return 0;
 }
 
 int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
 {
     State *s = &m->s;
     Eval *ev = &m->eval;
-    const int with_rut = m->p.multipass_rutFraction > 0;
     const double t_end = s->time + h_comm;
     if (!(h_comm > 0)) return snprintf(err, errlen, "communication step %g s must be positive", h_comm), -1;
-    double h = fmin(s->step_next > 0 ? s->step_next : STEP_FIRST, m->p.solver_step);
+    double h = fmin_of(m->p.solver_step, s->step_next > 0 ? s->step_next : STEP_FIRST);
     if (!m->eval_valid) rover_evaluate_passive(m, ev, 1);
     m->eval_valid = 0;
     rover_evaluate_inputs(m, ev, 1);
     if (memcmp(&s->last_inputs, &m->in, sizeof m->in) != 0) s->last_step = 0;   /* its forces had other inputs */
     double remaining = h_comm;
-    State saved;
     while (remaining > 0) {
         const double n = ceil(remaining / h - 1e-9);     /* steps of at most h to the communication point */
         const int last = n <= 1;
@@ -441,7 +433,6 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         if (ok) {
             ratio = error_ratio(m, &inc);
             if (ratio <= 1.0 || smallest) {
-                state_copy(&saved, s, with_rut);
                 ok = apply_increment(m, ev, &inc, hs, why, sizeof why) == 0;
                 if (ok) {
                     s->last_step = hs;
@@ -453,7 +444,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                     const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
                     /* never below STEP_MIN: a step accepted there with a large error would otherwise
                      * shrink the next towards 0, and the step would never reach its end */
-                    h = fmax(STEP_MIN, fmin(m->p.solver_step, hs * fmin(2.0, fmax(0.2, grow))));
+                    h = fmax_of(STEP_MIN, fmin_of(m->p.solver_step, hs * fmin_of(2.0, fmax_of(0.2, grow))));
                     s->step_next = h;
                     m->steps_taken++;
                     remaining = last ? 0.0 : remaining - hs;
@@ -461,13 +452,13 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                     if (!last) rover_evaluate_inputs(m, ev, 1);
                     continue;
                 }
-                state_copy(s, &saved, with_rut);            /* ev is still the step's start's */
+                /* the state is the step's start's still (apply_increment wrote nothing), as is ev */
             }
         }
         /* rejected: again from the step's start, shorter */
         if (smallest) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
         m->steps_rejected++;
-        h = fmax(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax(0.2, 0.9 / sqrt(ratio)) : 0.25));
+        h = fmax_of(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax_of(0.2, 0.9 / sqrt(ratio)) : 0.25));
     }
     s->time = t_end;
     m->eval_valid = 1;                               /* the end's passive evaluation, for the next step */

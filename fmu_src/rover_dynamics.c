@@ -413,7 +413,7 @@ void rover_outputs_from(Model *m, const Eval *ev)
     o->y = m->s.pos[1];
     o->z = m->s.pos[2];
     o->yaw = atan2(R[3], R[0]);
-    o->pitch = asin(fmax(-1.0, fmin(1.0, -R[6])));
+    o->pitch = asin(fmax_of(-1.0, fmin_of(1.0, -R[6])));
     o->roll = atan2(R[7], R[8]);
     o->vx = v3_dot(&m->s.u[U_VX], ev->heading);
     o->omegaLeft = m->s.u[U_SPIN_L];

@@ -50,6 +50,12 @@ extern const char *const rover_wheel_names[NUM_WHEELS];
 #endif
 
 static inline int side_of(int w) { return w / 2; }
+
+/* fmin(a, x) and fmax(a, x) without their library calls (GCC keeps the calls unless it may
+ * ignore NaNs and signed zeros), for an a that is neither NaN nor zero: the same result, a NaN x
+ * giving a as fmin and fmax do. */
+static inline double fmin_of(double a, double x) { return x < a ? x : a; }
+static inline double fmax_of(double a, double x) { return x > a ? x : a; }
 static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0; }
 
 /* What an evaluation computes beside the kinematics and the forces (the
@@ -105,8 +111,11 @@ void rover_evaluate_end_of_step(Model *m);
 void rover_advance_soil_memory(Model *m, const Eval *ev, const double sinkage[NUM_WHEELS], double h);
 
 /* 1 if the state after a step is sane; else 0, with the likely cause of the
- * divergence (from ev, the step's start's evaluation) in err. */
+ * divergence (from ev, the step's start's evaluation) in err.  The same for
+ * a state to come: its time (s), position, velocities and rocker angle. */
 int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n);
+int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
+                         double beta, char *err, size_t n);
 
 /* rover_auto_step.c */
 

@@ -142,24 +142,30 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
              "wheel.width)");
 }
 
-int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
+int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
+                         double beta, char *err, size_t n)
 {
-    const State *s = &m->s;
     char cause[256];
     for (int i = 0; i < 3; ++i)
-        if (!isfinite(s->pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", s->time), 0;
+        if (!isfinite(pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", time), 0;
     for (int i = 0; i < NU; ++i)
-        if (!isfinite(s->u[i]) || fabs(s->u[i]) > 1e3)
-            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g", s->time, i, s->u[i]), 0;
-    if (fabs(s->beta) > 1.2)
-        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", s->time, s->beta), 0;
+        if (!isfinite(u[i]) || fabs(u[i]) > 1e3)
+            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g", time, i, u[i]), 0;
+    if (fabs(beta) > 1.2)
+        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", time, beta), 0;
     for (int w = 0; w < NUM_WHEELS; ++w)
         if (ev->wheel[w].sinkage >= m->p.wheel_radius) {
             sinkage_cause(m, ev, w, cause, sizeof cause);
             return snprintf(err, n, "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius; %s",
-                            s->time, rover_wheel_names[w], ev->wheel[w].sinkage, cause), 0;
+                            time, rover_wheel_names[w], ev->wheel[w].sinkage, cause), 0;
         }
     return 1;
+}
+
+int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
+{
+    const State *s = &m->s;
+    return rover_motion_is_sane(m, ev, s->time, s->pos, s->u, s->beta, err, n);
 }
 
 /* ------------------------------------------- reusing an evaluation */
