@@ -406,6 +406,7 @@ def grid_from_points(
     """
     from scipy.interpolate import griddata
     from scipy.spatial import cKDTree
+    from threadpoolctl import threadpool_limits
 
     if not (np.isfinite(cell) and cell > 0):
         raise ValueError(f"grid cell size must be a positive number of metres, got {cell!r}")
@@ -439,8 +440,11 @@ def grid_from_points(
     gy = (y0 - origin[1]) + cell * np.arange(nrows)
     X, Y = np.meshgrid(gx, gy)
     if len(pts) >= 3 and method != "nearest":
+        # One BLAS thread: the interpolation's small solves gain nothing from threads, and
+        # OpenBLAS's spinning threads took five times the CPU of the interpolation itself.
         try:
-            z = griddata(local, pts[:, 2], (X, Y), method=method)
+            with threadpool_limits(limits=1, user_api="blas"):
+                z = griddata(local, pts[:, 2], (X, Y), method=method)
         except Exception as e:  # Qhull failure on a nearly degenerate cloud
             raise InputError(f"cannot triangulate the point cloud: {str(e).splitlines()[0]}") from None
     else:
