@@ -368,13 +368,17 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     the gains alone with the scan as it is.  Returns (offsets with gains (6,), the as-scanned
     gains (2,), the cost of each).  With ``h0`` None the raise is not fitted (see register)."""
     fit_z = h0 is not None
-    posing = _Posing(grid, tr, 0.0 if h0 is None else h0)
+    # Posed in a frame centred on the path: a registration about its origin is one about the
+    # path's centre, and the pose solve keeps its precision in a map's coordinates (millions of
+    # metres leave it nanometres, where it iterates to a tenth of one).
     centre = turning_centre(tr)
+    posing = _Posing(replace(grid, x0=grid.x0 - centre[0], y0=grid.y0 - centre[1]),
+                     replace(tr, x=tr.x - centre[0], y=tr.y - centre[1]), 0.0 if h0 is None else h0)
 
     def offset_of(v: np.ndarray) -> np.ndarray:
         """v: the shift and turn about the traverse's centre, the raise, then the pitch and roll
-        gains; returned as the FMU's offsets (about the world origin)."""
-        return fmu_offsets(np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]]), centre)
+        gains; returned as the registration in the path-centred frame."""
+        return np.array([v[0], v[1], v[2] if fit_z else 0.0, v[3]])
 
     def res(v: np.ndarray) -> np.ndarray:
         r = posing.residuals(offset_of(v), (v[4], v[5]))
@@ -403,7 +407,7 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None) -> tuple[np.ndarray, np.nda
     as_scanned = least_squares(lambda g: res(np.array([0.0, 0.0, 0.0, 0.0, g[0], g[1]])),
                                np.clip(np.ones(2), lower[4:], upper[4:]), bounds=(lower[4:], upper[4:]))
     x = best.x.copy()
-    x[:4] = offset_of(best.x)
+    x[:4] = fmu_offsets(offset_of(best.x), centre)
     return x, as_scanned.x, float(best.cost), float(as_scanned.cost)
 
 

@@ -186,22 +186,33 @@ def test_traverse_along_a_mound_flank_finds_where_the_mound_is(pitch_gain, roll_
     assert fitted[2] == pytest.approx(truth[2], abs=0.005)
 
 
+OFFSET_NAMES = ("terrain.offsetX", "terrain.offsetY", "terrain.offsetZ", "terrain.offsetYaw")
+
+
+@pytest.fixture(scope="module")
+def registered_here() -> np.ndarray:
+    """The registration of the flank traverse (truth 0.15, -0.12, 0.02, 0.04) in the scan's frame."""
+    scan = _mound_scan()
+    tr = _flank_traverse(scan, np.array([0.15, -0.12, 0.02, 0.04]), 1.15, 1.05, seed=7)
+    found = reg.register(scan, tr, 0.41)
+    return np.array([found[k] for k in OFFSET_NAMES])
+
+
 @pytest.mark.parametrize("frame", [(250.0, -180.0), (512345.0, 5412345.0)],
                          ids=["a total station's frame", "map coordinates"])
-def test_a_registration_does_not_depend_on_where_the_frame_s_origin_is(frame):
+def test_a_registration_does_not_depend_on_where_the_frame_s_origin_is(frame, registered_here):
     """The same scan and traverse in a frame whose origin lies elsewhere (a total station set up
     250 m away; a map's coordinates, 5,400 km from its origin) give the same registration: the
     mound placed within 1 mm of where the registration in the original frame places it.  The
     search turns the scan about the measured path's centre: about the world origin, its bounded
     shifts could not follow a turn far from it."""
     scan = _mound_scan()
-    truth = np.array([0.15, -0.12, 0.02, 0.04])
-    tr = _flank_traverse(scan, truth, 1.15, 1.05, seed=7)
-    names = ("terrain.offsetX", "terrain.offsetY", "terrain.offsetZ", "terrain.offsetYaw")
-    here = np.array([reg.register(scan, tr, 0.41)[k] for k in names])
+    tr = _flank_traverse(scan, np.array([0.15, -0.12, 0.02, 0.04]), 1.15, 1.05, seed=7)
+    here = registered_here
     dx, dy = frame
     moved_scan = Grid(x0=scan.x0 + dx, y0=scan.y0 + dy, cell=scan.cell, z=scan.z)
-    moved = np.array([reg.register(moved_scan, replace(tr, x=tr.x + dx, y=tr.y + dy), 0.41)[k] for k in names])
+    found = reg.register(moved_scan, replace(tr, x=tr.x + dx, y=tr.y + dy), 0.41)
+    moved = np.array([found[k] for k in OFFSET_NAMES])
     for qx in (3.0, 4.0, 5.0):
         miss = np.hypot(*(_where(moved, qx + dx, 0.35 + dy) - (_where(here, qx, 0.35) + np.array(frame))))
         assert miss < 1e-3, f"mound point {qx} m placed {miss:.4f} m apart: {moved} against {here}"
