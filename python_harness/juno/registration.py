@@ -44,10 +44,11 @@ About the path's centre: the search turns the scan about the centre of the measu
 bounding box (turning_centre) and then shifts it, and only the result is expressed as the
 FMU's offsets about the world origin (fmu_offsets).  A turn about the world origin moves a scan
 that lies d metres from it by d times the angle, so with the shifts bounded (LIMITS) a scan far
-from the origin could not be turned at all: in a total station's frame set up 250 m away, the
-registration placed the mound 3.6 cm from where the same data put it in a frame about the
-scan.  About the path's centre the bounds, the starts and the result mean the same in every
-frame (the mound within 1 mm).
+from the origin could not be turned at all: searched about the origin, the same data in a total
+station's frame set up 250 m away place the mound 3.6 cm from where a frame about the scan
+places it.  About the path's centre the bounds, the starts and the result mean the same in every
+frame (the mound within 1 mm; the rover is posed in a frame centred on the path, where the pose
+solve keeps its precision in a map's coordinates too).
 
 Least squares over the four offsets and the two gains from a grid of starts gives the
 registration; register() keeps it only if it explains the measurements EVIDENCE_RATIO times
