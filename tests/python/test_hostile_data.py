@@ -413,3 +413,17 @@ def test_a_rover_that_turns_against_its_wheels_is_refused(turning_campaign, tmp_
     errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
     assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "omega_left")], errors
     assert "turns against its wheels" in errors[0].message and "swapped" in errors[0].message
+
+
+def test_a_yaw_in_degrees_is_refused_where_the_rover_turns(turning_campaign, tmp_path) -> None:
+    """A yaw logged in degrees turns the rover 57 times faster than its wheels' spin difference
+    can: the error names the run's file, the yaw column and the unit it suspects."""
+    root = tmp_path / "campaign"
+    shutil.copytree(turning_campaign, root)
+
+    def change(c):
+        c["yaw"] = np.degrees(c["yaw"])
+    edit_run(root, "t3d", change)
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "yaw")], errors
+    assert "looks like degrees" in errors[0].message
