@@ -821,7 +821,8 @@ static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
  * filled.  This equals repeated Jacobi-style averaging sweeps, but costs
  * O(cells) via a queue.  Each value is a mean over a fixed neighbour set,
  * so the result does not depend on the visiting order (deterministic), and
- * every filled value lies between the min and max of its final neighbours.
+ * every filled value lies between the min and max of its final neighbours
+ * (and is finite, as they are).
  * Returns 0, or -1 if out of memory. */
 static int fill_nodata(Terrain *g, long nnodata)
 {
@@ -867,6 +868,16 @@ static int fill_nodata(Terrain *g, long nnodata)
             if (j > 0 && state[idx - nc] == VALID) sum += g->z[idx - nc], cnt++;
             if (j + 1 < nr && state[idx + nc] == VALID) sum += g->z[idx + nc], cnt++;
             g->z[idx] = sum / (double)cnt; /* cnt >= 1 by construction */
+            if (!isfinite(g->z[idx])) {
+                /* elevations near the double range overflow the sum; their
+                 * shares do not (each at most the largest over cnt) */
+                double share = 0.0;
+                if (i > 0 && state[idx - 1] == VALID) share += g->z[idx - 1] / (double)cnt;
+                if (i + 1 < nc && state[idx + 1] == VALID) share += g->z[idx + 1] / (double)cnt;
+                if (j > 0 && state[idx - nc] == VALID) share += g->z[idx - nc] / (double)cnt;
+                if (j + 1 < nr && state[idx + nc] == VALID) share += g->z[idx + nc] / (double)cnt;
+                g->z[idx] = share;
+            }
         }
         for (q = head; q < front_end; q++)
             state[queue[q]] = VALID;

@@ -450,6 +450,29 @@ static void test_nodata(void)
     terrain_free(&t2);
 }
 
+/* A hole between elevations near the double range gets their mean, not
+ * the overflow of their sum. */
+static void test_nodata_near_double_range(void)
+{
+    const char *text =
+        "ncols 3\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\n"
+        "1e308 -9999 1.5e308\n"
+        "1 2 3\n";
+    char err[512];
+    Terrain t;
+    const char *path = write_fixture("nodata_huge.asc", text);
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "load failed: %s", err);
+    if (t.ncols != 3 || t.nrows != 2)
+        return;
+    /* north row (row 1): the hole's neighbours are 1e308, 1.5e308 (west,
+     * east) and 2 (south) */
+    const double v = t.z[1 * 3 + 1], expected = 1e308 / 3.0 + 1.5e308 / 3.0 + 2.0 / 3.0;
+    CHECK(isfinite(v) && fabs(v - expected) <= 1e-15 * expected,
+          "hole between 1e308 and 1.5e308: %.17g, expected %.17g", v, expected);
+    terrain_free(&t);
+}
+
 /* ---------------------------------------------------------------- */
 /* 7. bad and odd files                                              */
 /* ---------------------------------------------------------------- */
@@ -896,6 +919,7 @@ int main(int argc, char **argv)
     test_outside_and_flat();
     test_height_normal_at_once();
     test_nodata();
+    test_nodata_near_double_range();
     test_bad_files();
     test_not_regular_files();
     test_err_buffer();
