@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "dense_lu.h"
 #include "rover_internal.h"
 
 /* solver.tolerance > 0: a two-stage linearly implicit (Rosenbrock-type)
@@ -77,107 +78,6 @@
 #define STEP_MIN 1e-6       /* s */
 #define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
 
-/* The LU factors of the automatic step's matrix: L's multipliers below
- * the diagonal of a (unit diagonal implied), U on and above it, row c of
- * both from the matrix's row order[c] (partial pivoting); for the backward
- * substitution, the reciprocals of U's diagonal and U's rows right of it
- * over their diagonal. */
-typedef struct {
-    double a[NU][NU];
-    double inv_diag[NU];
-    double u_scaled[NU][NU];       /* right of the diagonal: U[c][k] / U[c][c] */
-    int order[NU];
-} LU;
-
-/* One column c of lu_factor's elimination: partial pivoting among rows
- * c..NU-1, then the rows below get their multiplier in column c (by the
- * pivot's reciprocal: one division a column) and lose that column's share
- * right of it; and row c of U over its diagonal.  Inlined with a constant
- * c (lu_factor), its loops have fixed lengths, which GCC unrolls and
- * vectorises. */
-static inline int lu_column(LU *lu, const int c)
-{
-    double (*A)[NU] = lu->a;
-    int piv = c;
-    double best = fabs(A[c][c]);
-    for (int r = c + 1; r < NU; ++r) {
-        const double v = fabs(A[r][c]);
-        if (v > best) best = v, piv = r;
-    }
-    if (!(best > 1e-300)) return -1;
-    if (piv != c) {
-        for (int k = 0; k < NU; ++k) {
-            const double t = A[c][k];
-            A[c][k] = A[piv][k], A[piv][k] = t;
-        }
-        const int t = lu->order[c];
-        lu->order[c] = lu->order[piv], lu->order[piv] = t;
-    }
-    const double *pr = A[c], inv = 1.0 / pr[c];
-    lu->inv_diag[c] = inv;
-    for (int r = c + 1; r < NU; ++r) {
-        double *rr = A[r];
-        const double f = rr[c] * inv;
-        rr[c] = f;
-        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
-    }
-    for (int k = c + 1; k < NU; ++k) lu->u_scaled[c][k] = pr[k] * inv;
-    return 0;
-}
-
-/* LU factorisation of lu->a with partial pivoting, in place.  Returns -1
- * if singular.  Out of line, as two_stage: inlined, their caller grew too
- * large for GCC to keep its values in registers (the two out of line: 330
- * fewer instructions an accepted step, 4 % less CPU time). */
-static NOINLINE int lu_factor(LU *lu)
-{
-    _Static_assert(NU == 9, "lu_factor() unrolls its columns for NU = 9");
-    for (int i = 0; i < NU; ++i) lu->order[i] = i;
-    return lu_column(lu, 0) || lu_column(lu, 1) || lu_column(lu, 2) || lu_column(lu, 3) || lu_column(lu, 4) ||
-                   lu_column(lu, 5) || lu_column(lu, 6) || lu_column(lu, 7) || lu_column(lu, 8)
-               ? -1
-               : 0;
-}
-
-/* Row r of the forward substitution (L y = b, unit diagonal) and row c of
- * the backward one (U x = y, as x_c = y_c / U_cc - sum (U_ck / U_cc) x_k),
- * each inlined with a constant row.  The substitutions are a chain of
- * dependent rows: each sum takes the entry solved last (y[r - 1],
- * x[c + 1]) last, and the backward row's division is done beforehand
- * (lu_column), so that each row's share of the chain is one
- * multiplication and one subtraction, not a subtraction per entry and a
- * division. */
-static inline void lu_forward_row(const LU *lu, double x[NU], const int r)
-{
-    double y = x[r];
-    for (int c = 0; c < r; ++c) y -= lu->a[r][c] * x[c];
-    x[r] = y;
-}
-
-static inline void lu_backward_row(const LU *lu, double x[NU], const int c)
-{
-    double v = x[c] * lu->inv_diag[c];
-    for (int k = NU - 1; k > c; --k) v -= lu->u_scaled[c][k] * x[k];
-    x[c] = v;
-}
-
-/* Solves A x = b with lu_factor's factors; b is overwritten with x.  The
- * rows are solved in a local array indexed by constants only (the
- * pivoting's reordering is a gather from b), which the compiler keeps in
- * registers: through memory, each row would add a store and a load to
- * the chain. */
-static void lu_solve(const LU *restrict lu, double *restrict b)
-{
-    double x[NU];
-    for (int i = 0; i < NU; ++i) x[i] = b[lu->order[i]];
-    lu_forward_row(lu, x, 1), lu_forward_row(lu, x, 2), lu_forward_row(lu, x, 3), lu_forward_row(lu, x, 4);
-    lu_forward_row(lu, x, 5), lu_forward_row(lu, x, 6), lu_forward_row(lu, x, 7), lu_forward_row(lu, x, 8);
-    lu_backward_row(lu, x, 8), lu_backward_row(lu, x, 7), lu_backward_row(lu, x, 6), lu_backward_row(lu, x, 5);
-    lu_backward_row(lu, x, 4), lu_backward_row(lu, x, 3), lu_backward_row(lu, x, 2), lu_backward_row(lu, x, 1);
-    lu_backward_row(lu, x, 0);
-    for (int i = 0; i < NU; ++i) b[i] = x[i];
-}
-
 /* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
  * contacts' normal stiffness acts through the hubs, whose velocity
  * Jacobians have no spin columns: rover_wheel_contact.c's add_outer_hub)
@@ -219,13 +119,15 @@ typedef struct {
  * a = 1 where the integral integrates (anti-windup, decided at the step's
  * start), the integral's rate being a (ref - omega).  The first stage's
  * r = h f(y) = (h u, h a (ref - omega), h M^-1 Q), the second's r = k1 plus
- * the correction in r_u.  Out of line (lu_factor says why). */
+ * the correction in r_u.  Out of line: inlined, its caller grew too large
+ * for GCC to keep its values in registers (it and dense_lu_factor out of
+ * line: 330 fewer instructions an accepted step, 4 % less CPU time). */
 static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncrement *inc)
 {
     const State *s = &m->s;
     const double g = ROS_GAMMA * h;
     const double (*K)[NU] = (const double (*)[NU])ev->K;
-    LU lu;
+    DenseLU lu;
     double (*A)[NU] = lu.a, k1u[NU], k1q[NU], k1I[2], k2u[NU];
     /* K's structural zeros (k_times) left out: adding g g 0 changes nothing */
     const double gg = g * g;
@@ -235,7 +137,7 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     }
     for (int i = K_BLOCK; i < NU; ++i)
         for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
-    if (lu_factor(&lu) != 0) return -1;
+    if (dense_lu_factor(&lu) != 0) return -1;
 
     double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
     if (m->p.drive_mode == DRIVE_PID)
@@ -252,7 +154,7 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     k_times(K, s->u, Ku);
     for (int i = 0; i < NU; ++i) k1u[i] = h * ev->Q[i] - g * h * Ku[i];
     for (int k = 0; k < 2; ++k) k1u[U_SPIN_L + k] += g * c[k] * h * (s->u[U_SPIN_L + k] + rate[k]);
-    lu_solve(&lu, k1u);
+    dense_lu_solve(&lu, k1u);
     for (int j = 0; j < NU; ++j) k1q[j] = h * s->u[j] + g * k1u[j];
     for (int k = 0; k < 2; ++k) k1I[k] = h * rate[k] - g * active[k] * k1u[U_SPIN_L + k];
 
@@ -285,7 +187,7 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
         const double f = h * h / (2.0 * (1.0 - ROS_GAMMA) * s->last_step);
         for (int i = 0; i < NU; ++i) k2u[i] += f * R[i];
     }
-    lu_solve(&lu, k2u);
+    dense_lu_solve(&lu, k2u);
 
     /* y + g k1 + (1 - g) k2, k2's displacements and integrals from its velocities */
     const double b1 = ROS_GAMMA, b2 = 1.0 - ROS_GAMMA;
