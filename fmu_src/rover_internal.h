@@ -11,6 +11,7 @@
  *                          of an evaluation, the soil memory's update, the
  *                          checks of a diverging state
  *   rover_auto_step.c      the automatic step (the default)
+ *   dense_lu.c             the dense 9 x 9 solver of both steps (dense_lu.h)
  *
  * The rover: the CSA Juno rover's chassis (6 DOF), two main rockers coupled
  * by the transverse differential (left angle beta, right -beta), one spin

@@ -15,63 +15,9 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
-#include <string.h>
 
+#include "dense_lu.h"
 #include "rover_internal.h"
-
-/* ------------------------------------------------------ linear algebra */
-
-/* One column of the elimination in solve(): partial pivoting among rows
- * c..NU-1 (by row pointer), then the rows below lose their column-c entry.
- * The entries left of the diagonal are never read again, so they are not
- * updated.  Inlined with a constant c, the loops have fixed lengths. */
-static inline int eliminate_column(double *row[NU], int idx[NU], double b[NU], const int c)
-{
-    int piv = c;
-    double best = fabs(row[c][c]);
-    for (int r = c + 1; r < NU; ++r) {
-        const double v = fabs(row[r][c]);
-        if (v > best) best = v, piv = r;
-    }
-    if (!(best > 1e-300)) return -1;
-    if (piv != c) {
-        double *t = row[c]; row[c] = row[piv]; row[piv] = t;
-        const int ti = idx[c]; idx[c] = idx[piv]; idx[piv] = ti;
-    }
-    const double *pr = row[c], pivot = pr[c], bc = b[idx[c]];
-    for (int r = c + 1; r < NU; ++r) {
-        double *rr = row[r];
-        const double f = rr[c] / pivot;
-        if (f == 0) continue;
-        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
-        b[idx[r]] -= f * bc;
-    }
-    return 0;
-}
-
-/* Solves A x = b (n = NU) by Gaussian elimination with partial pivoting.
- * A and b are overwritten.  Returns -1 if singular.  The rows are swapped
- * through pointers: the arithmetic is that of the textbook loop,
- * operation for operation. */
-static int solve(double A[NU][NU], double b[NU])
-{
-    _Static_assert(NU == 9, "solve() unrolls its columns for NU = 9");
-    double *row[NU], x[NU];
-    int idx[NU];
-    for (int i = 0; i < NU; ++i) row[i] = A[i], idx[i] = i;
-    if (eliminate_column(row, idx, b, 0) || eliminate_column(row, idx, b, 1) || eliminate_column(row, idx, b, 2) ||
-        eliminate_column(row, idx, b, 3) || eliminate_column(row, idx, b, 4) || eliminate_column(row, idx, b, 5) ||
-        eliminate_column(row, idx, b, 6) || eliminate_column(row, idx, b, 7) || eliminate_column(row, idx, b, 8))
-        return -1;
-    for (int c = NU - 1; c >= 0; --c) {
-        const double *pr = row[c];
-        double s = b[idx[c]];
-        for (int k = c + 1; k < NU; ++k) s -= pr[k] * x[k];
-        x[c] = s / pr[c];
-    }
-    memcpy(b, x, sizeof x);
-    return 0;
-}
 
 /* ------------------------------------------------- diverging states */
 
@@ -234,7 +180,8 @@ static int advance(Model *m, double h, char *err, size_t errlen)
     State *s = &m->s;
     const Eval *ev = &m->eval;
     const double (*K)[NU] = (const double (*)[NU])ev->K;
-    double A[NU][NU], b[NU];
+    DenseLU lu;
+    double (*A)[NU] = lu.a, b[NU];
     for (int i = 0; i < NU; ++i) {
         double Ku = 0;
         for (int j = 0; j < NU; ++j) {
@@ -249,8 +196,9 @@ static int advance(Model *m, double h, char *err, size_t errlen)
                 const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
                 b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
             }
-    if (solve(A, b) != 0)
+    if (dense_lu_factor(&lu) != 0)
         return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
+    dense_lu_solve(&lu, b);
 
     for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
     for (int i = 0; i < NU; ++i) s->u[i] += b[i];
