@@ -47,6 +47,7 @@ typedef struct {
     double multipass_rutFraction, multipass_khFactor;
     double slipSinkage_coefficient, grouser_thrustGain, grouser_lugHeight, drive_lossFraction;
     double terrain_offsetX, terrain_offsetY, terrain_offsetZ, terrain_offsetYaw;
+    double terrain_slopeX, terrain_slopeY;      /* registration tilt, off at 0 */
     double drive_frictionLeft, drive_frictionRight, drive_viscousFriction;   /* drivetrain friction, off at 0 */
     double strip_x, strip_halfWidth, strip_khFactor, strip_strengthFactor;   /* soil strip, off at factors 1 */
     double slipSinkage_exponent, grouser_thrustSlip, multipass_compactionDepth;

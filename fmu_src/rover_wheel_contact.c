@@ -165,29 +165,50 @@ static inline void sub_outer_pair(double (*restrict Mx)[NU], const double *restr
 
 /* ------------------------------------------------------ terrain, soil */
 
+/* The tilt of the registration: the ground raised by the plane
+ * slopeX x + slopeY y (world x, y) on top of height z, with the unit
+ * normal n (if not NULL) turned to the tilted surface's: a surface of
+ * gradient g has the normal (-g, 1) / |(-g, 1)|, so the grid's gradient is
+ * -n[0..1] / n[2], and the plane adds the slopes to it. */
+static double tilted(const Params *p, double x, double y, double z, double n[3])
+{
+    if (n) {
+        const double gx = -n[0] / n[2] + p->terrain_slopeX, gy = -n[1] / n[2] + p->terrain_slopeY;
+        const double inv = 1.0 / sqrt(gx * gx + gy * gy + 1.0);
+        n[0] = -gx * inv;
+        n[1] = -gy * inv;
+        n[2] = inv;
+    }
+    return z + (p->terrain_slopeX * x + p->terrain_slopeY * y);
+}
+
 /* Terrain at world (x, y), with the registration extension: the grid is
  * moved by (terrain.offsetX, offsetY, offsetZ) and turned by offsetYaw
  * about the world z axis, so a grid feature at grid coordinates q appears
- * at world o + Rz(yaw) q.  All zero: the grid as given. */
+ * at world o + Rz(yaw) q, then tilted (terrain.slopeX, slopeY; tilted()).
+ * All zero: the grid as given. */
 double rover_terrain_at(const Model *m, double x, double y, double n[3])
 {
     const Params *p = &m->p;
+    double z;
     if (p->terrain_offsetX == 0 && p->terrain_offsetY == 0 && p->terrain_offsetYaw == 0) {
-        if (n) return terrain_height_normal(&m->terrain, x, y, n) + p->terrain_offsetZ;
-        return terrain_height(&m->terrain, x, y) + p->terrain_offsetZ;
+        z = (n ? terrain_height_normal(&m->terrain, x, y, n) : terrain_height(&m->terrain, x, y)) + p->terrain_offsetZ;
+    } else {
+        const double c = cos(p->terrain_offsetYaw), sn = sin(p->terrain_offsetYaw);
+        const double dx = x - p->terrain_offsetX, dy = y - p->terrain_offsetY;
+        const double qx = c * dx + sn * dy, qy = -sn * dx + c * dy;
+        if (n) {
+            double ng[3];
+            z = terrain_height_normal(&m->terrain, qx, qy, ng) + p->terrain_offsetZ;
+            n[0] = c * ng[0] - sn * ng[1];
+            n[1] = sn * ng[0] + c * ng[1];
+            n[2] = ng[2];
+        } else {
+            z = terrain_height(&m->terrain, qx, qy) + p->terrain_offsetZ;
+        }
     }
-    const double c = cos(p->terrain_offsetYaw), sn = sin(p->terrain_offsetYaw);
-    const double dx = x - p->terrain_offsetX, dy = y - p->terrain_offsetY;
-    const double qx = c * dx + sn * dy, qy = -sn * dx + c * dy;
-    if (n) {
-        double ng[3];
-        const double z = terrain_height_normal(&m->terrain, qx, qy, ng);
-        n[0] = c * ng[0] - sn * ng[1];
-        n[1] = sn * ng[0] + c * ng[1];
-        n[2] = ng[2];
-        return z + p->terrain_offsetZ;
-    }
-    return terrain_height(&m->terrain, qx, qy) + p->terrain_offsetZ;
+    if (p->terrain_slopeX != 0 || p->terrain_slopeY != 0) return tilted(p, x, y, z, n);
+    return z;
 }
 
 /* Soil-patch extension: relative stiffness and strength at (x, y), a

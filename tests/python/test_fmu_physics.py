@@ -183,6 +183,24 @@ def test_rolls_back_down_15_degree_slope_without_torque(fmu_unzipped, slope15):
     _assert_upright_on_slope(r, -math.radians(SLOPE_DEG), "rolling back")
 
 
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_a_registration_tilt_of_flat_ground_is_the_slope_it_describes(fmu_unzipped, slope15, axis):
+    """terrain.slopeX / slopeY raise the ground by a plane through the world origin: flat ground
+    tilted by tan(15 deg) is the 15 deg slope grid (exact in bilinear interpolation), so a rover
+    rolling back down it follows the grid's run to round-off (along y: turned by 90 deg, with x
+    and y swapped)."""
+    names = ["x", "y", "z", "pitch", "roll", "vx"]
+    on_grid = run(fmu_unzipped, {"drive.mode": 0}, FREE, stop_time=2.0, outputs=names, terrain=slope15)
+    slope = math.tan(math.radians(SLOPE_DEG))
+    tilt = {"terrain.slopeX": slope} if axis == "x" else {"terrain.slopeY": slope, "init.yaw": math.pi / 2}
+    tilted = run(fmu_unzipped, {"drive.mode": 0, **tilt}, FREE, stop_time=2.0, outputs=names)
+    along = tilted["x"] if axis == "x" else tilted["y"]
+    assert on_grid["x"][-1] < on_grid["x"][0] - 0.3, "the rover must roll back down the slope"
+    np.testing.assert_allclose(along, on_grid["x"], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(tilted["z"], on_grid["z"], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(tilted["pitch"], on_grid["pitch"], rtol=0, atol=1e-7)
+
+
 def _ramp_grid(deg=SLOPE_DEG, cell=0.1):
     xs = np.arange(-4.0, 14.0 + cell / 2, cell)
     ys = np.arange(-3.0, 3.0 + cell / 2, cell)
