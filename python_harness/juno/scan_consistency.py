@@ -163,7 +163,7 @@ def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.nda
     not a test passed."""
     from scipy.optimize import least_squares
 
-    from .registration import GAIN_LIMITS, SIGMA_PITCH, SIGMA_ROLL, SIGMA_Z, _Posing, residuals
+    from .registration import GAIN_LIMITS, NOFFSETS, SIGMA_PITCH, SIGMA_ROLL, SIGMA_Z, _Posing, residuals
     measured = {"x": traverse.x, "y": traverse.y, "yaw": traverse.yaw, "height": traverse.z,
                 "pitch": traverse.pitch, "roll": traverse.roll}
     for name, values in measured.items():
@@ -175,10 +175,10 @@ def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.nda
     # evaluation of the fit reuses the training samples' pose (_Posing keeps it), the same numbers
     # as registration.residuals gives at each.
     posing = _Posing(grid, fitted, h0)
-    fit = least_squares(lambda g: posing.residuals(np.zeros(4), (g[0], g[1])),
+    fit = least_squares(lambda g: posing.residuals(np.zeros(NOFFSETS), (g[0], g[1])),
                         np.clip(np.ones(2), lower, upper), bounds=(lower, upper))
     gains = (float(fit.x[0]), float(fit.x[1]))
-    r = residuals(np.zeros(4), grid, traverse, h0, gains)
+    r = residuals(np.zeros(NOFFSETS), grid, traverse, h0, gains)
     n = len(traverse.x)
     parts = {"height": r[:n] * SIGMA_Z}
     k = 1

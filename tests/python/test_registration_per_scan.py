@@ -1,7 +1,7 @@
 """One registration per scan: a campaign whose terrain runs were scanned and registered
 separately is registered scan by scan (juno.registration.scans_of, starts.registration_evidence),
 each scan's offsets applied to its own runs only (candidates.for_runs, the replay's
-run_parameters), and each scan moved charged its own four parameters.
+run_parameters), and each scan moved charged its own six parameters.
 
 The campaign here needs no FMU: its "measured" pose is the rover posed kinematically on the true
 ground (juno.registration.pose_on_ground) with the synthetic campaigns' sensor noise, so the
@@ -20,13 +20,13 @@ from juno.diagnose.problem import BLOCK, residuals_or_failure
 from juno.diagnose.starts import registration_candidate, registration_evidence, registration_start
 from juno.identify import PAPER_INITIAL, PreparedRun
 from juno.pointcloud import GRID_MARGIN, grid_from_points
-from juno.registration import (HELD_OUT_RATIO, HeldOutEvidence, ScanEvidence, ScanRegistrations, Traverse, joined,
+from juno.registration import (HELD_OUT_RATIO, OFFSET_NAMES, HeldOutEvidence, ScanEvidence, ScanRegistrations, Traverse, joined,
                                pose_on_ground, scans_of)
 from juno.rover_model import rover
 from juno.synthesize import mound_surface
 from juno.validate import GRID_CELL
 
-OFFSETS = ("terrain.offsetX", "terrain.offsetY", "terrain.offsetZ", "terrain.offsetYaw")
+OFFSETS = OFFSET_NAMES
 #: The second scan's registration error: 15 cm and -12 cm, 2 cm high, 0.04 rad (2.3 deg).
 TRUTH = np.array([0.15, -0.12, 0.02, 0.04])
 H0 = 0.41          # chassis height above flat ground, m
@@ -131,7 +131,7 @@ def test_the_offsets_of_one_scan_never_move_another(second_scan_misregistered, t
 
 def test_runs_that_share_a_scan_share_one_registration_fitted_on_both(tmp_path):
     """Two terrain runs on one scan file, the scan in its place: one scan, both runs' samples in
-    its registration, the catalogue's four offsets applied to every terrain run alike."""
+    its registration, the catalogue's six parameters applied to every terrain run alike."""
     campaign, grid = _campaign(tmp_path / "shared", np.zeros(4), shared=True)
     assert [(scan, [r.id for r in runs]) for scan, runs in scans_of(campaign)] == [("terrain/a.xyz", ["t3d_a", "t3d_b"])]
     found = registration_evidence(campaign, grid)
@@ -208,16 +208,16 @@ def test_the_replay_gives_each_run_only_its_own_scans_registration(monkeypatch):
                     "t3d_b": {"terrain.offsetZ": 0.01, "terrain.offsetX": 0.2}}
 
 
-def test_each_scan_moved_is_charged_its_own_four_parameters():
-    """Registered on two scans, the registration adds eight parameters: on the replay (the second
+def test_each_scan_moved_is_charged_its_own_six_parameters():
+    """Registered on two scans, the registration adds twelve parameters: on the replay (the second
     round) it must gain 3 % for each, twice what one scan's registration needs.  Switched off, no
     scan is moved."""
     catalogue = CANDIDATES["terrain_offset"]
     two = {**PAPER_INITIAL, **{for_runs(k, [run]): 0.05 for run in ("t1", "t2") for k in OFFSETS}}
-    assert catalogue.parameters_in(two) == 8 and catalogue.acts(two)
+    assert catalogue.parameters_in(two) == 12 and catalogue.acts(two)
     off = catalogue.switched_off(two)
     assert not catalogue.acts(off) and all(off[k] == 0.0 for k in two if unqualified(k).startswith("terrain."))
-    assert catalogue.parameters_in({**PAPER_INITIAL, **dict.fromkeys(OFFSETS, 0.05)}) == 4
+    assert catalogue.parameters_in({**PAPER_INITIAL, **dict.fromkeys(OFFSETS, 0.05)}) == 6
 
     t = np.arange(0.0, 120.0, 0.1)        # 15 held-out blocks a run
     runs = np.array(["dbp"] * len(t) + ["t1"] * len(t))
@@ -233,7 +233,7 @@ def test_each_scan_moved_is_charged_its_own_four_parameters():
         OFFSETS, 0.05)}, 1.0, 1.0, moved, 1, 0.0))
     two_scans = judge(problem, run_kind, base, FitResult("terrain_offset", two, 1.0, 1.0, moved, 1, 0.0))
     assert one_scan.gain == two_scans.gain and 0.12 < one_scan.gain < 0.24
-    assert (one_scan.n_params, two_scans.n_params) == (4, 8)
+    assert (one_scan.n_params, two_scans.n_params) == (6, 12)
     assert one_scan.significant and not two_scans.significant
     assert set(two_scans.extension) == {for_runs(k, [run]) for run in ("t1", "t2") for k in OFFSETS}
 

@@ -145,18 +145,22 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               active=(("drive.lossFraction", 0.0, 0.005),), soil_restart=True),
     # The registration is kinematic (juno.registration: the scan against the measured height,
     # pitch and roll on the terrain runs' training blocks, no simulation) and judged on the
-    # held-out blocks the same way (starts.registration_evidence, judging.judge).  These four
-    # parameters move every terrain run's scan; a campaign with several scans gets them once per
+    # held-out blocks the same way (starts.registration_evidence, judging.judge).  These six
+    # parameters (a shift, a raise, a turn and a tilt: a scan's pose but for its rotation about a
+    # horizontal axis's small-angle form, a plane added to its heights) move every terrain run's
+    # scan; a campaign with several scans gets them once per
     # scan it moves, applied to that scan's runs (starts.registration_candidate).  Refined by
     # simulation, it would also fit what the soil model gets wrong on the terrain run (a turn of
     # the scan can mimic a grouser's extra climbing thrust), so it is not refined; nor is it
     # rejected by the replay's training error, which also carries the soil model's error.
     Candidate("terrain_offset", "the scanned terrain is misregistered against the real one",
               (ExtParam("terrain.offsetX", 0.0), ExtParam("terrain.offsetY", 0.0),
-               ExtParam("terrain.offsetZ", 0.0), ExtParam("terrain.offsetYaw", 0.0)),
+               ExtParam("terrain.offsetZ", 0.0), ExtParam("terrain.offsetYaw", 0.0),
+               ExtParam("terrain.slopeX", 0.0), ExtParam("terrain.slopeY", 0.0)),
               needs_terrain=True,
               active=(("terrain.offsetX", 0.0, 0.01), ("terrain.offsetY", 0.0, 0.01), ("terrain.offsetZ", 0.0, 0.003),
-                      ("terrain.offsetYaw", 0.0, 0.003)),
+                      ("terrain.offsetYaw", 0.0, 0.003), ("terrain.slopeX", 0.0, 0.001),
+                      ("terrain.slopeY", 0.0, 0.001)),
               refine_terrain=False),
 )}
 

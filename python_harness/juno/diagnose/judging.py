@@ -217,7 +217,7 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
     (0.5-1.5 times) where it was not, while its replayed gain was often only a few per cent.  On
     top of another cause the kinematic evidence is not given: a soft soil patch, which the
     kinematic model does not know, sinks the rover as a lowered scan would.  A campaign with
-    several scans has a registration per scan (starts.registration_candidate), charged four
+    several scans has a registration per scan (starts.registration_candidate), charged six
     parameters for each scan it moves on the replay, as any parameter is."""
     candidate = CANDIDATES[res.name]
     if res.error:

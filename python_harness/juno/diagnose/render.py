@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..registration import OFFSET_NAMES
 from .candidates import CANDIDATES
 from .results import DiagnosisResult, Duel, JudgedCandidate, TiedPair
 from .verdict import Unexplained
@@ -254,12 +255,11 @@ def _candidates_table(result: DiagnosisResult) -> list[str]:
                       f"fitted on the training blocks of the terrain runs on a scan, it is evidence that the scan "
                       f"is misregistered when it explains their held-out blocks' height, pitch and roll at least "
                       f"{result.criteria.registration_held_out_ratio:g} times better than the scan as it is.", "",
-                      "| scan | terrain runs | held-out ratio | misregistered | offsets x, y, z (m), yaw (rad) |",
+                      "| scan | terrain runs | held-out ratio | misregistered | offsets x, y, z (m), yaw (rad), slopes x, y |",
                       "|---|---|---|---|---|"]
             for s in c.kinematic.scans:
                 ratio = "too short to test" if s.ratio is None else f"{s.ratio:.3g}"
-                offsets = ", ".join(f"{s.offsets[k]:+.3f}" for k in ("terrain.offsetX", "terrain.offsetY",
-                                                                       "terrain.offsetZ", "terrain.offsetYaw"))
+                offsets = ", ".join(f"{s.offsets.get(k, 0.0):+.3f}" for k in OFFSET_NAMES)
                 lines.append(f"| {s.scan} | {', '.join(s.runs)} | {ratio} | {'yes' if s.misregistered else 'no'} "
                              f"| {offsets} |")
             lines.append("")

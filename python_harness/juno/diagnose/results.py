@@ -66,8 +66,8 @@ class Ablation:
 @dataclass(frozen=True)
 class ScanRegistration:
     """One scan's registration (juno.registration.ScanEvidence): the scan file as the manifest
-    names it, the terrain runs on it, the offsets applied to it (FMU names terrain.offsetX, Y, Z
-    in m and terrain.offsetYaw in rad; all 0 when it stays as it is), its held-out mean squared
+    names it, the terrain runs on it, the registration applied to it (FMU names terrain.offsetX,
+    Y, Z in m, terrain.offsetYaw in rad, terrain.slopeX, Y; all 0 when it stays as it is), its held-out mean squared
     scaled residual of height, pitch and roll as scanned and registered and their ratio (None
     when its runs are too short to test), and whether the pose shows it misregistered."""
 

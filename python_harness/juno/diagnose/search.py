@@ -417,7 +417,7 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
     for chosen in branches:
         label = "+".join(r.name for r in chosen)
         final = replace(chosen[-1], name=label)
-        # a two-cause fit is named after its second; a registration counts four per scan it moves
+        # a two-cause fit is named after its second; a registration counts six per scan it moves
         n_params = sum(CANDIDATES[r.name].parameters_in(r.params) for r in chosen)
         gain = relative_gain(problem, base.residuals, final.residuals, everywhere)
         summaries.append(Contender(label, gain, n_params))

@@ -170,11 +170,11 @@ def _registered_scans(evidence: ScanRegistrations) -> list[ScanEvidence]:
 
 
 def registration_candidate(evidence: ScanRegistrations | None) -> Candidate:
-    """The registration candidate of a campaign: the catalogue's four offsets, which move every
-    terrain run's scan alike, when the campaign has one scan; with several, the four offsets of
+    """The registration candidate of a campaign: the catalogue's six parameters, which move every
+    terrain run's scan alike, when the campaign has one scan; with several, the six parameters of
     each scan it moves (_registered_scans), each applied to that scan's runs only
     (candidates.for_runs), so the offsets of one scan never move another and every scan moved
-    is charged its own four parameters (Candidate.parameters_in)."""
+    is charged its own six parameters (Candidate.parameters_in)."""
     catalogue = CANDIDATES["terrain_offset"]
     if evidence is None or len(evidence.scans) == 1:
         return catalogue
