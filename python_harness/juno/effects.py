@@ -52,7 +52,11 @@ drivetrain_friction  Coulomb plus viscous friction in each drivetrain on the   d
                      wheel side: 15 S N m + 8 S N m s/rad x spin
 terrain_tilt         the LIDAR scan is tilted by 1 S deg about a horizontal   terrain_offset
                      axis in a random direction through a point 2-6 m along
-                     the test area
+                     the test area (a tilt the registration's plane fits:
+                     hidden through the scan, not the FMU)
+scan_scale           every scanned point's distance from the scanner (1-2 m   terrain_offset
+                     behind the test area, 1.5 m up) is too long or too
+                     short by 3 S % (a range or photogrammetric scale error)
 ===================  ======================================================  ==========================
 
 **Decoys** (:data:`DECOYS`): effects no catalog candidate models (``in_catalog`` False in
@@ -104,13 +108,14 @@ ALTERNATIVE_FORMS: dict[str, str] = {
     "lug_ripple": "the lugs' extra thrust ripples as each lug enters the soil",
     "drivetrain_friction": "Coulomb and viscous friction in the drivetrains, not seen by the motor current",
     "terrain_tilt": "the scanned terrain is tilted about a horizontal axis relative to the real one",
+    "scan_scale": "the scan's distances from the scanner are off by a scale factor (not a shift)",
 }
 
 #: The catalog effect whose mechanism each alternative form shares.
 ALTERNATIVE_OF: dict[str, str] = {
     "soil_strip": "soil_patch", "multipass_depth": "multipass", "slip_sinkage_power": "slip_sinkage",
     "grouser_buildup": "grouser", "lug_ripple": "grouser", "drivetrain_friction": "drivetrain_loss",
-    "terrain_tilt": "terrain_offset",
+    "terrain_tilt": "terrain_offset", "scan_scale": "terrain_offset",
 }
 
 DECOYS: dict[str, str] = {
@@ -121,6 +126,9 @@ DECOYS: dict[str, str] = {
 
 #: Lugs per wheel of the ``lug_ripple`` form (an assumption for the Juno's 22 in tyre).
 LUG_COUNT = 18
+#: Height of the scanner above the flat ground (m) in the ``scan_scale`` form: a terrestrial
+#: LIDAR on its tripod.
+SCANNER_HEIGHT = 1.5
 
 #: Every effect ``juno synthesize`` can hide.
 ALL_EFFECTS: dict[str, str] = {**EFFECTS, **ALTERNATIVE_FORMS, **DECOYS}
@@ -237,6 +245,9 @@ def hidden_parameters(effect: str, strength: float, rng: np.random.Generator) ->
     if effect == "terrain_tilt":
         return {}, {"scan.tiltAngle": float(np.radians(1.0)) * s * sign,
                     "scan.tiltAxis": float(rng.uniform(0, np.pi)), "scan.tiltX": float(rng.uniform(2.0, 6.0))}
+    if effect == "scan_scale":
+        return {}, {"scan.scale": 0.03 * s * sign, "scan.scannerX": float(rng.uniform(-3.0, -2.0)),
+                    "scan.scannerY": float(rng.uniform(-1.0, 1.0)), "scan.scannerZ": SCANNER_HEIGHT}
     if effect == "imu_pitch_bias":
         return {}, {"imu.pitchBias": float(np.radians(1.5)) * s * sign}
     if effect == "clock_offset":
@@ -276,7 +287,8 @@ def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
     offsetY, offsetZ, offsetYaw) (grid point q appears at o + Rz(yaw) q), so the scan reports a
     true point p at Rz(-yaw) (p - o).  Tilt (terrain_tilt): the scan reports p raised by
     tan(angle) times its distance from a horizontal axis through (tiltX, 0) at tiltAxis from x
-    (a small rotation about that axis, height changed, positions kept).
+    (a small rotation about that axis, height changed, positions kept).  Scale (scan_scale): the
+    scan reports p at c + (1 + scale) (p - c), c the scanner's position.
     """
     steps: list[Callable[[np.ndarray], np.ndarray]] = []
     if "terrain.offsetX" in truth.extension:
@@ -298,6 +310,13 @@ def scan_transform(truth) -> Callable[[np.ndarray], np.ndarray] | None:
             across = -(points[:, 0] - x0) * ay + points[:, 1] * ax   # signed distance from the axis
             return np.column_stack([points[:, 0], points[:, 1], points[:, 2] + slope * across])
         steps.append(tilt)
+    if "scan.scale" in distortion:
+        factor = 1.0 + float(distortion["scan.scale"])
+        scanner = np.array([distortion["scan.scannerX"], distortion["scan.scannerY"], distortion["scan.scannerZ"]])
+
+        def scale(points: np.ndarray) -> np.ndarray:
+            return scanner + factor * (points - scanner)
+        steps.append(scale)
     if not steps:
         return None
     if len(steps) == 1:

@@ -194,6 +194,21 @@ def test_terrain_tilt_raises_the_scan_by_the_tilt_and_moves_no_point_sideways(ca
     assert (tilted / "runs/t3d.csv").read_bytes() == (none / "runs/t3d.csv").read_bytes()
 
 
+def test_scan_scale_moves_every_scanned_point_along_its_line_from_the_scanner(campaigns):
+    """A range scale error: every point of the scan lies on the line from the scanner through where
+    the point really is, its distance from the scanner off by the same factor (3 % at strength 1);
+    the runs are untouched."""
+    none, scaled = campaigns(), campaigns("scan_scale")
+    d = truth_of(scaled)["hidden"]["distortion"]
+    assert abs(d["scan.scale"]) == pytest.approx(0.03)
+    scanner = np.array([d["scan.scannerX"], d["scan.scannerY"], d["scan.scannerZ"]])
+    a = read_terrain_points(load_campaign(none), "t3d") - scanner
+    b = read_terrain_points(load_campaign(scaled), "t3d") - scanner
+    np.testing.assert_allclose(b, (1.0 + d["scan.scale"]) * a, rtol=0, atol=1e-9)
+    assert np.max(np.hypot(*(b - a)[:, :2].T)) > 0.2, "3 % of the test area's 10 m is decimetres"
+    assert (scaled / "runs/t3d.csv").read_bytes() == (none / "runs/t3d.csv").read_bytes()
+
+
 # ------------------------------------------------------------------ the FMU forms
 
 def _flat_run(fmu, extra: dict, load: float = 300.0, duration: float = 8.0, throttle: float = 0.45) -> dict:
