@@ -388,11 +388,25 @@ def residuals(offset: np.ndarray, grid: Grid, tr: Traverse, h0: float,
     return _scaled(tr, pose_on_ground(grid, tr, offset, h0), gains)
 
 
-def _fit(grid: Grid, tr: Traverse, h0: float | None, tilt: bool = True) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Least squares of the NOFFSETS registration parameters and the two attitude gains from a
-    grid of starts, and of the gains alone with the scan as it is.  Returns (offsets with gains
-    (NOFFSETS + 2,), the as-scanned gains (2,), the cost of each).  With ``h0`` None the raise is
-    not fitted (see register); with ``tilt`` False the slopes stay 0."""
+@dataclass(frozen=True)
+class _Fitted:
+    """A registration's least squares (_fit): the registration without a tilt and, refined from
+    it, the one with (each the NOFFSETS FMU parameters then the two attitude gains, and its
+    cost), and the gains alone with the scan as it is (and their cost)."""
+
+    untilted: np.ndarray
+    cost: float
+    tilted: np.ndarray
+    cost_tilted: float
+    gains_as_scanned: np.ndarray
+    cost_as_scanned: float
+
+
+def _fit(grid: Grid, tr: Traverse, h0: float | None) -> _Fitted:
+    """Least squares of the registration without a tilt and the two attitude gains from a grid of
+    starts, then of every parameter with the tilt from that optimum (a tilt of a fraction of a
+    degree is a small change of it), and of the gains alone with the scan as it is.  With ``h0``
+    None the raise is not fitted (see register)."""
     fit_z = h0 is not None
     # Posed in a frame centred on the path: a registration about its origin is one about the
     # path's centre, and the pose solve keeps its precision in a map's coordinates (millions of
@@ -412,42 +426,46 @@ def _fit(grid: Grid, tr: Traverse, h0: float | None, tilt: bool = True) -> tuple
             r[:len(tr.z)] -= np.mean(r[:len(tr.z)])   # the height offset is free
         return r
 
-    # The searched numbers: all of v, or v without the slopes (held at 0).
-    free = np.arange(NOFFSETS + 2) if tilt else np.array([0, 1, 2, 3, NOFFSETS, NOFFSETS + 1])
-
-    def full(u: np.ndarray) -> np.ndarray:
-        v = np.zeros(NOFFSETS + 2)
-        v[free] = u
-        return v
-
-    def res_free(u: np.ndarray) -> np.ndarray:
-        return res(full(u))
-
-    def each(fun, points) -> list[np.ndarray]:
-        """``fun`` at each of ``points`` with their registrations posed at once: the starts, and
-        the steps of least_squares' finite-difference Jacobian (its ``workers``)."""
-        points = list(points)
-        posing.poses([offset_of(full(u)) for u in points])
-        return [fun(u) for u in points]
-
-    starts = [np.array([dx, dy, 0.0, yaw, 0.0, 0.0, 1.0, 1.0])[free]
-              for dx in START_SHIFTS for dy in START_SHIFTS for yaw in START_YAWS]
-    costs = [float(np.sum(r ** 2)) for r in each(res_free, starts)]
     lower = np.concatenate([-LIMITS, [g[0] for g in GAIN_LIMITS]])
     upper = np.concatenate([LIMITS, [g[1] for g in GAIN_LIMITS]])
     scale = np.array([0.1, 0.1, 0.01, 0.02, 0.005, 0.005, 0.1, 0.1])
-    best = None
-    for i in np.argsort(costs)[:4]:
-        fit = least_squares(res_free, np.clip(starts[i], lower[free], upper[free]), x_scale=scale[free],
-                            max_nfev=300, diff_step=1e-6, bounds=(lower[free], upper[free]), workers=each)
-        if best is None or fit.cost < best.cost:
-            best = fit
+
+    def search(free: np.ndarray, starts: list[np.ndarray], base: np.ndarray):
+        """Least squares over v[free] (the others as in ``base``) from each of ``starts``; the best."""
+        def full(u: np.ndarray) -> np.ndarray:
+            v = base.copy()
+            v[free] = u
+            return v
+
+        def each(fun, points) -> list[np.ndarray]:
+            """``fun`` at each of ``points`` with their registrations posed at once: the starts,
+            and the steps of least_squares' finite-difference Jacobian (its ``workers``)."""
+            points = list(points)
+            posing.poses([offset_of(full(u)) for u in points])
+            return [fun(u) for u in points]
+
+        best = None
+        for start in starts:
+            fit = least_squares(lambda u: res(full(u)), np.clip(start[free], lower[free], upper[free]),
+                                x_scale=scale[free], max_nfev=300, diff_step=1e-6,
+                                bounds=(lower[free], upper[free]), workers=each)
+            if best is None or fit.cost < best.cost:
+                best = fit
+        return full(best.x), float(best.cost)
+
+    untilted_free = np.array([0, 1, 2, 3, NOFFSETS, NOFFSETS + 1])
+    grid_starts = [np.array([dx, dy, 0.0, yaw, 0.0, 0.0, 1.0, 1.0])
+                   for dx in START_SHIFTS for dy in START_SHIFTS for yaw in START_YAWS]
+    posing.poses([offset_of(v) for v in grid_starts])
+    costs = [float(np.sum(res(v) ** 2)) for v in grid_starts]
+    untilted, cost = search(untilted_free, [grid_starts[i] for i in np.argsort(costs)[:4]], np.zeros(NOFFSETS + 2))
+    tilted, cost_tilted = search(np.arange(NOFFSETS + 2), [untilted], untilted)
     g = slice(NOFFSETS, NOFFSETS + 2)
     as_scanned = least_squares(lambda gains: res(np.concatenate([np.zeros(NOFFSETS), gains])),
                                np.clip(np.ones(2), lower[g], upper[g]), bounds=(lower[g], upper[g]))
-    x = full(best.x)
-    x[:NOFFSETS] = fmu_offsets(offset_of(x), centre)
-    return x, as_scanned.x, float(best.cost), float(as_scanned.cost)
+    for v in (untilted, tilted):
+        v[:NOFFSETS] = fmu_offsets(offset_of(v), centre)
+    return _Fitted(untilted, cost, tilted, cost_tilted, as_scanned.x, float(as_scanned.cost))
 
 
 def turning_centre(tr: Traverse) -> np.ndarray:
@@ -487,11 +505,11 @@ def register(grid: Grid, tr: Traverse, h0: float | None) -> dict[str, float]:
     EVIDENCE_RATIO times better than the scan as it is.  With ``h0`` None (no flat-ground run to
     measure the chassis height on), the raise cannot be told from the chassis height and is left
     at 0.  The tilt is kept by the same rule against the registration without it."""
-    x, _gains, cost, cost_as_scanned = _fit(grid, tr, h0, tilt=False)
-    tilted, _gains, cost_tilted, _ = _fit(grid, tr, h0, tilt=True)
-    if cost >= EVIDENCE_RATIO * cost_tilted:
-        x, cost = tilted, cost_tilted
-    if not cost_as_scanned >= EVIDENCE_RATIO * cost:
+    fitted = _fit(grid, tr, h0)
+    x, cost = fitted.untilted, fitted.cost
+    if cost >= EVIDENCE_RATIO * fitted.cost_tilted:
+        x, cost = fitted.tilted, fitted.cost_tilted
+    if not fitted.cost_as_scanned >= EVIDENCE_RATIO * cost:
         x = np.zeros(NOFFSETS)
     return _offsets(x)
 
@@ -573,8 +591,8 @@ def held_out_evidence(grid: Grid, tr: Traverse, h0: float | None, train: np.ndar
     if train.all() or not train.any():
         raise ValueError("held_out_evidence: the traverse needs both training and held-out samples")
     training = tr.subset(train)
-    x, gains, _cost, _cost0 = _fit(grid, training, h0, tilt=False)
-    tilted = _fit(grid, training, h0, tilt=True)[0]
+    fitted = _fit(grid, training, h0)
+    x, tilted, gains = fitted.untilted, fitted.tilted, fitted.gains_as_scanned
     held_out = tr.subset(~train)
     h = 0.0 if h0 is None else h0
 
@@ -597,7 +615,8 @@ def held_out_evidence(grid: Grid, tr: Traverse, h0: float | None, train: np.ndar
     # Where the scan is, once it is known to be misregistered, is measured on the whole run:
     # fitted on half the samples, the mound landed up to 15 cm from where the truth puts it on
     # 20 synthetic campaigns (within 9 cm fitted on all).
-    return replace(evidence, offsets_all=_offsets(_fit(grid, tr, h0, tilt=tilt)[0]))
+    whole = _fit(grid, tr, h0)
+    return replace(evidence, offsets_all=_offsets(whole.tilted if tilt else whole.untilted))
 
 
 SETTLING = 2.0   # s at the start of a run left out (the rover starts from rest)
