@@ -22,7 +22,7 @@ from ..registration import HELD_OUT_RATIO, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 from ..telling_apart import heaviest_drawbar_load, telling_apart
 from .assemble import diagnosis_result
-from .candidates import CANDIDATES, Candidate, combined
+from .candidates import CANDIDATES, Candidate, combined, fmu_parameters
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, judge, leader_after_head_to_head,
@@ -232,7 +232,8 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
     bases = PeriodicBases()     # the models' periodic tests scan the same samples at the same angles
     with JunoFMU(fmu_path) as fmu, TaskPool(workers) as pool:
         tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
-                                    m.params, data=data, pool=pool, periodic_bases=bases) for m in models]
+                                    fmu_parameters(m.params), data=data, pool=pool, periodic_bases=bases)
+                 for m in models]
     for m, t in zip(models, tests):
         found = ", ".join([f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()]
                           + [f"{r.signal} ripple at {r.lugs} per wheel revolution ({r.ratio:.2g} x noise)"
@@ -437,8 +438,9 @@ def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, ti
         return []
     fixed = dict(campaign.rover)
     with JunoFMU(problem.fmu_path) as fmu:
-        found = telling_apart(fmu, (named.name, {**fixed, **named.params}),
-                              {r.name: {**fixed, **r.params} for r in tied}, heaviest_drawbar_load(campaign))
+        found = telling_apart(fmu, (named.name, fmu_parameters({**fixed, **named.params})),
+                              {r.name: fmu_parameters({**fixed, **r.params}) for r in tied},
+                              heaviest_drawbar_load(campaign))
     return [TiedPair.from_telling_apart(f) for f in found]
 
 
