@@ -106,7 +106,7 @@ def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
     assert not verdict.significant
     # The same residuals from a one-parameter extension (3 % needed) are significant.
     verdict = judge(problem, run_kind, _fit("base", reference),
-                    _fit("drivetrain_loss", extended, **{"drive.lossFraction": 0.2}))
+                    _fit("slip_sinkage", extended, **{"slipSinkage.coefficient": 1.0}))
     assert verdict.significant
 
 
@@ -259,8 +259,8 @@ def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to
 def test_of_two_alternative_first_causes_the_final_model_that_explains_more_is_reported():
     """As on a drivetrain loss hidden with slip-sinkage: the grouser (two parameters) beat the
     loss head to head as one-cause models, but found no second cause, while the loss with
-    slip-sinkage on top explains the held-out data better than the grouser alone with as many
-    parameters.  The loss branch is reported."""
+    slip-sinkage on top explains the held-out data better than the grouser alone.  The loss
+    branch is reported."""
     problem, run_kind = _problem()
     rng = np.random.default_rng(5)
     base = _fit("base", _reference(run_kind, 2.0, rng))
@@ -271,8 +271,8 @@ def test_of_two_alternative_first_causes_the_final_model_that_explains_more_is_r
 
 
 def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_head_to_head():
-    """grouser + slip-sinkage (three parameters) against loss + slip-sinkage (two): a raw gain a
-    little larger by noise alone does not make the larger model the explanation; a paired
+    """soil patch + slip-sinkage (six parameters) against loss + slip-sinkage (three): a raw gain
+    a little larger by noise alone does not make the larger model the explanation; a paired
     improvement in every held-out block does."""
     problem, run_kind = _problem()
     rng = np.random.default_rng(5)
@@ -280,14 +280,14 @@ def test_of_two_alternative_final_models_the_one_with_more_parameters_must_win_h
     loss = _fit("drivetrain_loss", 0.7 * base.residuals)
     loss_slip = _fit("slip_sinkage", 0.4 * base.residuals)
     noisy = _fit("slip_sinkage", loss_slip.residuals * (1.0 + 0.05 * rng.standard_normal(len(run_kind))))
-    grouser = _fit("grouser", 0.6 * base.residuals)
-    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, noisy], [loss, loss_slip]])
+    patch = _fit("soil_patch", 0.6 * base.residuals)
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[patch, noisy], [loss, loss_slip]])
     if duels:   # the noisy model's raw gain came out larger: it was put to the test, and lost
-        assert duels[0].challenger == "grouser+slip_sinkage" and not duels[0].challenger_better
+        assert duels[0].challenger == "soil_patch+slip_sinkage" and not duels[0].challenger_better
         assert duels[0].stage == "final models"
     assert pick == 1
     better = _fit("slip_sinkage", 0.95 * loss_slip.residuals)   # 1.6 points of raw gain, under GAIN_MIN
-    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[grouser, better], [loss, loss_slip]])
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[patch, better], [loss, loss_slip]])
     assert pick == 0 and len(duels) == 1 and duels[0].challenger_better
     assert duels[0].leader == "drivetrain_loss+slip_sinkage"
 

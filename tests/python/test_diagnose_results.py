@@ -46,13 +46,13 @@ def test_a_judged_candidate_writes_every_key_in_order_and_nested_records_as_obje
     problem, run_kind = _problem()
     reference = np.random.default_rng(1).standard_normal(len(run_kind))
     verdict = judge(problem, run_kind, _fit("base", reference),
-                    _fit("drivetrain_loss", 0.5 * reference, **{"drive.lossFraction": 0.2}),
-                    _fit("drivetrain_loss", reference, **{"drive.lossFraction": 0.0}))
+                    _fit("drivetrain_loss", 0.5 * reference, **{"drive.lossFraction": 0.2, "drive.friction": 5.0}),
+                    _fit("drivetrain_loss", reference, **{"drive.lossFraction": 0.0, "drive.friction": 0.0}))
     out = verdict.to_json()
     assert list(out) == JUDGED_KEYS
     assert list(out["ablation"]) == ["gain", "z", "z_by_kind", "gain_by_kind"]
     assert out["kinematic"] is None and out["judged_on"] == ["drawbar", "terrain"]
-    assert out["extension"] == {"drive.lossFraction": 0.2} and out["n_params"] == 1
+    assert out["extension"] == {"drive.lossFraction": 0.2, "drive.friction": 5.0} and out["n_params"] == 2
     assert out["status"] == "ok" and out["gain"] == pytest.approx(0.75)    # residuals halved: squares quartered
     json.dumps(to_jsonable(out))      # plain JSON, nothing left as a record
 

@@ -271,9 +271,8 @@ def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, chal
 
     The fixed charge of GAIN_MIN per parameter keeps a model with more parameters out when the
     two explain the data alike; it should not keep it out when the held-out data prefer it
-    unit by unit: on grouser campaigns (thrust gain and lugs, 2 parameters) a drivetrain loss of
-    h / (R + h) mimics the lugs with one, and the grouser's raw held-out gain can beat the loss's
-    by a point or two and still lose the penalised ranking."""
+    unit by unit: a model whose raw held-out gain beats the leader's by a point or two, with a
+    parameter more, loses the penalised ranking even where every held-out block prefers it."""
     zs = z_by_kind(problem, run_kind, leader.residuals, challenger.residuals)
     gain = relative_gain(problem, leader.residuals, challenger.residuals, np.ones(len(run_kind), bool))
     better = bool(max(zs.values()) > z_threshold(len(zs)) and min(zs.values()) > -Z_MIN and gain > 0)

@@ -409,10 +409,10 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
     leads if it wins head_to_head, as in the first round.  Returns the index of the chosen
     branch and the comparisons made (stage "final models").
 
-    Why: the first round compares one-cause models.  With two effects hidden, a two-parameter
-    grouser (lugs that mimic a drivetrain loss, a thrust gain that takes up part of a
-    slip-sinkage) can beat a one-parameter loss head to head, and grouser (+ slip-sinkage) be
-    named where the truth is loss + slip-sinkage."""
+    Why: the first round compares one-cause models.  With two effects hidden, a grouser (lugs
+    that mimic a drivetrain loss, a thrust gain that takes up part of a slip-sinkage) can beat
+    the loss as a one-cause model, and grouser (+ slip-sinkage) be named where the truth is
+    loss + slip-sinkage."""
     summaries, fits = [], []
     everywhere = np.ones(len(run_kind), bool)
     for chosen in branches:
