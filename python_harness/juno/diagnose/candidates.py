@@ -58,9 +58,9 @@ def fmu_parameters(params: dict[str, object]) -> dict[str, object]:
 
 @dataclass(frozen=True)
 class ExtParam:
-    """One extension parameter: FMU name, start value and bounds.  It is searched as itself
-    (bounded trust-region least squares keeps the finite-difference steps inside the bounds).
-    A tie (``sets`` given) is one fitted value for several FMU variables: ``name`` names the
+    """One extension parameter: its name (the FMU variable's, unless it is a tie), start value
+    and bounds.  It is searched as itself (bounded trust-region least squares keeps the
+    finite-difference steps inside the bounds).  A tie (``sets`` given) is one fitted value for several FMU variables: ``name`` names the
     parameter in the fit and its results, and the FMU is given each variable of ``sets`` at
     its value (fmu_parameters)."""
 
