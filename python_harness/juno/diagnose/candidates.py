@@ -185,8 +185,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # The registration is kinematic (juno.registration: the scan against the measured height,
     # pitch and roll on the terrain runs' training blocks, no simulation) and judged on the
     # held-out blocks the same way (starts.registration_evidence, judging.judge).  These six
-    # parameters (a shift, a raise, a turn and a tilt: a scan's pose but for its rotation about a
-    # horizontal axis's small-angle form, a plane added to its heights) move every terrain run's
+    # parameters (a shift, a raise, a turn, and a tilt in its small-angle form: a plane added to
+    # the scan's heights) move every terrain run's
     # scan; a campaign with several scans gets them once per
     # scan it moves, applied to that scan's runs (starts.registration_candidate).  Refined by
     # simulation, it would also fit what the soil model gets wrong on the terrain run (a turn of
