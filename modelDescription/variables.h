@@ -95,8 +95,8 @@
     REAL(186, "terrain.offsetY",   PARAM, "m",   0.0, -1e7, 1e7, p.terrain_offsetY,   "Registration: the terrain grid is shifted by this in y (after the turn about the world origin)") \
     REAL(187, "terrain.offsetZ",   PARAM, "m",   0.0, -1e7, 1e7, p.terrain_offsetZ,   "Registration: the terrain grid is raised by this (with the tilt about the world origin: a tilt of a scan far from the origin raises it far)") \
     REAL(188, "terrain.offsetYaw", PARAM, "rad", 0.0, -3.15, 3.15,   p.terrain_offsetYaw, "Registration: the terrain grid is rotated by this about z (about the world origin)") \
-    REAL(178, "terrain.slopeX",    PARAM, "1",   0.0, -1, 1, p.terrain_slopeX,    "Registration: the terrain is tilted, raised by slopeX times world x (with slopeY: a plane through the world origin)") \
-    REAL(179, "terrain.slopeY",    PARAM, "1",   0.0, -1, 1, p.terrain_slopeY,    "Registration: the terrain is tilted, raised by slopeY times world y") \
+    REAL(178, "terrain.slopeX",    PARAM, "1",   0.0, -0.3, 0.3, p.terrain_slopeX,    "Registration: the terrain is tilted, raised by slopeX times world x (with slopeY: a plane through the world origin; up to 0.3, 17 deg, as steep as the slopes a rover drives)") \
+    REAL(179, "terrain.slopeY",    PARAM, "1",   0.0, -0.3, 0.3, p.terrain_slopeY,    "Registration: the terrain is tilted, raised by slopeY times world y") \
     REAL(500, "drive.frictionLeft",  PARAM, "N.m", 0.0, 0, 400, p.drive_frictionLeft,  "Coulomb friction torque of the left drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
     REAL(501, "drive.frictionRight", PARAM, "N.m", 0.0, 0, 400, p.drive_frictionRight, "Coulomb friction torque of the right drivetrain on the wheel side, opposing the wheel spin; not in the measured (motor) torque (0 = off)") \
     REAL(502, "drive.viscousFriction", PARAM, "N.m.s/rad", 0.0, 0, 1000, p.drive_viscousFriction, "Viscous friction of each side's drivetrain on the wheel side, per rad/s of wheel spin; not in the measured (motor) torque (0 = off)") \
