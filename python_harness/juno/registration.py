@@ -58,9 +58,11 @@ horizontal axis raises each point by the slope times its distance from the axis 
 sideways by its height times the angle (under 3 mm for the mound's 0.3 m at 0.5 degrees), so the
 tilt is a plane added to the scan's heights.
 
-Least squares over the six registration parameters and the two gains from a grid of starts
-gives the registration; register() keeps it only if it explains the measurements EVIDENCE_RATIO times
-better than the scan as it is.  held_out_evidence() fits it on training samples only and
+Least squares over the shift, raise and turn and the two gains from a grid of starts gives the
+registration without a tilt, refined with the tilt from its optimum (_fit); register() keeps the
+tilt only if it explains the measurements EVIDENCE_RATIO times better than the registration
+without it, and the registration only if it explains them EVIDENCE_RATIO times better than the
+scan as it is.  held_out_evidence() fits it on training samples only and
 measures how much better it explains the held-out ones (HELD_OUT_RATIO): that is how the
 diagnosis judges a misregistration.  No FMU is needed.
 
@@ -479,15 +481,12 @@ def fmu_offsets(about_centre: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """The FMU's registration (ox, oy, oz, yaw, ax, ay: grid point q at world o + Rz(yaw) q,
     raised by oz + ax x + ay y at world (x, y)) of the one ``about_centre`` = (sx, sy, rz, yaw,
     ax, ay) that turns the grid by yaw about ``centre`` (x, y, m), shifts it by (sx, sy) and raises
-    it by rz + ax (x - cx) + ay (y - cy): o = s + centre - Rz(yaw) centre, oz = rz - ax cx - ay cy.
-    A registration of four numbers (no tilt) gives four."""
-    v = [float(a) for a in about_centre]
-    sx, sy, rz, yaw = v[:4]
-    ax, ay = (v[4], v[5]) if len(v) > 4 else (0.0, 0.0)
+    it by rz + ax (x - cx) + ay (y - cy): o = s + centre - Rz(yaw) centre, oz = rz - ax cx - ay cy."""
+    sx, sy, rz, yaw, ax, ay = (float(a) for a in about_centre)
     c, sn = np.cos(yaw), np.sin(yaw)
     cx, cy = float(centre[0]), float(centre[1])
-    moved = [sx + (cx - (c * cx - sn * cy)), sy + (cy - (sn * cx + c * cy)), rz - (ax * cx + ay * cy), yaw]
-    return np.array(moved + v[4:6])
+    return np.array([sx + (cx - (c * cx - sn * cy)), sy + (cy - (sn * cx + c * cy)), rz - (ax * cx + ay * cy),
+                     yaw, ax, ay])
 
 
 #: The FMU's registration parameters, in the order of a registration's numbers.
