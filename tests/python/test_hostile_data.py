@@ -427,3 +427,32 @@ def test_a_yaw_in_degrees_is_refused_where_the_rover_turns(turning_campaign, tmp
     errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
     assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "yaw")], errors
     assert "looks like degrees" in errors[0].message
+
+
+# ----------------------------------------------------- a heading against the path it drove
+
+HEADING_MISTAKES = {
+    "yaw in degrees on a run that hardly turns": lambda yaw: np.degrees(yaw),
+    "a compass heading (clockwise from north)": lambda yaw: 0.5 * np.pi - yaw,
+    "yaw from another reference direction": lambda yaw: yaw + 1.0,
+}
+
+
+@pytest.mark.parametrize("mistake", HEADING_MISTAKES)
+def test_a_yaw_that_does_not_point_where_the_rover_goes_is_refused(base, tmp_path, mistake) -> None:
+    """A rover driving forward moves along its heading, within the side slip of a skid-steered
+    rover (under 0.3 rad in the median over any synthetic terrain run). A yaw that differs from
+    the measured direction of travel by more than pi/4 in the median would have the rover moving
+    more sideways than forward: the error names the terrain run's file, the yaw column and the
+    likely mistakes, whether or not the run turns."""
+    root = tmp_path / "campaign"
+    shutil.copytree(base, root)
+
+    def change(c):
+        c["yaw"] = HEADING_MISTAKES[mistake](c["yaw"])
+    edit_run(root, "t3d", change)
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert ("runs/t3d.csv", "yaw") in [(f.file, f.column) for f in errors], errors
+    heading = next(f for f in errors if f.column == "yaw")
+    assert "direction of travel" in heading.message and "degrees" in heading.message
+    assert "compass heading" in heading.message
