@@ -1,0 +1,72 @@
+"""The rover's physical limits that the checks compare measured data with, from its FMU
+parameters (the FMU's defaults, overridden by the campaign's ``rover`` entry):
+
+* **Motor torque.** A DC motor gives its largest steady torque at stall, at full voltage:
+  ``T_stall = eff * n * kt * V / Ra`` per side (612 N m with the defaults); the drive controller
+  further limits it to ``drive.torqueMax`` (400 N m). The electrical maximum of all is plugging,
+  full voltage against the back-EMF of a wheel turning backwards at no-load speed: twice the
+  stall torque. Torque beyond ``TORQUE_MARGIN`` times the drive's limit is a warning, beyond the
+  plugging bound an error.
+* **Spin.** The no-load spin ``omega_0 = V / (kt * n)`` (4.0 rad/s) is the fastest the motors
+  turn a wheel; a wheel may overrun it a little downhill (warning beyond ``SPIN_WARN`` times it)
+  but not three times over (error beyond ``SPIN_ERROR`` times it: the rover pushed at three
+  times its top speed). rpm are 9.55 times rad/s.
+* **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
+  speed over 1 s exceeds twice that are not in metres.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+from ..rover_model import fmu_defaults
+
+#: The FMU parameters the limits derive from: the FMU's defaults (juno.rover_model), which the
+#: campaign's ``rover`` overrides.
+ROVER_PARAMETERS = ("wheel.radius", "wheel.width", "rover.track", "rover.wheelbase", "rover.cgHeight",
+                    "motor.voltage", "motor.kt", "motor.resistance", "motor.gearRatio", "motor.efficiency",
+                    "drive.torqueMax")
+
+
+@dataclass(frozen=True)
+class RoverLimits:
+    """Physical limits of the rover (SI units), derived from its parameters (module docstring)."""
+
+    stall_torque: float      # N m per side at full voltage, zero spin
+    drive_torque: float      # N m per side: min(stall, drive.torqueMax)
+    no_load_spin: float      # rad/s
+    top_speed: float         # m/s
+    wheel_radius: float      # m
+    half_length: float       # m: wheelbase / 2 + wheel radius (footprint ahead / behind)
+    half_width: float        # m: track / 2 + wheel width / 2
+    roll_tip: float          # rad
+    pitch_tip: float         # rad
+    cg_height: float = 0.0   # m: wheel radius + rover.cgHeight, the CG over flat ground
+    track: float = 0.0       # m: rover.track, between the wheels' centre planes
+
+    @property
+    def plugging_torque(self) -> float:
+        """Electrical maximum (N m per side): full voltage against the no-load back-EMF."""
+        return 2.0 * self.stall_torque
+
+
+def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
+    """The limits of the rover with the FMU defaults overridden by ``rover`` (numbers only)."""
+    defaults = fmu_defaults()
+    p = {k: defaults[k] for k in ROVER_PARAMETERS}
+    for k, v in (rover or {}).items():
+        if k in p and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0:
+            p[k] = float(v)
+    n, kt, volt, ra = p["motor.gearRatio"], p["motor.kt"], p["motor.voltage"], p["motor.resistance"]
+    stall = p["motor.efficiency"] * n * kt * volt / ra
+    omega0 = volt / (kt * n)
+    r = p["wheel.radius"]
+    cg = r + p["rover.cgHeight"]
+    return RoverLimits(
+        stall_torque=stall, drive_torque=min(stall, p["drive.torqueMax"]), no_load_spin=omega0,
+        top_speed=omega0 * r, wheel_radius=r, half_length=0.5 * p["rover.wheelbase"] + r,
+        half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
+        roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
+        cg_height=cg, track=p["rover.track"])

@@ -1,0 +1,111 @@
+"""Checks of a single-wheel testbed table (wheel_rig runs).
+
+A single-wheel testbed table (wheel_rig runs, :func:`check_rig`) is checked against the wheel
+of its manifest entry and against friction:
+
+* **Slip** is a fraction: a slip of 1 or more (the wheel spinning infinitely fast at the
+  carriage's speed) is an error, "looks like percent" when the slips lie within 0-100.
+* **Load and forces.** The soil's shear strength limits what a wheel transmits: drawbar pull,
+  lateral force and the torque over the radius are at most about (tan phi + c A / W) times the
+  load, below 1 for every soil simulant (phi < 45 degrees). A ratio beyond ``RIG_FORCE_ERROR``
+  (2) is an error (a load in kg, or forces in another unit), beyond ``RIG_FORCE_WARN`` (1) a
+  warning. A load that is not > 0 is an error.
+* **Sinkage** beyond the wheel radius (the axle under the surface) is an error, "looks like
+  millimetres" when a thousandth of it fits.
+* **Slip angle** beyond pi/2 is an error ("looks like degrees"), beyond ``RIG_ANGLE_WARN``
+  (pi/4, beyond testbed practice) a warning.
+* **The wheel** (manifest): a radius beyond 5 m, a width beyond 1 m, lugs beyond 0.1 m or beyond
+  half the radius are errors (millimetres), the FMU's own parameter ranges.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..campaign import RigTable, RunSpec
+from .findings import Finding, _g
+
+#: Single-wheel testbed: force (drawbar pull, lateral force, torque / radius) over the load
+#: beyond which a table is a warning / an error (module docstring).
+RIG_FORCE_WARN = 1.0
+RIG_FORCE_ERROR = 2.0
+#: Slip angle beyond which a testbed point is a warning (rad); beyond pi/2 an error.
+RIG_ANGLE_WARN = math.pi / 4
+#: The rig wheel's dimensions the FMU accepts (m): radius, width, lug height.
+RIG_WHEEL_LIMITS = {"radius": 5.0, "width": 1.0, "lug_height": 0.1}
+
+
+def _rig_at(table: RigTable, i: int) -> str:
+    lines = table.lines if table.lines is not None else np.arange(len(table)) + 2
+    return f"line {int(lines[i])}"
+
+
+def check_rig_wheel(spec: RunSpec, manifest: str = "campaign.json") -> list[Finding]:
+    """The wheel of a wheel_rig run entry in metres (module docstring)."""
+    rig = spec.rig
+    if rig is None:
+        return []
+    out = []
+    for key, limit in RIG_WHEEL_LIMITS.items():
+        v = getattr(rig, key)
+        if v > limit:
+            hint = ": looks like millimetres" if v / 1000.0 <= limit else ""
+            out.append(Finding("error", manifest, f"wheel.{key}", f"run {spec.id!r}: the wheel's {key} is {_g(v)} m, "
+                               f"beyond the {_g(limit)} m a testbed wheel has{hint}"))
+    if rig.lug_height > 0.5 * rig.radius and not any(f.column == "wheel.lug_height" for f in out):
+        out.append(Finding("error", manifest, "wheel.lug_height", f"run {spec.id!r}: lugs of {_g(rig.lug_height)} m "
+                           f"on a wheel of radius {_g(rig.radius)} m: more than half the radius"))
+    return out
+
+
+def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
+    """Units and physical limits of a wheel_rig table (module docstring)."""
+    out: list[Finding] = []
+    slip, load = table["slip"], table["vertical_load"]
+    high = np.flatnonzero(slip >= 1.0)
+    if high.size:
+        i = int(high[np.argmax(slip[high])])
+        hint = ": looks like percent (a slip of 0.2 is 20 %)" if np.all(np.abs(slip) <= 100.0) else ""
+        out.append(Finding("error", file, "slip", f"slip reaches {_g(slip[i])} at {_rig_at(table, i)}; a slip is "
+                           f"below 1 (1 - v / (omega R)){hint}"))
+    bad = np.flatnonzero(load <= 0)
+    if bad.size:
+        i = int(bad[0])
+        out.append(Finding("error", file, "vertical_load", f"vertical_load is {_g(load[i])} N at {_rig_at(table, i)}; "
+                           "the testbed presses the wheel on the soil with a load > 0"))
+    else:
+        radius = spec.rig.radius if spec.rig is not None else None
+        forces = [(n, np.abs(table[n]) / load) for n in ("drawbar_pull", "lateral_force") if table.has(n)]
+        if table.has("torque") and radius:
+            forces.append(("torque", np.abs(table["torque"]) / (radius * load)))
+        for name, ratio in forces:
+            if not np.any(ratio > RIG_FORCE_WARN):
+                continue
+            i = int(np.nanargmax(ratio))
+            what = f"|{name}| / (radius x vertical_load)" if name == "torque" else f"|{name}| / vertical_load"
+            severity = "error" if ratio[i] > RIG_FORCE_ERROR else "warning"
+            hint = ": is the load in kg? (1 kg weighs 9.81 N)" if severity == "error" else ""
+            out.append(Finding(severity, file, name, f"{what} reaches {_g(ratio[i])} at {_rig_at(table, i)}; the "
+                               f"soil's friction limits it to below about 1 (more than {RIG_FORCE_ERROR:g} is an "
+                               f"error){hint}"))
+    if table.has("sinkage") and spec.rig is not None:
+        z = table["sinkage"]
+        i = int(np.nanargmax(np.abs(z)))
+        if abs(z[i]) > spec.rig.radius:
+            hint = ": looks like millimetres" if abs(z[i]) / 1000.0 <= spec.rig.radius else ""
+            out.append(Finding("error", file, "sinkage", f"|sinkage| reaches {_g(z[i])} m at {_rig_at(table, i)}, "
+                               f"beyond the wheel radius of {_g(spec.rig.radius)} m (the axle under the "
+                               f"surface){hint}"))
+    if "slip_angle" in table.columns:
+        a = np.abs(table["slip_angle"])
+        i = int(np.argmax(a))
+        if a[i] > math.pi / 2:
+            hint = ": looks like degrees" if a[i] <= 90.0 else ""
+            out.append(Finding("error", file, "slip_angle", f"|slip_angle| reaches {_g(a[i])} rad at "
+                               f"{_rig_at(table, i)}, beyond pi/2 (the wheel across the carriage){hint}"))
+        elif a[i] > RIG_ANGLE_WARN:
+            out.append(Finding("warning", file, "slip_angle", f"|slip_angle| reaches {_g(a[i])} rad at "
+                               f"{_rig_at(table, i)}, beyond pi/4 ({_g(math.degrees(a[i]))} degrees if radians)"))
+    return out

@@ -1,0 +1,304 @@
+"""Checks of one run's columns against the rover's limits (:mod:`.limits`): units (degrees, rpm,
+millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen sensors.
+
+* **Ground datum.** Drawbar runs are on flat ground at z = 0; the chassis rides at about its
+  centre of gravity's height (wheel radius + ``rover.cgHeight``, 0.53 m) above it, less the
+  sinkage. A drawbar run whose median pos_z lies more than ``DATUM_LIMIT`` (2) times that height
+  from the ground is measured from another datum (a total station's or a map's: a UTM height
+  of hundreds of metres), an error: compared with the model's flat ground, such heights would
+  bend every fit.
+* **Attitude.** The static tip-over angles are ``atan(half track / CG height)`` in roll and
+  ``atan(half wheelbase / CG height)`` in pitch (CG height = wheel radius + ``rover.cgHeight``):
+  0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
+  an error: such angles are degrees.
+* **Dead sensors.** A torque equal in every sample while the wheels turn is an error in a
+  drawbar run (pulling a load takes drive torque), a warning otherwise. A position (pos_x and
+  pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
+  total station that updates has noise in its last digits.
+* **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
+  radius: the same margins as the torque, times 2 / radius. At the other end, a load cell read
+  in kN gives a drawbar force a thousand times too small: a run whose largest |drawbar_force|
+  is under ``KILONEWTON_SHARE`` (1 %) of the thrust its torques give (their medians' sum over
+  the wheel radius) while a thousand times it is a force the wheels can push. One such run is a
+  warning (a run without load reads only the load cell's noise and the start's pull); every
+  drawbar run of a campaign so is an error: drawbar tests load the rover.
+* **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
+  typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
+  more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
+  over an hour between rows typically less than half a second apart is an error (not one run).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from ..campaign import RunData, aligned
+from .findings import Finding, _format_spans, _g, _largest, _own, _spans
+from .limits import RoverLimits
+
+#: Torque (and drawbar force) warning: beyond this times the drive's limit, min(stall,
+#: drive.torqueMax): the current sensor's noise (1.5 N m + 1 %) and the motor constants'
+#: uncertainty stay well inside 20 %.
+TORQUE_MARGIN = 1.2
+#: Spin warning / error, as multiples of the no-load spin.
+SPIN_WARN = 1.25
+SPIN_ERROR = 3.0
+#: Positions: typical (median) speed over SPEED_WINDOW s beyond this times the top speed.
+SPEED_ERROR = 2.0
+SPEED_WINDOW = 1.0
+#: Attitude beyond which the rover would lie on its side (rad).
+ANGLE_ERROR = 1.2
+#: Time: longest plausible run (s), typical row step that no rover log has (s).
+LONGEST_RUN = 3600.0
+SLOW_STEP = 0.5
+ABSURD_STEP = 10.0
+#: A frozen position: the same pos_x and pos_y repeated for longer than this (s) while the
+#: wheels turn faster than TURNING (rad/s). A total station that updates has noise in its last
+#: digits; exact repeats over seconds mean it stopped updating.
+FROZEN_SPAN = 2.0
+TURNING = 0.2
+#: A drawbar run's median drive torque of the wrong sign is an error beyond this share of the
+#: drive torque per side: a reversed sensor sign, not a sensor offset.
+SIGN_MATERIAL = 0.05
+#: A drawbar run's median drawbar force of the wrong sign is an error beyond this share of the
+#: thrust its measured torques give (their medians' sum over the wheel radius): a reversed sign,
+#: not a load cell's offset on a run with a load near zero.
+DRAWBAR_SIGN_MATERIAL = 0.25
+#: A drawbar run whose largest |drawbar_force| stays below this share of the thrust its measured
+#: torques give looks like a load cell read in kN (module docstring, "Drawbar force").
+KILONEWTON_SHARE = 0.01
+#: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
+#: (above or below its flat ground at z = 0) is measured from another datum.
+DATUM_LIMIT = 2.0
+
+RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
+
+
+def check_time(run: RunData, file: str) -> list[Finding]:
+    """Time in milliseconds: duration and typical row step (module docstring)."""
+    t = run.time
+    if len(t) < 2:
+        return []
+    duration = float(t[-1] - t[0])
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    gap = int(np.argmax(steps))
+    lines = run.lines if run.lines is not None else np.arange(len(t)) + 2
+    if steps[gap] > LONGEST_RUN and step < SLOW_STEP:
+        return [Finding("error", file, "time", f"{_g(steps[gap])} s pass between line {int(lines[gap])} "
+                        f"(t = {_g(t[gap])} s) and line {int(lines[gap + 1])} (t = {_g(t[gap + 1])} s), where rows "
+                        f"are typically {_g(step)} s apart: not one run")]
+    if step >= ABSURD_STEP:
+        return [Finding("error", file, "time", f"rows are typically {_g(step)} s apart (the rover's sensors sample "
+                        f"at 5-100 Hz): time looks like milliseconds")]
+    if duration > LONGEST_RUN:
+        evidence = f"the run lasts {_g(duration)} s ({_g(duration / 3600)} h) with rows typically {_g(step)} s apart"
+        if step >= SLOW_STEP:
+            return [Finding("error", file, "time", f"{evidence} (the rover's sensors sample at 5-100 Hz): "
+                            "time looks like milliseconds")]
+        return [Finding("warning", file, "time", f"{evidence}: longer than an hour; is time in milliseconds?")]
+    return []
+
+
+def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Roll and pitch: degrees (> ANGLE_ERROR rad) or beyond the tip-over angle."""
+    out = []
+    for name, tip in (("roll", limits.roll_tip), ("pitch", limits.pitch_tip)):
+        if not run.has(name):
+            continue
+        peak, _, vs, lines, i = _largest(run, name)
+        if peak > ANGLE_ERROR:
+            beyond = int(np.sum(np.abs(vs) > ANGLE_ERROR))
+            hint = ": looks like degrees" if math.radians(peak) <= tip else ""
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} (> {ANGLE_ERROR} rad, the rover "
+                               f"on its side) at line {int(lines[i])}; {beyond} of {len(vs)} samples beyond "
+                               f"{ANGLE_ERROR} rad{hint}"))
+        elif peak > tip:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad at line {int(lines[i])}, "
+                               f"beyond the rover's static tip-over angle of {_g(tip)} rad"))
+    return out
+
+
+def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Wheel spins beyond the motors' no-load spin (rpm instead of rad/s)."""
+    out = []
+    w0 = limits.no_load_spin
+    for name in ("omega_left", "omega_right"):
+        if not run.has(name):
+            continue
+        peak, where, _, _, _ = _largest(run, name)
+        hint = ""
+        if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
+            hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
+        if peak > SPIN_ERROR * w0:
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, more than "
+                               f"{SPIN_ERROR:g} times the motors' no-load spin of {_g(w0)} rad/s{hint}"))
+        elif peak > SPIN_WARN * w0:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, beyond the "
+                               f"motors' no-load spin of {_g(w0)} rad/s{hint or ' (the wheel overran the motor)'}"))
+    return out
+
+
+def _turning(run: RunData) -> float:
+    """Median |spin| (rad/s) over both wheels' samples, 0 without spins."""
+    vals = [np.abs(_own(run, n)[1]) for n in ("omega_left", "omega_right") if run.has(n)]
+    return float(np.median(np.concatenate(vals))) if vals else 0.0
+
+
+def check_torques(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Drive torques beyond what the motors can give; an all-zero (or constant) torque."""
+    out = []
+    warn, error = TORQUE_MARGIN * limits.drive_torque, limits.plugging_torque
+    spinning = _turning(run)
+    for name in ("torque_left", "torque_right"):
+        if not run.has(name):
+            continue
+        peak, where, vs, _, _ = _largest(run, name)
+        if peak > error:
+            out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} N m at {where}, beyond the motors' "
+                               f"electrical maximum of {_g(error)} N m (twice the stall torque "
+                               f"eff * n * kt * V / Ra = {_g(limits.stall_torque)} N m)"))
+        elif peak > warn:
+            out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N m at {where}, beyond "
+                               f"{TORQUE_MARGIN:g} times the drive's limit of {_g(limits.drive_torque)} N m"))
+        if np.all(vs == vs[0]) and spinning > TURNING:
+            what = "is zero in every sample" if vs[0] == 0 else f"is {_g(vs[0])} N m in every sample"
+            if run.kind == "drawbar":
+                out.append(Finding("error", file, name, f"{what} while the wheels turn (median spin "
+                                   f"{_g(spinning)} rad/s): pulling a drawbar load takes drive torque; is the "
+                                   "torque sensor connected?"))
+            else:
+                out.append(Finding("warning", file, name, f"{what} while the wheels turn (median spin "
+                                   f"{_g(spinning)} rad/s): is the torque sensor connected?"))
+    return out
+
+
+def _forward_spin(run: RunData) -> float:
+    """Median spin (rad/s) of both sides' samples, signed (forward > 0); 0 without spins."""
+    vals = [_own(run, n)[1] for n in ("omega_left", "omega_right") if run.has(n)]
+    return float(np.median(np.concatenate(vals))) if vals else 0.0
+
+
+def check_signs(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Sign conventions of a drawbar run, from physics: on flat ground, a rover whose wheels
+    drive forward while it pulls a load takes driving torque (torque and spin of one sign) and
+    the load cell holds it back (``drawbar_force`` > 0).  A median of the other sign beyond
+    SIGN_MATERIAL of the drive torque, or DRAWBAR_SIGN_MATERIAL of the thrust the measured
+    torques give, is a reversed sign."""
+    if run.kind != "drawbar" or _forward_spin(run) <= TURNING:
+        return []
+    out = []
+    for name in ("torque_left", "torque_right"):
+        if run.has(name):
+            median = float(np.median(_own(run, name)[1]))
+            if median < -SIGN_MATERIAL * limits.drive_torque:
+                out.append(Finding("error", file, name, f"the median {name} is {_g(median)} N m while the wheels "
+                                   f"drive forward (median spin {_g(_forward_spin(run))} rad/s): pulling a load on "
+                                   "flat ground takes driving torque, of the spin's sign; is the sign reversed?"))
+    torque = sum(abs(float(np.median(_own(run, n)[1]))) for n in ("torque_left", "torque_right") if run.has(n))
+    if run.has("drawbar_force"):
+        median = float(np.median(_own(run, "drawbar_force")[1]))
+        if median < -DRAWBAR_SIGN_MATERIAL * torque / limits.wheel_radius:
+            out.append(Finding("error", file, "drawbar_force", f"the median drawbar_force is {_g(median)} N while "
+                               "the wheels drive forward: the load cell's force holds the rover back and is "
+                               "positive then (docs/campaign-format.md); is the sign reversed?"))
+    return out
+
+
+def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Drawbar force beyond what the wheels of both sides can push."""
+    name = "drawbar_force"
+    if not run.has(name):
+        return []
+    peak, where, _, _, _ = _largest(run, name)
+    warn = 2.0 * TORQUE_MARGIN * limits.drive_torque / limits.wheel_radius
+    error = 2.0 * limits.plugging_torque / limits.wheel_radius
+    if peak > error:
+        return [Finding("error", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond the {_g(error)} N "
+                        "the wheels could push at the motors' electrical maximum")]
+    if peak > warn:
+        return [Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond {TORQUE_MARGIN:g} "
+                        f"times the {_g(warn / TORQUE_MARGIN)} N the drive's torque limit pushes")]
+    return []
+
+
+def drawbar_in_kilonewtons(run: RunData, limits: RoverLimits) -> Optional[str]:
+    """The evidence (a sentence) that a drawbar run's ``drawbar_force`` is in kN (module
+    docstring, "Drawbar force"), or None."""
+    torques = [n for n in ("torque_left", "torque_right") if run.has(n)]
+    if run.kind != "drawbar" or not run.has("drawbar_force") or not torques:
+        return None
+    thrust = sum(abs(float(np.median(_own(run, n)[1]))) for n in torques) / limits.wheel_radius
+    peak, where, _, _, _ = _largest(run, "drawbar_force")
+    pushable = 2.0 * limits.plugging_torque / limits.wheel_radius
+    if not (thrust > 0 and peak < KILONEWTON_SHARE * thrust and 0 < 1000.0 * peak <= pushable):
+        return None
+    return (f"|drawbar_force| is at most {_g(peak)} N ({where}) while the measured torques push {_g(thrust)} N "
+            f"(their medians over the wheel radius), under {KILONEWTON_SHARE:.0%} of it: looks like kN "
+            f"({_g(1000.0 * peak)} N)")
+
+
+def check_positions(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """Positions in millimetres (typical speed far beyond the top speed); a frozen position."""
+    out = []
+    for name in ("pos_x", "pos_y", "pos_z"):
+        if not run.has(name):
+            continue
+        ts, vs, _ = _own(run, name)
+        if len(ts) < 2 or ts[-1] - ts[0] < SPEED_WINDOW:
+            continue
+        j = np.searchsorted(ts, ts + SPEED_WINDOW)
+        ok = j < len(ts)
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed = np.abs(vs[j[ok]] - vs[ok]) / (ts[j[ok]] - ts[ok])
+        typical = float(np.median(speed))
+        if typical > SPEED_ERROR * limits.top_speed:
+            hint = ": looks like millimetres" if typical / 1000.0 <= SPEED_ERROR * limits.top_speed else ""
+            out.append(Finding("error", file, name, f"{name} changes typically by {_g(typical)} m/s (median over "
+                               f"{SPEED_WINDOW:g} s), more than {SPEED_ERROR:g} times the rover's top speed of "
+                               f"{_g(limits.top_speed)} m/s{hint}"))
+    if run.has("pos_x") and run.has("pos_y"):
+        out += _check_frozen(run, file)
+    return out + check_ground_datum(run, file, limits)
+
+
+def check_ground_datum(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A drawbar run's heights measured from a datum other than its flat ground (module
+    docstring, "Ground datum")."""
+    if run.kind != "drawbar" or not run.has("pos_z"):
+        return []
+    height = float(np.median(_own(run, "pos_z")[1]))
+    bound = DATUM_LIMIT * limits.cg_height
+    if abs(height) <= bound:
+        return []
+    return [Finding("error", file, "pos_z", f"the median pos_z is {_g(height)} m: drawbar runs are on flat ground at "
+                    f"z = 0 (docs/campaign-format.md), where the chassis stays within {_g(bound)} m of the ground "
+                    f"({DATUM_LIMIT:g} times its centre of gravity's height of {_g(limits.cg_height)} m); measured from "
+                    "another datum (a total station's, a map's): subtract the ground's height")]
+
+
+def _check_frozen(run: RunData, file: str) -> list[Finding]:
+    tx, x, _ = _own(run, "pos_x")
+    if len(tx) < 2:
+        return []
+    y = aligned(run, "pos_y", tx, method="nearest")["pos_y"]
+    same = (np.diff(x) == 0) & (np.diff(y) == 0)
+    if not same.any():
+        return []
+    spins = [aligned(run, n, tx)[n] for n in ("omega_left", "omega_right") if run.has(n)]
+    turning = np.max(np.abs(spins), axis=0) if spins else np.zeros(len(tx))
+    held = same & (np.minimum(turning[:-1], turning[1:]) > TURNING)
+    out = []
+    for a, b in _spans(tx[:-1], held):
+        k = int(np.searchsorted(tx, b)) + 1
+        end = float(tx[min(k, len(tx) - 1)])
+        if end - a > FROZEN_SPAN:
+            out.append((a, end))
+    if not out:
+        return []
+    total = sum(b - a for a, b in out)
+    return [Finding("warning", file, "pos_x", f"the position (pos_x, pos_y) stays exactly the same for {_g(total)} s "
+                    f"({_format_spans(out)}) while the wheels turn: the total station looks frozen")]
