@@ -456,3 +456,33 @@ def test_a_yaw_that_does_not_point_where_the_rover_goes_is_refused(base, tmp_pat
     heading = next(f for f in errors if f.column == "yaw")
     assert "direction of travel" in heading.message and "degrees" in heading.message
     assert "compass heading" in heading.message
+
+
+def straight_terrain_run(tmp_path: Path, speed: float, heading: float, yaw: Callable[[np.ndarray], np.ndarray]):
+    """20 s driving straight at ``speed`` (m/s; < 0 backward, the wheels turning backward) along
+    ``heading`` (rad), its total station at 5 Hz with 2 mm of noise, its yaw ``yaw(heading)``."""
+    rng = np.random.default_rng(11)
+    t = np.round(np.arange(0.0, 20.0, 0.01), 10)
+    at_5_hz = np.arange(len(t)) % 20 == 0
+    travelled = speed * t
+    columns = {"time": t, "torque_left": np.full(len(t), 30.0), "torque_right": np.full(len(t), 30.0),
+               "omega_left": np.full(len(t), speed / 0.2794), "omega_right": np.full(len(t), speed / 0.2794),
+               "pos_x": np.where(at_5_hz, travelled * math.cos(heading) + rng.normal(0, 0.002, len(t)), np.nan),
+               "pos_y": np.where(at_5_hz, travelled * math.sin(heading) + rng.normal(0, 0.002, len(t)), np.nan),
+               "pos_z": np.where(at_5_hz, 0.5 + rng.normal(0, 0.002, len(t)), np.nan),
+               "yaw": yaw(heading + rng.normal(0, 0.005, len(t)))}
+    path = tmp_path / "t3d.csv"
+    path.write_text(format_run_csv(columns))
+    return read_run_csv(path, "terrain")
+
+
+@pytest.mark.parametrize("speed", [0.3, -0.2], ids=["forward", "backward"])
+def test_the_heading_check_follows_the_direction_the_wheels_drive(tmp_path, speed) -> None:
+    """Driving backward, a rover moves against its heading; its yaw is right, and the check says
+    nothing. The same yaw in degrees is refused either way (at 2.5 rad: 143 degrees, read as
+    radians, point 2.5 rad away)."""
+    from juno.plausibility.motion import check_heading
+
+    assert check_heading(straight_terrain_run(tmp_path, speed, 2.5, lambda a: a), "runs/t3d.csv") == []
+    refused = check_heading(straight_terrain_run(tmp_path, speed, 2.5, np.degrees), "runs/t3d.csv")
+    assert [(f.severity, f.column) for f in refused] == [("error", "yaw")]

@@ -29,8 +29,9 @@ a yaw in degrees, a heading that is not the direction of travel.
   positions in a frame the yaw is not measured in. Measured on 42 synthetic campaigns (every
   effect and decoy, both designs): 0.006-0.032 rad on the drawbar runs, 0.03-0.29 rad on the
   terrain runs (they slide on the mound's and ridge's flanks); with the yaw in degrees, 39 of the
-  42 terrain runs gave 0.87-2.13 rad (the rest head almost along x, where degrees and radians
-  nearly agree); as a compass heading, 1.44-1.79 rad on every run.
+  42 terrain runs gave 0.87-2.13 rad; the other 3 went unseen: a heading h in degrees, read as
+  radians, is 57.3 h, which for some headings lies within pi/4 of h on the circle (at h = 2 rad,
+  0.51 rad from it). As a compass heading, 1.44-1.79 rad on every run.
 """
 
 from __future__ import annotations
