@@ -15,7 +15,7 @@ from .outliers import check_outliers
 from .rig import check_rig, check_rig_wheel
 from .scan import check_scan
 from .sensors import (check_angles, check_drawbar, check_positions, check_signs, check_spins, check_time,
-                      check_torques, drawbar_in_kilonewtons)
+                      check_power, check_torques, drawbar_in_kilonewtons)
 
 
 def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
@@ -27,6 +27,9 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     with_error = {f.column for f in found if f.severity == "error"}
     if not with_error & {"yaw", "pos_x", "pos_y", "omega_left", "omega_right"}:
         found += check_heading(run, file)
+    if not with_error & {"drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right", "pos_x",
+                         "pos_y"}:
+        found += check_power(run, file, limits)
     with_error = {f.column for f in found if f.severity == "error"}
     columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
     return found + check_outliers(run, file, columns, limits)

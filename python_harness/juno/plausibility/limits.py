@@ -45,6 +45,7 @@ class RoverLimits:
     pitch_tip: float         # rad
     cg_height: float = 0.0   # m: wheel radius + rover.cgHeight, the CG over flat ground
     track: float = 0.0       # m: rover.track, between the wheels' centre planes
+    gear_ratio: float = 1.0  # motor.gearRatio, motor : wheel
 
     @property
     def plugging_torque(self) -> float:
@@ -69,4 +70,4 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         top_speed=omega0 * r, wheel_radius=r, half_length=0.5 * p["rover.wheelbase"] + r,
         half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
         roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
-        cg_height=cg, track=p["rover.track"])
+        cg_height=cg, track=p["rover.track"], gear_ratio=n)

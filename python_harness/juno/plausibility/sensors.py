@@ -22,6 +22,14 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   the wheel radius) while a thousand times it is a force the wheels can push. One such run is a
   warning (a run without load reads only the load cell's noise and the start's pull); every
   drawbar run of a campaign so is an error: drawbar tests load the rover.
+* **Power.** On flat ground the hitch cannot take more power than the drive torques put into
+  the wheels: the soil and the drivetrain only dissipate, and what the rover's speeding up
+  stores it gives back when it slows. A drawbar run whose median power at the hitch
+  (``drawbar_force`` times the speed of the positions over 1 s) exceeds the median power of its
+  drive torques (``torque_left * omega_left + torque_right * omega_right``), over the windows
+  where the wheels drive forward, is an error: the torques are too small. The message says
+  when they look like the motor shaft's torque (before the ``motor.gearRatio`` gearbox) or kN m.
+  Synthetic drawbar runs give 0.13-0.32.
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
   typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
   more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
@@ -70,6 +78,10 @@ DRAWBAR_SIGN_MATERIAL = 0.25
 #: A drawbar run whose largest |drawbar_force| stays below this share of the thrust its measured
 #: torques give looks like a load cell read in kN (module docstring, "Drawbar force").
 KILONEWTON_SHARE = 0.01
+#: The power check: the hitch's and the wheels' power over POWER_WINDOW s, in POWER_WINDOWS or
+#: more windows where the wheels drive forward (module docstring, "Power").
+POWER_WINDOW = 1.0
+POWER_WINDOWS = 10
 #: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
 #: (above or below its flat ground at z = 0) is measured from another datum.
 DATUM_LIMIT = 2.0
@@ -223,6 +235,39 @@ def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
         return [Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond {TORQUE_MARGIN:g} "
                         f"times the {_g(warn / TORQUE_MARGIN)} N the drive's torque limit pushes")]
     return []
+
+
+def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A drawbar run whose hitch takes more power than its drive torques give (module
+    docstring, "Power")."""
+    names = ("drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right", "pos_x", "pos_y")
+    if run.kind != "drawbar" or not all(run.has(n) for n in names):
+        return []
+    tx = run.samples("pos_x")[0]
+    if len(tx) < 2 or tx[-1] - tx[0] <= 2 * POWER_WINDOW:
+        return []
+    t = np.arange(tx[0] + 0.5 * POWER_WINDOW, tx[-1] - 0.5 * POWER_WINDOW, 0.5 * POWER_WINDOW)
+    ends = aligned(run, ["pos_x", "pos_y"], np.concatenate([t - 0.5 * POWER_WINDOW, t + 0.5 * POWER_WINDOW]))
+    dx, dy = (np.diff(ends[n].reshape(2, -1), axis=0)[0] for n in ("pos_x", "pos_y"))
+    at = aligned(run, [n for n in names if not n.startswith("pos_")], t)
+    wheels = at["torque_left"] * at["omega_left"] + at["torque_right"] * at["omega_right"]
+    hitch = at["drawbar_force"] * np.hypot(dx, dy) / POWER_WINDOW
+    driving = (0.5 * (at["omega_left"] + at["omega_right"]) > TURNING) & (wheels > 0) & np.isfinite(hitch)
+    if int(np.sum(driving)) < POWER_WINDOWS:
+        return []
+    ratio = float(np.median(hitch[driving]) / np.median(wheels[driving]))
+    if not ratio > 1.0:
+        return []
+    # The mistakes that make torques this small, each where undoing it keeps the bound.
+    mistakes = [what for what, factor in ((f"the motor shaft's torque, before the 1:{_g(limits.gear_ratio)} gearbox "
+                                           "(motor.gearRatio; the format's torques are at the wheels)",
+                                           limits.gear_ratio), ("kN m", 1000.0)) if ratio / factor <= 1.0]
+    hint = f": looks like {' or '.join(mistakes)}" if mistakes else ""
+    return [Finding("error", file, "torque_left", f"the hitch takes {_g(ratio)} times the power the drive torques "
+                    f"put into the wheels (median drawbar_force x speed against median torque_left x omega_left + "
+                    f"torque_right x omega_right over the {int(np.sum(driving))} {_g(POWER_WINDOW)} s windows where "
+                    f"the wheels drive forward); on flat ground the soil only takes power: the torques are too "
+                    f"small{hint}")]
 
 
 def drawbar_in_kilonewtons(run: RunData, limits: RoverLimits) -> Optional[str]:
