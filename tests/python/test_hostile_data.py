@@ -188,6 +188,8 @@ ERRORS = [
          "runs/dbp3.csv", "torque_left", ("times the power", "gearbox", "motor.gearRatio")),
     Case("torques in kN m", scale("dbp2", 1e-3, "torque_left", "torque_right"), "error", "runs/dbp2.csv",
          "torque_left", ("times the power", "kN m")),
+    Case("spins in rev/s", scale("dbp2", 1 / (2 * math.pi), "omega_left", "omega_right"), "error", "runs/dbp2.csv",
+         "omega_left", ("rims roll", "rev/s")),
     Case("drawbar force in kN in every run", in_every_drawbar_run(lambda r: scale(r, 1e-3, "drawbar_force")),
          "error", "runs/dbp2.csv", "drawbar_force", ("looks like kN", "in every drawbar run", "torques push")),
     Case("heights from a map's datum", in_every_drawbar_run(lambda r: shift(r, 312.0, "pos_z")), "error",
@@ -487,6 +489,6 @@ def test_the_heading_check_follows_the_direction_the_wheels_drive(tmp_path, spee
     radians, point 2.5 rad away)."""
     from juno.plausibility.motion import check_heading
 
-    assert check_heading(straight_terrain_run(tmp_path, speed, 2.5, lambda a: a), "runs/t3d.csv") == []
-    refused = check_heading(straight_terrain_run(tmp_path, speed, 2.5, np.degrees), "runs/t3d.csv")
+    assert check_heading(straight_terrain_run(tmp_path, speed, 2.5, lambda a: a), "runs/t3d.csv", rover_limits()) == []
+    refused = check_heading(straight_terrain_run(tmp_path, speed, 2.5, np.degrees), "runs/t3d.csv", rover_limits())
     assert [(f.severity, f.column) for f in refused] == [("error", "yaw")]

@@ -15,7 +15,8 @@ from .outliers import check_outliers
 from .rig import check_rig, check_rig_wheel
 from .scan import check_scan
 from .sensors import (check_angles, check_drawbar, check_positions, check_signs, check_spins, check_time,
-                      check_power, check_torques, drawbar_in_kilonewtons)
+                      check_power, check_rolling, check_torques,
+                      drawbar_in_kilonewtons)
 
 
 def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
@@ -24,12 +25,15 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
              + check_torques(run, file, limits) + check_drawbar(run, file, limits)
              + check_signs(run, file, limits) + check_positions(run, file, limits)
              + check_turning(run, file, limits))
-    with_error = {f.column for f in found if f.severity == "error"}
-    if not with_error & {"yaw", "pos_x", "pos_y", "omega_left", "omega_right"}:
-        found += check_heading(run, file)
-    if not with_error & {"drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right", "pos_x",
-                         "pos_y"}:
-        found += check_power(run, file, limits)
+    # The checks that compare columns with each other run on columns without an error of their
+    # own, so that one mistake gets one message: spins in rev/s, say, would also make the
+    # drive's power too small.
+    for check, columns in ((check_heading, {"yaw", "pos_x", "pos_y", "omega_left", "omega_right"}),
+                           (check_rolling, {"omega_left", "omega_right", "pos_x", "pos_y"}),
+                           (check_power, {"drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right",
+                                          "pos_x", "pos_y"})):
+        if not columns & {f.column for f in found if f.severity == "error"}:
+            found += check(run, file, limits)
     with_error = {f.column for f in found if f.severity == "error"}
     columns = [c for c in KNOWN_COLUMNS if c != "time" and c not in with_error]
     return found + check_outliers(run, file, columns, limits)

@@ -108,7 +108,7 @@ def _check_yaw_units(rate: np.ndarray, difference: np.ndarray, file: str, limits
                     f"degrees (in radians: {_g(slope * np.pi / 180.0)})")]
 
 
-def check_heading(run: RunData, file: str) -> list[Finding]:
+def check_heading(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """``yaw`` that does not point where the rover goes: degrees, a compass heading, another
     reference direction, or positions in another frame (module docstring, "Heading")."""
     names = ("yaw", "pos_x", "pos_y", "omega_left", "omega_right")

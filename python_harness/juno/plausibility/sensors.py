@@ -30,6 +30,14 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   where the wheels drive forward, is an error: the torques are too small. The message says
   when they look like the motor shaft's torque (before the ``motor.gearRatio`` gearbox) or kN m.
   Synthetic drawbar runs give 0.13-0.32.
+* **Rolling.** A wheel that pulls a load slips: the rover moves slower than its rims roll, and
+  lugs reach beyond the rim by at most half the radius (the largest lugs the FMU accepts). A
+  drawbar run whose median speed (of the positions, over 1 s) exceeds ``ROLLING_LIMIT`` (1.5)
+  times the median rim speed ``wheel.radius * (omega_left + omega_right) / 2``, over the windows
+  where the wheels drive forward, is an error: spins in rev/s (the message says so when 2 pi
+  times them keeps the bound), or a ``wheel.radius`` too small. 147 synthetic drawbar runs give
+  0.12-0.83 (the slip of the load); with their spins in rev/s, 128 of them exceed 1.5 (the rest
+  slip by over 76 %, where 2 pi times too slow a spin still rolls faster than the rover).
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
   typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
   more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
@@ -44,7 +52,7 @@ from typing import Optional
 import numpy as np
 
 from ..campaign import RunData, aligned
-from .findings import Finding, _format_spans, _g, _largest, _own, _spans
+from .findings import FloatArray, Finding, _format_spans, _g, _largest, _own, _spans
 from .limits import RoverLimits
 
 #: Torque (and drawbar force) warning: beyond this times the drive's limit, min(stall,
@@ -82,6 +90,9 @@ KILONEWTON_SHARE = 0.01
 #: more windows where the wheels drive forward (module docstring, "Power").
 POWER_WINDOW = 1.0
 POWER_WINDOWS = 10
+#: A drawbar run moving faster than this times its wheels' rim speed is an error (module
+#: docstring, "Rolling").
+ROLLING_LIMIT = 1.5
 #: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
 #: (above or below its flat ground at z = 0) is measured from another datum.
 DATUM_LIMIT = 2.0
@@ -243,15 +254,12 @@ def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     names = ("drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right", "pos_x", "pos_y")
     if run.kind != "drawbar" or not all(run.has(n) for n in names):
         return []
-    tx = run.samples("pos_x")[0]
-    if len(tx) < 2 or tx[-1] - tx[0] <= 2 * POWER_WINDOW:
+    t, speed = _speed_over_windows(run, POWER_WINDOW)
+    if t is None:
         return []
-    t = np.arange(tx[0] + 0.5 * POWER_WINDOW, tx[-1] - 0.5 * POWER_WINDOW, 0.5 * POWER_WINDOW)
-    ends = aligned(run, ["pos_x", "pos_y"], np.concatenate([t - 0.5 * POWER_WINDOW, t + 0.5 * POWER_WINDOW]))
-    dx, dy = (np.diff(ends[n].reshape(2, -1), axis=0)[0] for n in ("pos_x", "pos_y"))
     at = aligned(run, [n for n in names if not n.startswith("pos_")], t)
     wheels = at["torque_left"] * at["omega_left"] + at["torque_right"] * at["omega_right"]
-    hitch = at["drawbar_force"] * np.hypot(dx, dy) / POWER_WINDOW
+    hitch = at["drawbar_force"] * speed
     driving = (0.5 * (at["omega_left"] + at["omega_right"]) > TURNING) & (wheels > 0) & np.isfinite(hitch)
     if int(np.sum(driving)) < POWER_WINDOWS:
         return []
@@ -268,6 +276,43 @@ def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
                     f"torque_right x omega_right over the {int(np.sum(driving))} {_g(POWER_WINDOW)} s windows where "
                     f"the wheels drive forward); on flat ground the soil only takes power: the torques are too "
                     f"small{hint}")]
+
+
+def check_rolling(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A drawbar run whose rover moves faster than its wheels roll (module docstring, "Rolling")."""
+    names = ("omega_left", "omega_right", "pos_x", "pos_y")
+    if run.kind != "drawbar" or not all(run.has(n) for n in names):
+        return []
+    t, speed = _speed_over_windows(run, POWER_WINDOW)
+    if t is None:
+        return []
+    spins = aligned(run, ["omega_left", "omega_right"], t)
+    forward = 0.5 * (spins["omega_left"] + spins["omega_right"])
+    # Forward by sign alone, not by TURNING: spins in another unit are what this check is for.
+    driving = (forward > 0) & np.isfinite(speed)
+    if int(np.sum(driving)) < POWER_WINDOWS:
+        return []
+    ratio = float(np.median(speed[driving]) / (np.median(forward[driving]) * limits.wheel_radius))
+    if not ratio > ROLLING_LIMIT:
+        return []
+    hint = ": looks like rev/s (the format's spins are in rad/s)" if ratio / (2 * math.pi) <= ROLLING_LIMIT else ""
+    return [Finding("error", file, "omega_left", f"the rover moves {_g(ratio)} times as fast as its wheels' rims roll "
+                    f"(the median speed of pos_x, pos_y over {_g(POWER_WINDOW)} s against wheel.radius = "
+                    f"{_g(limits.wheel_radius)} m times the median of (omega_left + omega_right) / 2, over the "
+                    f"{int(np.sum(driving))} windows where the wheels drive forward); a wheel pulling a load slips "
+                    f"and moves slower than its rim: are the spins in another unit, or wheel.radius too small?{hint}")]
+
+
+def _speed_over_windows(run: RunData, window: float) -> tuple[Optional[FloatArray], FloatArray]:
+    """Times every half ``window`` (s) and the speed (m/s) of pos_x, pos_y over ``window``
+    centred on each; (None, empty) for a run shorter than two windows."""
+    tx = run.samples("pos_x")[0]
+    if len(tx) < 2 or tx[-1] - tx[0] <= 2 * window:
+        return None, np.empty(0)
+    t = np.arange(tx[0] + 0.5 * window, tx[-1] - 0.5 * window, 0.5 * window)
+    ends = aligned(run, ["pos_x", "pos_y"], np.concatenate([t - 0.5 * window, t + 0.5 * window]))
+    dx, dy = (np.diff(ends[n].reshape(2, -1), axis=0)[0] for n in ("pos_x", "pos_y"))
+    return t, np.hypot(dx, dy) / window
 
 
 def drawbar_in_kilonewtons(run: RunData, limits: RoverLimits) -> Optional[str]:
