@@ -349,40 +349,50 @@ static int long_decimal(uint64_t m, int e10, double *v)
 }
 #endif
 
-/* Eight ASCII digits at p, as eight bytes read at once (little-endian
- * SWAR, Lemire's parse_eight_digits_unrolled); elsewhere a byte at a time. */
-static int eight_digits(const char *p)
+/* A run of up to eight digits at p, from the eight bytes there read at
+ * once (little-endian SWAR, GCC and Clang; Lemire's eight-digit test and
+ * parse_eight_digits_unrolled): the number of leading digits k (0..8) into
+ * *k and their value (0 for none), parsed as eight digits with the k moved
+ * to the end and '0's before them.  The first non-digit byte is the lowest
+ * one flagged: a carry or borrow between bytes starts only at a non-digit
+ * and moves to higher bytes, so the flags below it are exact.  Elsewhere
+ * *k = 0, and the caller's byte loop reads the digits. */
+#if defined(__GNUC__) && defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+static uint64_t digit_run(const char *p, int *k)
 {
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-    uint64_t v;
+    const uint64_t zeros = 0x3030303030303030u, mask = 0x000000FF000000FFu;
+    const uint64_t mul1 = 100 + (1000000ull << 32), mul2 = 1 + (10000ull << 32);
+    uint64_t v, flags;
     memcpy(&v, p, 8);
-    return (((v + 0x4646464646464646u) | (v - 0x3030303030303030u)) & 0x8080808080808080u) == 0;
-#else
-    int i;
-    for (i = 0; i < 8; i++)
-        if ((unsigned)((unsigned char)p[i] - '0') > 9u)
-            return 0;
-    return 1;
-#endif
-}
-
-static uint64_t parse_eight_digits(const char *p)
-{
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-    const uint64_t mask = 0x000000FF000000FFu, mul1 = 100 + (1000000ull << 32), mul2 = 1 + (10000ull << 32);
-    uint64_t v;
-    memcpy(&v, p, 8);
-    v -= 0x3030303030303030u;
+    flags = ((v + 0x4646464646464646u) | (v - zeros)) & 0x8080808080808080u;
+    *k = flags ? __builtin_ctzll(flags) >> 3 : 8;
+    if (*k == 0)
+        return 0;
+    if (*k < 8)
+        v = (v << (64 - 8 * *k)) | (zeros >> (8 * *k));
+    v -= zeros;
     v = v * 10 + (v >> 8);              /* pairs of digits */
     return (((v & mask) * mul1) + (((v >> 16) & mask) * mul2)) >> 32;
-#else
-    uint64_t v = 0;
-    int i;
-    for (i = 0; i < 8; i++)
-        v = 10 * v + (uint64_t)((unsigned char)p[i] - '0');
-    return v;
-#endif
 }
+#else
+static uint64_t digit_run(const char *p, int *k)
+{
+    (void)p;
+    *k = 0;
+    return 0;
+}
+#endif
+
+/* 10^0 .. 10^8 */
+static const uint64_t pow10_u64[9] = {1u, 10u, 100u, 1000u, 10000u, 100000u, 1000000u, 10000000u, 100000000u};
+
+/* scan_decimal inlined into both its callers (as a call it cost a tenth of
+ * the reading: its registers saved and restored for every value). */
+#if defined(__GNUC__)
+#define SCAN_INLINE inline __attribute__((always_inline))
+#else
+#define SCAN_INLINE inline
+#endif
 
 /* The common decimal token [+-]digits[.digits][(e|E)[+-]digits] (the
  * bytes p..end; the byte at end is not a digit, point, sign or e) with at
@@ -401,12 +411,12 @@ static uint64_t parse_eight_digits(const char *p)
  * Needs double arithmetic without extended precision (FLT_EVAL_METHOD 0,
  * e.g. SSE2), or the product could be rounded twice; elsewhere it always
  * declines. */
-static const char *scan_decimal(const char *p, const char *end, double *v)
+static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, double *v)
 {
 #if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
     const uint64_t max_exact = (uint64_t)1 << 53;
     uint64_t m = 0;
-    int neg = 0, digits = 0, significant = 0, e10 = 0;
+    int neg = 0, digits = 0, significant = 0, e10 = 0, k;
     double x;
 
     /* up to 19 significant digits (leading zeros do not count), so
@@ -415,8 +425,12 @@ static const char *scan_decimal(const char *p, const char *end, double *v)
         neg = *p++ == '-';
     for (; *p == '0'; p++)
         digits++;
-    while (end - p >= 8 && eight_digits(p))
-        m = 100000000 * m + parse_eight_digits(p), p += 8, digits += 8, significant += 8;
+    while (end - p >= 8) {                 /* runs of up to 8 digits, then any left near end */
+        const uint64_t run = digit_run(p, &k);
+        m = pow10_u64[k] * m + run, p += k, digits += k, significant += k;
+        if (k < 8)
+            break;
+    }
     for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++, digits++, significant++)
         m = 10 * m + (uint64_t)((unsigned char)*p - '0');
     if (*p == '.') {
@@ -424,8 +438,12 @@ static const char *scan_decimal(const char *p, const char *end, double *v)
         if (m == 0)
             for (; *p == '0'; p++, e10--)
                 digits++;
-        while (end - p >= 8 && eight_digits(p))
-            m = 100000000 * m + parse_eight_digits(p), p += 8, e10 -= 8, digits += 8, significant += 8;
+        while (end - p >= 8) {
+            const uint64_t run = digit_run(p, &k);
+            m = pow10_u64[k] * m + run, p += k, e10 -= k, digits += k, significant += k;
+            if (k < 8)
+                break;
+        }
         for (; (unsigned)((unsigned char)*p - '0') <= 9u; p++, e10--, digits++, significant++)
             m = 10 * m + (uint64_t)((unsigned char)*p - '0');
     }
