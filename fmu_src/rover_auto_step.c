@@ -78,25 +78,6 @@
 #define STEP_MIN 1e-6       /* s */
 #define ROS_GAMMA 0.29289321881345247560   /* 1 - 1/sqrt(2): the root of g^2 - 2 g + 1/2 = 0 below 1/2 */
 
-/* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
- * contacts' normal stiffness acts through the hubs, whose velocity
- * Jacobians have no spin columns: rover_wheel_contact.c's add_outer_hub)
- * and the spin diagonal (the PID integral, rover_evaluate_inputs).  The
- * products below skip the rest, exact zeros, whose terms change no sum. */
-enum { K_BLOCK = U_BETA + 1 };
-
-/* out = K x over K's structural non-zeros, each sum in the order of the
- * dense loop. */
-static inline void k_times(const double (*K)[NU], const double x[NU], double out[NU])
-{
-    for (int i = 0; i < K_BLOCK; ++i) {
-        double s = 0;
-        for (int j = 0; j < K_BLOCK; ++j) s += K[i][j] * x[j];
-        out[i] = s;
-    }
-    for (int k = U_SPIN_L; k <= U_SPIN_R; ++k) out[k] = K[k][k] * x[k];
-}
-
 /* What one automatic step of h changes: the second-order solution's
  * increments, and the embedded first-order solution's of the velocities. */
 typedef struct {

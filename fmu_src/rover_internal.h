@@ -66,6 +66,26 @@ static inline double sigma_of(int side) { return side == SIDE_LEFT ? 1.0 : -1.0;
  *                     the linearly implicit step needs. */
 enum { EVAL_FORCES = 0, EVAL_MATRICES = 1 };
 
+/* K's structural non-zeros: the block of rows and columns 0..U_BETA (the
+ * contacts' normal stiffness acts through the hubs, whose velocity
+ * Jacobians have no spin columns: rover_wheel_contact.c's add_outer_hub)
+ * and the spin diagonal (the PID integral, rover_evaluate_inputs).  The
+ * integrators' products with K skip the rest, exact zeros, whose terms
+ * change no sum. */
+enum { K_BLOCK = U_BETA + 1 };
+
+/* out = K x over K's structural non-zeros, each sum in the order of the
+ * dense loop. */
+static inline void k_times(const double (*K)[NU], const double x[NU], double out[NU])
+{
+    for (int i = 0; i < K_BLOCK; ++i) {
+        double s = 0;
+        for (int j = 0; j < K_BLOCK; ++j) s += K[i][j] * x[j];
+        out[i] = s;
+    }
+    for (int k = U_SPIN_L; k <= U_SPIN_R; ++k) out[k] = K[k][k] * x[k];
+}
+
 /* rover_wheel_contact.c */
 
 /* Terrain elevation (m) at world (x, y) and, if n, the unit normal there,
