@@ -227,7 +227,7 @@ static void sinkages_at_end(const Model *m, const Eval *ev, const StepIncrement 
             hub[w][i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
         }
     }
-    for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, hub[w][0], hub[w][1], n[w]);
+    rover_terrain_under_wheels(m, (const double (*)[3])hub, zt, n);
     const double R = m->d.contact.radius;
     int on_side[NUM_WHEELS];
     for (int w = 0; w < NUM_WHEELS; ++w) {

@@ -92,6 +92,10 @@ static inline void k_times(const double (*K)[NU], const double x[NU], double out
  * with the registration offsets (terrain.offset*) applied. */
 double rover_terrain_at(const Model *m, double x, double y, double n[3]);
 
+/* rover_terrain_at at four points (world x, y of each, as the hubs of
+ * Eval): the elevations into zt, the normals into n. */
+void rover_terrain_under_wheels(const Model *m, const double (*xy)[3], double zt[NUM_WHEELS], double n[NUM_WHEELS][3]);
+
 /* The four wheels' contacts: fills ev->wheel; with matrices
  * (EVAL_MATRICES), adds their generalised forces to ev->Q, their damping
  * to ev->D and their stiffness to ev->K, wheel by wheel in order.  Needs

@@ -211,6 +211,21 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3])
     return z;
 }
 
+/* rover_terrain_at under the four hubs (or any four points: world x, y of
+ * each), the registration's checks made once for the four: on a grid
+ * without registration (the common case) each lookup is the grid's own. */
+void rover_terrain_under_wheels(const Model *m, const double (*xy)[3], double zt[NUM_WHEELS], double n[NUM_WHEELS][3])
+{
+    const Params *p = &m->p;
+    if (p->terrain_offsetX == 0 && p->terrain_offsetY == 0 && p->terrain_offsetYaw == 0 && p->terrain_slopeX == 0 &&
+        p->terrain_slopeY == 0) {
+        for (int w = 0; w < NUM_WHEELS; ++w)
+            zt[w] = terrain_height_normal(&m->terrain, xy[w][0], xy[w][1], n[w]) + p->terrain_offsetZ;
+        return;
+    }
+    for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, xy[w][0], xy[w][1], n[w]);
+}
+
 /* Soil-patch extension: relative stiffness and strength at (x, y), a
  * Gaussian bump of the factors towards soilPatch.* (1 everywhere when off),
  * times a band across x towards soilStrip.* (|x - soilStrip.x| below its
@@ -453,7 +468,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
     /* 1. The terrain under each hub, then wheel by wheel the contact frame,
      * the sinkage, the spin and the slip. */
     double zt[NUM_WHEELS], normal[NUM_WHEELS][3];
-    for (int w = 0; w < NUM_WHEELS; ++w) zt[w] = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], normal[w]);
+    rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, zt, normal);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
         const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
