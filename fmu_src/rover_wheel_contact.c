@@ -213,7 +213,11 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3])
 
 /* rover_terrain_at under the four hubs (or any four points: world x, y of
  * each), the registration's checks made once for the four: on a grid
- * without registration (the common case) each lookup is the grid's own. */
+ * without registration (the common case) each lookup is the grid's own,
+ * inlined (flatten: 60 fewer instructions an internal step). */
+#if defined(__GNUC__)
+__attribute__((flatten))
+#endif
 void rover_terrain_under_wheels(const Model *m, const double (*xy)[3], double zt[NUM_WHEELS], double n[NUM_WHEELS][3])
 {
     const Params *p = &m->p;
