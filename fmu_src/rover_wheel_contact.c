@@ -132,9 +132,25 @@ static inline void add_outer_hub(double (*restrict Mx)[NU], const double *restri
     }
 }
 
+/* row -= ai b + ci d over columns 0..U_SPIN_L (each entry gets the two
+ * additions in that order), from local copies of b and d. */
+static inline void sub_outer_pair_row(double *restrict row, double ai, double ci, const double *bl, const double *dl)
+{
+    row[0] = (row[0] + ai * bl[0]) + ci * dl[0];
+    row[1] = (row[1] + ai * bl[1]) + ci * dl[1];
+    row[2] = (row[2] + ai * bl[2]) + ci * dl[2];
+    row[3] = (row[3] + ai * bl[3]) + ci * dl[3];
+    row[4] = (row[4] + ai * bl[4]) + ci * dl[4];
+    row[5] = (row[5] + ai * bl[5]) + ci * dl[5];
+    row[6] = (row[6] + ai * bl[6]) + ci * dl[6];
+    row[7] = (row[7] + ai * bl[7]) + ci * dl[7];
+}
+
 /* M -= a^T b, then M -= c^T d, in one pass over M (each entry gets the
  * two additions in that order), over rows and columns 0..U_BETA and sp
- * (and column U_SPIN_L for a right wheel, where b and d are an exact 0). */
+ * (and column U_SPIN_L for a right wheel, where b and d are an exact 0):
+ * rows 0..U_BETA by a loop of constant length (unrolled, with b and d in
+ * registers), then row sp. */
 static inline void sub_outer_pair(double (*restrict Mx)[NU], const double *restrict a, const double *restrict b,
                                   const double *restrict c, const double *restrict d, int sp)
 {
@@ -143,19 +159,8 @@ static inline void sub_outer_pair(double (*restrict Mx)[NU], const double *restr
         bl[j] = b[j];
         dl[j] = d[j];
     }
-    for (int n = 0; n <= ACTIVE; ++n) {
-        const int i = n < ACTIVE ? n : sp;
-        const double ai = a[i] * -1.0, ci = c[i] * -1.0;
-        double *row = Mx[i];
-        row[0] = (row[0] + ai * bl[0]) + ci * dl[0];
-        row[1] = (row[1] + ai * bl[1]) + ci * dl[1];
-        row[2] = (row[2] + ai * bl[2]) + ci * dl[2];
-        row[3] = (row[3] + ai * bl[3]) + ci * dl[3];
-        row[4] = (row[4] + ai * bl[4]) + ci * dl[4];
-        row[5] = (row[5] + ai * bl[5]) + ci * dl[5];
-        row[6] = (row[6] + ai * bl[6]) + ci * dl[6];
-        row[7] = (row[7] + ai * bl[7]) + ci * dl[7];
-    }
+    for (int i = 0; i < ACTIVE; ++i) sub_outer_pair_row(Mx[i], a[i] * -1.0, c[i] * -1.0, bl, dl);
+    sub_outer_pair_row(Mx[sp], a[sp] * -1.0, c[sp] * -1.0, bl, dl);
     if (sp == U_SPIN_R)
         for (int n = 0; n <= ACTIVE; ++n) {
             const int i = n < ACTIVE ? n : sp;
