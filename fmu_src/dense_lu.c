@@ -4,7 +4,8 @@
  *
  * Shaped for a small matrix of fixed size on the integrators' hot path:
  * the columns and rows are helpers inlined with constant indices, so
- * that their loops have fixed lengths, which GCC unrolls and vectorises;
+ * that their loops have fixed lengths, which GCC unrolls (the
+ * elimination's row updates two entries at a time, row_minus);
  * and the factorisation and the substitutions are chains of dependent
  * operations whose latency, more than their number, sets their time.
  * Hence the factorisation divides once a column (by the pivot's
@@ -15,9 +16,31 @@
  * reordering is a gather).
  */
 #include <math.h>
+#include <string.h>
 
 #include "dense_lu.h"
 #include "rover_internal.h"
+
+/* rr[k] -= f pr[k] for k = from..NU-1, two entries at a time where GCC's
+ * vector types give SSE2 (the same multiplication and subtraction for
+ * every entry: the scalar loop's results; left to itself, GCC keeps the
+ * fully unrolled elimination scalar). */
+static inline void row_minus(double *restrict rr, const double *restrict pr, double f, const int from)
+{
+    int k = from;
+#if defined(__GNUC__) && defined(__SSE2__)
+    typedef double pair __attribute__((vector_size(16)));
+    const pair fv = {f, f};
+    for (; k + 1 < NU; k += 2) {
+        pair a, b;
+        memcpy(&a, rr + k, sizeof a);
+        memcpy(&b, pr + k, sizeof b);
+        a -= fv * b;
+        memcpy(rr + k, &a, sizeof a);
+    }
+#endif
+    for (; k < NU; ++k) rr[k] -= f * pr[k];
+}
 
 /* One column c of dense_lu_factor's elimination: partial pivoting among
  * rows c..NU-1, then the rows below get their multiplier in column c (by
@@ -47,7 +70,7 @@ static inline int lu_column(DenseLU *lu, const int c)
         double *rr = A[r];
         const double f = rr[c] * inv;
         rr[c] = f;
-        for (int k = c + 1; k < NU; ++k) rr[k] -= f * pr[k];
+        row_minus(rr, pr, f, c + 1);
     }
     for (int k = c + 1; k < NU; ++k) lu->u_scaled[c][k] = pr[k] * inv;
     return 0;
