@@ -13,6 +13,11 @@
  * rover slides down, and the forces change quickly: a tilt that differed
  * from the grid in its heights, its normals or the contact's geometry on
  * them would show within that time).
+ *
+ * Also: the contacts' lookup of the terrain under the four hubs at once
+ * (rover_terrain_under_wheels, the registration's checks and its turn's
+ * cosine and sine once for the four) is rover_terrain_at at each hub, bit
+ * for bit, with and without a registration.
  */
 #include <math.h>
 #include <stdio.h>
@@ -22,6 +27,7 @@
 
 #include "check.h"
 #include "model.h"
+#include "rover_internal.h"
 
 /* The grid: nodes every CELL m over [-HALF, HALF] m both ways, wide
  * enough that the rover stays on it for the run. */
@@ -132,8 +138,46 @@ static void test_tilt_is_the_grid(double sx, double sy, double yaw)
     remove(path);
 }
 
+/* rover_terrain_under_wheels against rover_terrain_at at 400 points on
+ * the plane grid, for each registration in turn (none, a raise only, a
+ * shift, a turn, a tilt, all of them). */
+static void test_terrain_under_wheels_is_terrain_at(void)
+{
+    static const double reg[6][6] = {   /* offsetX, offsetY, offsetZ, offsetYaw, slopeX, slopeY */
+        {0, 0, 0, 0, 0, 0}, {0, 0, 0.3, 0, 0, 0}, {0.2, -0.1, 0, 0, 0, 0},
+        {0, 0, 0, 0.4, 0, 0}, {0, 0, 0, 0, 0.2, -0.1}, {0.2, -0.1, 0.3, 0.4, 0.2, -0.1}};
+    char path[4096];
+    write_plane_grid(0.3, -0.2, path, sizeof path);
+    Model *m = new_rover(0.3, -0.2, 0.0, path);
+    int differ = 0;
+    for (int r = 0; r < 6; ++r) {
+        m->p.terrain_offsetX = reg[r][0], m->p.terrain_offsetY = reg[r][1], m->p.terrain_offsetZ = reg[r][2];
+        m->p.terrain_offsetYaw = reg[r][3], m->p.terrain_slopeX = reg[r][4], m->p.terrain_slopeY = reg[r][5];
+        for (int k = 0; k < 100; ++k) {
+            double xy[NUM_WHEELS][3], zt[NUM_WHEELS], n[NUM_WHEELS][3];
+            for (int w = 0; w < NUM_WHEELS; ++w) {   /* inside and beyond the grid's edge */
+                xy[w][0] = -5.0 + 10.0 * (double)((37 * k + 11 * w) % 101) / 100.0;
+                xy[w][1] = -5.0 + 10.0 * (double)((53 * k + 29 * w) % 103) / 102.0;
+                xy[w][2] = 0.0;
+            }
+            rover_terrain_under_wheels(m, (const double (*)[3])xy, zt, n);
+            for (int w = 0; w < NUM_WHEELS; ++w) {
+                double n1[3];
+                const double z1 = rover_terrain_at(m, xy[w][0], xy[w][1], n1);
+                differ += memcmp(&z1, &zt[w], sizeof z1) != 0 || memcmp(n1, n[w], sizeof n1) != 0;
+            }
+        }
+    }
+    CHECK(differ == 0, "the terrain under four points at once is rover_terrain_at's at each, bit for bit, "
+          "for 6 registrations (%d of 2400 differ)", differ);
+    model_free(m);
+    free(m);
+    remove(path);
+}
+
 int main(void)
 {
+    test_terrain_under_wheels_is_terrain_at();
     static const double cases[][3] = {
         {0.3, 0.0, 0.0},     {0.0, -0.3, 0.0}, {0.6, 0.4, 0.5}, {1.0, 0.0, 0.0},
         {-1.0, 0.0, 0.0},    {0.0, 1.0, 0.0},  {0.0, 1.0, M_PI / 2}, {0.7, -0.7, 2.5},
