@@ -34,7 +34,7 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   lugs reach beyond the rim by at most half the radius (the largest lugs the FMU accepts). A
   drawbar run whose median speed (of the positions, over 1 s) exceeds ``ROLLING_LIMIT`` (1.5)
   times the median rim speed ``wheel.radius * (omega_left + omega_right) / 2``, over the windows
-  where the wheels drive forward, is an error: spins in rev/s (the message says so when 2 pi
+  where the wheels drive forward against the load, is an error: spins in rev/s (the message says so when 2 pi
   times them keeps the bound), or a ``wheel.radius`` too small. 147 synthetic drawbar runs give
   0.12-0.83 (the slip of the load); with their spins in rev/s, 128 of them exceed 1.5 (the rest
   slip by over 76 %, where 2 pi times too slow a spin still rolls faster than the rover).
@@ -280,16 +280,18 @@ def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
 
 def check_rolling(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """A drawbar run whose rover moves faster than its wheels roll (module docstring, "Rolling")."""
-    names = ("omega_left", "omega_right", "pos_x", "pos_y")
+    names = ("omega_left", "omega_right", "pos_x", "pos_y", "drawbar_force")
     if run.kind != "drawbar" or not all(run.has(n) for n in names):
         return []
     t, speed = _speed_over_windows(run, POWER_WINDOW)
     if t is None:
         return []
-    spins = aligned(run, ["omega_left", "omega_right"], t)
-    forward = 0.5 * (spins["omega_left"] + spins["omega_right"])
+    at = aligned(run, ["omega_left", "omega_right", "drawbar_force"], t)
+    forward = 0.5 * (at["omega_left"] + at["omega_right"])
     # Forward by sign alone, not by TURNING: spins in another unit are what this check is for.
-    driving = (forward > 0) & np.isfinite(speed)
+    # Only where the load holds the rover back: a towed wheel (the hitch pulling) rolls faster
+    # than its rim.
+    driving = (forward > 0) & (at["drawbar_force"] > 0) & np.isfinite(speed)
     if int(np.sum(driving)) < POWER_WINDOWS:
         return []
     ratio = float(np.median(speed[driving]) / (np.median(forward[driving]) * limits.wheel_radius))
