@@ -67,9 +67,43 @@ static double hub_approach_speed(const Model *m, const Eval *ev, int w)
     return -v3_dot(n, v);
 }
 
+/* Whether the rover has overturned: its up axis (the chassis z) more than
+ * 90 deg from the terrain normal between its rocker pivots (both of the
+ * evaluation ev, which the checks of a diverging state read).  The rockers
+ * hold the wheels below the chassis, and the wheels are the model's only
+ * contacts with the ground (the chassis and the rockers have none); an
+ * overturned rover therefore falls through the ground until its wheels meet
+ * the soil from the wrong side, with its whole momentum, and one ends
+ * deeper than its radius whatever the soil.  Writes a clause into buf
+ * naming the angle and the axis it turned about, and returns 1 if so, else
+ * 0.  The axis is a line, not a sense: past 180 deg a rover that pitched
+ * over backwards reads as one pitching forwards, so only "end over end"
+ * (about its lateral axis) or "sideways" (about its heading) is said. */
+static int rover_overturned(const Model *m, const Eval *ev, char *buf, size_t n)
+{
+    double nrm[3], axis[3];
+    rover_terrain_at(m, 0.5 * (ev->pivot[0][0] + ev->pivot[1][0]), 0.5 * (ev->pivot[0][1] + ev->pivot[1][1]), nrm);
+    const double *R = ev->R;                       /* world from chassis: its columns are the chassis axes */
+    const double forward[3] = {R[0], R[3], R[6]}, lateral[3] = {R[1], R[4], R[7]}, up[3] = {R[2], R[5], R[8]};
+    const double cos_tilt = v3_dot(up, nrm);
+    if (!(cos_tilt < 0.0)) return 0;
+    v3_cross(axis, nrm, up);                       /* the turn from the normal to the up axis is about this */
+    const int end_over_end = fabs(v3_dot(axis, lateral)) >= fabs(v3_dot(axis, forward));
+    snprintf(buf, n,
+             "the rover has overturned: its up axis is %.0f deg from the ground's normal, turned %s; the wheels "
+             "are its only contacts with the ground, so it fell onto them from above (it tumbled: terrain too "
+             "steep or rough for the drive, not a soil property)",
+             acos(fmax(-1.0, cos_tilt)) * 180.0 / M_PI,
+             end_over_end ? "about its lateral axis (end over end)" : "about its heading (rolled sideways)");
+    return 1;
+}
+
 /* The likely cause of a wheel sinking deeper than its radius, from what
  * the model knows at that moment, the first that holds of:
  *  - the terrain under a wheel slopes more steeply than soil.phi (above);
+ *  - the rover has overturned (above): whatever the soil, the wheels then
+ *    meet it from above, and the speed at this moment says little, being
+ *    what is left after the soil has braked the fall;
  *  - the wheel struck the ground faster than a fall from its own radius
  *    height, sqrt(2 g R): the rover fell or tumbled, and no soil stops a
  *    wheel within its radius from such a speed at these stiffnesses;
@@ -77,6 +111,7 @@ static double hub_approach_speed(const Model *m, const Eval *ev, int w)
 static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
 {
     if (rover_slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
+    if (rover_overturned(m, ev, buf, n)) return;
     const double speed = hub_approach_speed(m, ev, w), fall = sqrt(2.0 * m->p.env_gravity * m->p.wheel_radius);
     if (speed > fall) {
         snprintf(buf, n,
@@ -91,7 +126,7 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
 int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
                          double beta, char *err, size_t n)
 {
-    char cause[256];
+    char cause[400];
     for (int i = 0; i < 3; ++i)
         if (!isfinite(pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", time), 0;
     for (int i = 0; i < NU; ++i)
@@ -102,8 +137,10 @@ int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const doub
     for (int w = 0; w < NUM_WHEELS; ++w)
         if (ev->wheel[w].sinkage >= m->p.wheel_radius) {
             sinkage_cause(m, ev, w, cause, sizeof cause);
-            return snprintf(err, n, "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius; %s",
-                            time, rover_wheel_names[w], ev->wheel[w].sinkage, cause), 0;
+            return snprintf(err, n,
+                            "state diverged at t = %.4f s: wheel %s sank %.3f m, deeper than its radius "
+                            "(wheel.radius = %.3f m); %s",
+                            time, rover_wheel_names[w], ev->wheel[w].sinkage, m->p.wheel_radius, cause), 0;
         }
     return 1;
 }
