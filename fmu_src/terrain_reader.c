@@ -143,7 +143,8 @@ static void lex_ungetc(Lexer *lx)
 /* White space and line ends end a token. */
 static int ends_token(int c)
 {
-    return c == '\n' || c == '\r' || is_blank(c);
+    /* '\t' '\n' '\v' '\f' '\r' (9..13) and ' ' (32) as one bit test */
+    return (unsigned)c <= ' ' && ((UINT64_C(1) << c) & (UINT64_C(0x3E00) | (UINT64_C(1) << ' '))) != 0;
 }
 
 /* Adds a byte to the current token (kept up to TOK_MAX - 1 bytes). */
@@ -425,7 +426,8 @@ static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, doub
         neg = *p++ == '-';
     for (; *p == '0'; p++)
         digits++;
-    while (end - p >= 8) {                 /* runs of up to 8 digits, then any left near end */
+    /* runs of up to 8 digits, then any left near end (none: "0.25", ".5") */
+    while ((unsigned)((unsigned char)*p - '0') <= 9u && end - p >= 8) {
         const uint64_t run = digit_run(p, &k);
         m = pow10_u64[k] * m + run, p += k, digits += k, significant += k;
         if (k < 8)
@@ -477,6 +479,36 @@ static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, doub
     (void)v;
     return NULL;
 #endif
+}
+
+/* scan_decimal for the grids' usual values, [-]digits.digits with at most
+ * seven digits on each side of the point (as "%.6f" writes them), from two
+ * eight-byte reads (digit_run) rather than byte by byte: the same digits m
+ * and exponent -(fraction digits) as scan_decimal finds, hence the same
+ * m / 10^k (m < 2^53, one correctly rounded division).  Anything else
+ * goes to scan_decimal.  Reads
+ * at most 17 bytes from p, so needs end - p > 17. */
+static SCAN_INLINE const char *plain_decimal(const char *p, const char *end, double *v)
+{
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
+    const int neg = *p == '-';
+    const char *t = p + neg;
+    int ki, kf;
+    uint64_t whole;
+    if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.')   /* one digit: "0.25" */
+        whole = (uint64_t)((unsigned char)t[0] - '0'), ki = 1;
+    else
+        whole = digit_run(t, &ki);
+    if (ki > 0 && ki < 8 && t[ki] == '.') {
+        const uint64_t frac = digit_run(t + ki + 1, &kf);
+        if (kf > 0 && kf < 8) {                     /* m < 10^14 < 2^53: exact as a double */
+            const double x = (double)(whole * pow10_u64[kf] + frac) / pow10_exact[kf];
+            *v = neg ? -x : x;
+            return t + ki + 1 + kf;
+        }
+    }
+#endif
+    return scan_decimal(p, end, v);
 }
 
 /* The token p..end as a whole, by scan_decimal. */
@@ -754,6 +786,80 @@ static int check_header(const Header *h, Terrain *g, const char *path, char *err
 /* Data                                                                */
 /* ------------------------------------------------------------------ */
 
+/* Where read_values is in the grid: value k of n, in file row frow
+ * (counted from the north) and column col; NODATA cells so far; the line
+ * of the last value read. */
+typedef struct {
+    long k, frow, col, nnodata, last_line;
+} GridCursor;
+
+/* The bulk of the values, read straight from the buffer in one loop with
+ * the position, the line count and the row in registers: each value that
+ * plain_decimal (or scan_decimal behind it) reads whole, followed by white
+ * space, after spaces, tabs and line ends (LF, CRLF) within the buffer.
+ * Stops at the first value it does not take that way (after a lone CR, \v
+ * or \f; within 17 bytes of the buffer's end; anything scan_decimal
+ * declines or that runs on, such as "1.5x": the rest of read_values reads
+ * that value as lex_next does, or reports it), having consumed only white
+ * space after the last value it stored.  The line and token counts it
+ * leaves in lx are lex_next_simple_number's after the same values; it
+ * stores and counts NODATA as read_values does. */
+static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain *g)
+{
+    const long nc = g->ncols, nr = g->nrows, n = nc * nr;
+    const int has_nodata = h->line[K_NODATA] != 0;
+    const double nodata = h->val[K_NODATA];
+    const unsigned char *p = lx->buf + lx->pos, *const e = lx->buf + lx->end;   /* *e is NUL (lex_getc) */
+    long k = c->k, col = c->col, frow = c->frow, line = lx->line, ntok = lx->ntok_line;
+    long tok_line = lx->tok_line, tok_index = lx->tok_index;
+    double *row = g->z + (size_t)(nr - 1 - frow) * (size_t)nc;
+
+    if (lx->at_file_start)
+        return;
+    while (k < n) {
+        const unsigned char *q;
+        double v;
+        for (;;) {                            /* blanks and line ends, counted as lex_newline does */
+            if (*p == ' ' || *p == '\t') {
+                p++;
+            } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
+                p += *p == '\r' ? 2 : 1;
+                if (line < 0x7fffffffL)
+                    line++;
+                ntok = 0;
+            } else {
+                break;
+            }
+        }
+        if (e - p <= 17)
+            break;
+        q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
+        if (q == NULL || q == e || !ends_token(*q))
+            break;
+        p = q;
+        tok_line = line;
+        tok_index = ++ntok;
+        if (has_nodata && v == nodata) {
+            v = NAN;
+            c->nnodata++;
+        }
+        row[col] = v;
+        k++;
+        if (++col == nc) {
+            col = 0, frow++;
+            row -= nc;
+        }
+    }
+    lx->pos = (size_t)(p - lx->buf);
+    if (k > c->k)
+        c->last_line = tok_line;
+    lx->tok_line = tok_line;
+    lx->tok_index = tok_index;
+    lx->line = line;
+    lx->ntok_line = ntok;
+    c->k = k, c->col = col, c->frow = frow;
+}
+
 /* Reads the nrows*ncols values (the first one is already in lx if
  * have_first), stores them south-first and marks NODATA cells with NaN.
  * Returns the number of NODATA cells, or -1 on error. */
@@ -764,59 +870,63 @@ static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
     const int has_nodata = h->line[K_NODATA] != 0;
     const double nodata = h->val[K_NODATA];
     char q[QUOTE_MAX + 4];
-    long k, nnodata = 0, last_line = h->end_line;
-    long frow = 0, col = 0; /* of value k: file row (counted from the north) and column */
+    GridCursor c = {0, 0, 0, 0, h->end_line};
     int r = have_first ? 1 : 0;
 
-    for (k = 0; k < n; k++) {
+    while (c.k < n) {
         double v;
 
-        if ((k > 0 || !have_first) && lex_next_simple_number(lx, &v)) {
-            last_line = lx->tok_line;
-            if (has_nodata && v == nodata) {
-                v = NAN;
-                nnodata++;
+        if (c.k > 0 || !have_first) {
+            read_plain_values(lx, &c, h, g);
+            if (c.k == n)
+                break;
+            if (lex_next_simple_number(lx, &v)) {
+                c.last_line = lx->tok_line;
+                if (has_nodata && v == nodata) {
+                    v = NAN;
+                    c.nnodata++;
+                }
+                goto store;                 /* finite: fast_decimal reads no inf or nan */
             }
-            goto store;                     /* finite: fast_decimal reads no inf or nan */
-        }
-        if (k > 0 || !have_first)
             r = lex_next(lx);
+        }
         if (r < 0) {
             set_err(err, errlen, "%s: line %ld: read error", path, lx->line);
             return -1;
         }
         if (r == 0) {
-            if (col == 0)
+            if (c.col == 0)
                 set_err(err, errlen, "%s: line %ld: expected nrows*ncols = %ld*%ld = %ld values, "
                         "found %ld: the file ends before grid row %ld (of %ld, counted from "
-                        "the top)", path, last_line, nr, nc, n, k, frow + 1, nr);
+                        "the top)", path, c.last_line, nr, nc, n, c.k, c.frow + 1, nr);
             else
                 set_err(err, errlen, "%s: line %ld: expected nrows*ncols = %ld*%ld = %ld values, "
                         "found %ld: grid row %ld (counted from the top) is short, with %ld of "
-                        "%ld values", path, last_line, nr, nc, n, k, frow + 1, col, nc);
+                        "%ld values", path, c.last_line, nr, nc, n, c.k, c.frow + 1, c.col, nc);
             return -1;
         }
-        last_line = lx->tok_line;
+        c.last_line = lx->tok_line;
         if (!lex_number(lx, &v)) {
             quote_token(q, lx->tok, lx->len);
             set_err(err, errlen, "%s: line %ld, value %ld on the line (grid row %ld, column %ld): "
-                    "'%s' is not a number", path, lx->tok_line, lx->tok_index, frow + 1, col + 1, q);
+                    "'%s' is not a number", path, lx->tok_line, lx->tok_index, c.frow + 1, c.col + 1, q);
             return -1;
         }
         if (has_nodata && v == nodata) {
             v = NAN;
-            nnodata++;
+            c.nnodata++;
         } else if (!isfinite(v)) {
             quote_token(q, lx->tok, lx->len);
             set_err(err, errlen, "%s: line %ld, value %ld on the line (grid row %ld, column %ld): "
-                    "value '%s' is not finite", path, lx->tok_line, lx->tok_index, frow + 1,
-                    col + 1, q);
+                    "value '%s' is not finite", path, lx->tok_line, lx->tok_index, c.frow + 1,
+                    c.col + 1, q);
             return -1;
         }
     store:
-        g->z[(size_t)(nr - 1 - frow) * (size_t)nc + (size_t)col] = v;
-        if (++col == nc)
-            col = 0, frow++;
+        g->z[(size_t)(nr - 1 - c.frow) * (size_t)nc + (size_t)c.col] = v;
+        c.k++;
+        if (++c.col == nc)
+            c.col = 0, c.frow++;
     }
 
     r = lex_next(lx);
@@ -830,7 +940,7 @@ static long read_values(Lexer *lx, int have_first, const Header *h, Terrain *g,
                 "%ld*%ld = %ld grid values", path, lx->tok_line, lx->tok_index, q, nr, nc, n);
         return -1;
     }
-    return nnodata;
+    return c.nnodata;
 }
 
 /* Fills NODATA cells (NaN in g->z) from valid neighbours, front by front:

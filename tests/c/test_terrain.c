@@ -721,7 +721,8 @@ static void test_odd_but_valid(void)
 /* Every value read is strtod's for the same text, bit for bit (the reader
  * parses common decimals itself and hands the rest to strtod): fixed
  * corner cases around its limits (2^53 digits, 10^+-22 and 10^+-27, 17
- * to 20 significant digits, ties above 2^53, signs, zeros) and 8000
+ * to 20 significant digits, ties above 2^53, signs, zeros, the grids'
+ * usual "%.6f" values and the limits of their shortcut) and 8000
  * random tokens of up to 20 digits with random point, sign and exponent. */
 static void test_numbers_match_strtod(void)
 {
@@ -737,7 +738,10 @@ static void test_numbers_match_strtod(void)
         "9007199254740995", "18014398509481986", "18014398509481990", "18014398509481986.000000001",
         "1801439850948198.6e1", "18014398509481985.9999", "0.0038795912416837394", "-0.00011357538857554618",
         "1234567890123456789", "12345678901234567890", "0.1234567890123456789e-8", "9999999999999999999e-27",
-        "9999999999999999999e27", "1e-27", "1e27", "1e28", "1e-28"};
+        "9999999999999999999e27", "1e-27", "1e27", "1e28", "1e-28",
+        /* the grids' usual "%.6f" shapes, and either side of seven digits each side of the point */
+        "0.004940", "-0.000114", "-0.000000", "0.000000", "0.500000", "9.999999", "1234567.1234567",
+        "-1234567.7654321", "12345678.5", "0.12345678", "12345678.12345678", "7.", "-7.0000001e2", "5.25e-3"};
     /* NRAND random tokens of 1 to 20 digits; the second half with 16 to 19
      * significant digits (beyond 2^53: the exact integer path) */
     enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 8000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
