@@ -85,12 +85,11 @@ static void quote_token(char out[QUOTE_MAX + 4], const char *tok, size_t len)
 /* ------------------------------------------------------------------ */
 
 /* The lexer reads the stream in blocks of LEX_BUF bytes (fread) rather
- * than a character at a time: getc locks the stream on every call
- * (measured on a 501 x 231 grid of "%.6f" values, CPU per load: 15 ms
- * with getc and strtod, 12 ms buffered, 4 ms with fast_decimal, 2 ms with
- * the grid values read straight from the buffer, lex_next_simple_number;
- * 17-digit values as Python writes them: 26 ms with strtod, 3.9 ms with
- * long_decimal). */
+ * than a character at a time (getc locks the stream on every call), and
+ * the grid's values are read straight from that buffer (read_plain_values)
+ * with the decimal scanners below, strtod only for what they decline:
+ * strtod costs several times their CPU a value, more for the 17-digit
+ * values Python writes. */
 #define LEX_BUF 16384
 
 typedef struct {
