@@ -818,7 +818,9 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
     while (k < n) {
         const unsigned char *q;
         double v;
-        for (;;) {                            /* blanks and line ends, counted as lex_newline does */
+        while (*p == ' ')                     /* the usual separator, then the rest of the */
+            p++;                              /* blanks and line ends, counted as lex_newline does */
+        while (*p <= ' ') {
             if (*p == ' ' || *p == '\t') {
                 p++;
             } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
