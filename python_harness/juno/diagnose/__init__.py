@@ -57,7 +57,8 @@
    initial soil, and the better fit by fit_objective is reported
    (refit_from_paper_soil).  When the head-to-head test overturned the
    penalised ranking's leader, or a runner-up trails it by less than NEAR_TIE
-   after the charge, both get a second round, and the final models are
+   after the charge and the paired test does not prefer the leader to it
+   (tie_settled), both get a second round, and the final models are
    compared by the rules of step 4 (choose_branch).
 
 Every terrain run is replayed on the grid of its own scan.  The campaign needs at least one
@@ -98,6 +99,6 @@ from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, Diagno
                       GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, PlotData, Ranked, ResidualAnalysis,
                       ScanRegistration, SignalGain, TiedPair, public_json)
 from .search import (choose_branch, diagnose, first_cause_branches, refit_from_paper_soil, second_round,
-                     tied_models_apart)
+                     tie_settled, tied_models_apart)
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

@@ -26,7 +26,7 @@ TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the da
 #: own second round, and the final models decide (search.choose_branch): a one-cause ranking
 #: settled by less than one parameter's charge is not evidence for either cause (a grouser with
 #: long lugs and a drivetrain loss of the same traction ratio h / (R + h) explain drawbar data
-#: almost equally).
+#: almost equally), unless the paired test prefers the leader unit by unit (search.tie_settled).
 NEAR_TIE = GAIN_MIN
 #: A held-out unit (run, block, signal) whose mean squared scaled residual moved by less than this
 #: is unchanged for the rank test: 1 % of the sensor noise's variance, a 16th of the scatter of a
@@ -264,10 +264,12 @@ def ranked(judged: Sequence[R]) -> list[R]:
 
 
 def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, challenger: FitResult) -> Duel:
-    """Whether ``challenger`` (a significant candidate with more parameters and a larger raw gain
-    than the leader of the penalised ranking) explains the held-out data significantly better
-    than ``leader``: the paired test of judge with the leader's model as the reference (z over
-    the Bonferroni threshold on some kind of run, above -Z_MIN on every kind).
+    """Whether ``challenger`` explains the held-out data significantly better than ``leader``: the
+    paired test of judge with the leader's model as the reference (z over the Bonferroni
+    threshold on some kind of run, above -Z_MIN on every kind).  The challenger is a significant
+    candidate with more parameters and a larger raw gain than the leader of the penalised
+    ranking (leader_after_head_to_head), or, to settle a near tie, that leader itself against
+    the runner-up within NEAR_TIE of it (search.tie_settled).
 
     The fixed charge of GAIN_MIN per parameter keeps a model with more parameters out when the
     two explain the data alike; it should not keep it out when the held-out data prefer it

@@ -64,6 +64,10 @@ def duel_sentence(duel: Duel) -> str:
     zs = ", ".join(f"{k} z {z:.1f}" for k, z in duel.z_by_kind.items())
     verdict = "explains the held-out data better than" if duel.challenger_better else \
         "is not significantly better than"
+    if duel.stage == "near tie":
+        then = "no second round of its own" if duel.challenger_better else "a second round of its own"
+        return (f"near tie: {duel.challenger} {verdict} {duel.leader}, which gets {then}: "
+                f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")
     stage = "head to head of the final models" if duel.stage == "final models" else "head to head"
     return (f"{stage}: {duel.challenger} (more parameters) {verdict} {duel.leader}: "
             f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")

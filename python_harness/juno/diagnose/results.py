@@ -163,7 +163,9 @@ class Duel:
     """A head-to-head comparison (judging.head_to_head): whether ``challenger`` (more parameters,
     larger raw gain) explains the held-out data significantly better than ``leader``; the paired
     test's z per kind of run and the challenger's relative gain against the leader.  ``stage`` is
-    "final models" when the compared models are branches' final models (search.choose_branch)."""
+    "final models" when the compared models are branches' final models (search.choose_branch),
+    and "near tie" when the challenger is the ranking's leader and ``leader`` the runner-up
+    within NEAR_TIE of it, whose own second round the comparison decides (search.tie_settled)."""
 
     leader: str
     challenger: str

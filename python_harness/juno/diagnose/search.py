@@ -25,8 +25,8 @@ from .assemble import diagnosis_result
 from .candidates import CANDIDATES, Candidate, combined, fmu_parameters
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
-from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, judge, leader_after_head_to_head,
-                      penalised_gain, ranked, relative_gain, soil_at_bounds)
+from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, head_to_head, judge,
+                      leader_after_head_to_head, penalised_gain, ranked, relative_gain, soil_at_bounds)
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
@@ -365,18 +365,28 @@ def equally_good_as(best: JudgedCandidate | None, significant: Sequence[JudgedCa
 def further_causes(search: Search, first: FirstRound) -> Outcome:
     """The second round on top of the first cause.  When the head-to-head test put a candidate
     with more parameters ahead of the penalised ranking's leader, or a runner-up is within
-    NEAR_TIE of the leader after the charge, the two are alternatives whose duel was decided on
-    one-cause models only, so each gets its own second round and the final models are compared
-    (choose_branch)."""
+    NEAR_TIE of the leader after the charge and the held-out data do not prefer the leader
+    (tie_settled), the two are alternatives whose duel was decided on one-cause models only, so
+    each gets its own second round and the final models are compared (choose_branch)."""
     significant = first.significant
     best = significant[0] if significant else None
     equally_good = equally_good_as(best, significant)
     if not best:
         return Outcome(None, first.candidates, equally_good)
-    branches = first_cause_branches(best, first.ranked_first, significant)
+    fit_of = {r.name: r for r in first.results}
+    tie_duels: list[Duel] = []
+
+    def settled(runner_up: Ranked, leader: Ranked = best) -> bool:
+        duel = tie_settled(search.problem, search.run_kind, fit_of[leader.name], fit_of[runner_up.name])
+        tie_duels.append(duel)
+        if duel.challenger_better:
+            search.say(f"{leader.name} explains the held-out data significantly better than {runner_up.name} "
+                       f"(z {max(duel.z_by_kind.values()):.1f}): the near tie is settled, {runner_up.name} "
+                       "gets no second round of its own")
+        return duel.challenger_better
+    branches = first_cause_branches(best, first.ranked_first, significant, settled)
     excluded = set(equally_good) | {b.name for b in branches}
     more = [c.name for c in first.candidates if c.name not in excluded and not c.error]
-    fit_of = {r.name: r for r in first.results}
     rounds = [second_round(search, fit_of[b.name], more) for b in branches]
     pick, branch_duels = 0, []
     if len(branches) > 1:
@@ -386,19 +396,35 @@ def further_causes(search: Search, first: FirstRound) -> Outcome:
     candidates = significant + [c for c in first.candidates if not c.significant]
     equally_good = equally_good_as(best, significant)
     apart = tied_models_apart(search.campaign, search.problem, fit_of[best.name], [fit_of[n] for n in equally_good])
-    return Outcome(best, candidates, equally_good, judged_second, chosen, branch_duels, apart)
+    return Outcome(best, candidates, equally_good, judged_second, chosen, tie_duels + branch_duels, apart)
 
 
-def first_cause_branches(best: Ranked, ranked_first: Ranked, significant: Sequence[Ranked]) -> list[Ranked]:
+def first_cause_branches(best: Ranked, ranked_first: Ranked, significant: Sequence[Ranked],
+                         settled: Callable[[Ranked], bool] = lambda runner_up: False) -> list[Ranked]:
     """The first causes that each get a second round: the leader (``best``, after any
     head-to-head test), the penalised ranking's leader if the head-to-head test overturned it,
     and the closest other significant candidate (``significant`` is ranked) whose penalised gain
-    is within NEAR_TIE of theirs."""
+    is within NEAR_TIE of theirs, unless ``settled(runner_up)``: the held-out data already prefer
+    the leader to it (tie_settled).  ``settled`` is asked of that closest candidate only."""
     branches = [best] + ([ranked_first] if ranked_first.name != best.name else [])
     top = max(penalised_gain(b) for b in branches)
     close = [c for c in significant if c.name not in {b.name for b in branches}
              and top - penalised_gain(c) < NEAR_TIE]
-    return branches + close[:1]
+    return branches + [c for c in close[:1] if not settled(c)]
+
+
+def tie_settled(problem: Problem, run_kind: np.ndarray, leader: FitResult, runner_up: FitResult) -> Duel:
+    """Whether the leader's one-cause model explains the held-out data significantly better than
+    a runner-up's within NEAR_TIE of it: judging.head_to_head with the runner-up's model as the
+    reference and the leader's as the challenger (stage "near tie").
+
+    Why: step 7 names a cause by two rules, the gain less the charge per parameter and, where
+    those disagree with the data, the paired test over held-out units.  A margin under one
+    parameter's charge decides nothing by the first rule, and that is why the runner-up gets a
+    second round of its own; but when the paired test prefers the leader unit by unit, the
+    held-out data have decided by the second rule, the one that overturns a leader, and both
+    rules agree.  Only when neither decides is the tie left to the final models."""
+    return replace(head_to_head(problem, run_kind, runner_up, leader), stage="near tie")
 
 
 def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
