@@ -418,12 +418,12 @@ def tie_settled(problem: Problem, run_kind: np.ndarray, leader: FitResult, runne
     a runner-up's within NEAR_TIE of it: judging.head_to_head with the runner-up's model as the
     reference and the leader's as the challenger (stage "near tie").
 
-    Why: step 7 names a cause by two rules, the gain less the charge per parameter and, where
-    those disagree with the data, the paired test over held-out units.  A margin under one
-    parameter's charge decides nothing by the first rule, and that is why the runner-up gets a
-    second round of its own; but when the paired test prefers the leader unit by unit, the
-    held-out data have decided by the second rule, the one that overturns a leader, and both
-    rules agree.  Only when neither decides is the tie left to the final models."""
+    Why: a cause is named by two rules, the gain less the charge per parameter (judging.ranked)
+    and, where those disagree with the data, the paired test over held-out units
+    (judging.leader_after_head_to_head).  A margin under one parameter's charge decides nothing
+    by the first rule, and that is why the runner-up gets a second round of its own; but when
+    the paired test prefers the leader unit by unit, the held-out data have decided by the
+    second rule, the one that overturns a leader, and both rules agree.  Only when neither decides is the tie left to the final models."""
     return replace(head_to_head(problem, run_kind, runner_up, leader), stage="near tie")
 
 
