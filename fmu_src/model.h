@@ -139,6 +139,7 @@ typedef struct {
     WheelContact wheel[NUM_WHEELS];
     double torque[2];
     double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
+    double ground_normal[NUM_WHEELS][3];   /* unit terrain normal under each hub (world) */
 } Eval;
 
 typedef struct {

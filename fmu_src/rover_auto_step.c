@@ -251,8 +251,9 @@ static void sinkages_at_end(const Model *m, const Eval *ev, const StepIncrement 
 /* Moves the state on by inc over h (ev: the step's start's evaluation, for
  * the soil memory and the checks); -1 with a message, the state left as it
  * was, if the new state would fail the checks of a diverging state (they
- * read its time, position, velocities and rocker angle, checked before
- * anything is written: so a rejected step needs no copy of the state). */
+ * read its time, position, velocities, rocker angle and attitude, the last
+ * over the ground under the start's wheels, checked before anything is
+ * written: so a rejected step needs no copy of the state). */
 static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
 {
     State *s = &m->s;
@@ -260,10 +261,14 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     for (int i = 0; i < NU; ++i) u[i] = s->u[i] + inc->du[i];
     for (int i = 0; i < 3; ++i) pos[i] = s->pos[i] + inc->dq[U_VX + i];
     const double beta = s->beta + inc->dq[U_BETA];
-    if (!rover_motion_is_sane(m, ev, s->time + h, pos, u, beta, err, errlen)) return -1;
+    double quat[4] = {s->quat[0], s->quat[1], s->quat[2], s->quat[3]};
+    quat_integrate_world(quat, &inc->dq[U_WX], 1.0);
+    if (!rover_motion_is_sane(m, ev, s->time + h, pos, u, beta, err, errlen) ||
+        !rover_attitude_is_upright(quat, ev, s->time + h, err, errlen))
+        return -1;
     memcpy(s->u, u, sizeof s->u);
     memcpy(s->pos, pos, sizeof s->pos);
-    quat_integrate_world(s->quat, &inc->dq[U_WX], 1.0);
+    memcpy(s->quat, quat, sizeof s->quat);
     s->beta = beta;
     for (int k = 0; k < 2; ++k) s->spin_angle[k] += inc->dq[U_SPIN_L + k];
     if (m->p.drive_mode == DRIVE_PID) {

@@ -9,8 +9,8 @@
  * and the PID integral are advanced explicitly once per internal step.
  * With solver.tolerance > 0, the automatic step instead (rover_auto_step.c).
  * Also, for both: the reuse of the end-of-step evaluation, the soil
- * memory's update, and the checks that name the likely cause of a
- * diverging state.
+ * memory's update, the checks that name the likely cause of a diverging
+ * state, and the check that the rover has not overturned.
  */
 #include <math.h>
 #include <stddef.h>
@@ -67,35 +67,68 @@ static double hub_approach_speed(const Model *m, const Eval *ev, int w)
     return -v3_dot(n, v);
 }
 
-/* Whether the rover has overturned: its up axis (the chassis z) more than
- * 90 deg from the terrain normal between its rocker pivots (both of the
- * evaluation ev, which the checks of a diverging state read).  The rockers
- * hold the wheels below the chassis, and the wheels are the model's only
- * contacts with the ground (the chassis and the rockers have none); an
- * overturned rover therefore falls through the ground until its wheels meet
- * the soil from the wrong side, with its whole momentum, and one ends
- * deeper than its radius whatever the soil.  Writes a clause into buf
- * naming the angle and the axis it turned about, and returns 1 if so, else
- * 0.  The axis is a line, not a sense: past 180 deg a rover that pitched
- * over backwards reads as one pitching forwards, so only "end over end"
- * (about its lateral axis) or "sideways" (about its heading) is said. */
-static int rover_overturned(const Model *m, const Eval *ev, char *buf, size_t n)
+/* The sum of the unit terrain normals under the four hubs of ev. */
+static void ground_normal_sum(const Eval *ev, double nrm[3])
 {
-    double nrm[3], axis[3];
-    rover_terrain_at(m, 0.5 * (ev->pivot[0][0] + ev->pivot[1][0]), 0.5 * (ev->pivot[0][1] + ev->pivot[1][1]), nrm);
-    const double *R = ev->R;                       /* world from chassis: its columns are the chassis axes */
-    const double forward[3] = {R[0], R[3], R[6]}, lateral[3] = {R[1], R[4], R[7]}, up[3] = {R[2], R[5], R[8]};
-    const double cos_tilt = v3_dot(up, nrm);
-    if (!(cos_tilt < 0.0)) return 0;
+    const double (*g)[3] = (const double (*)[3])ev->ground_normal;
+    for (int i = 0; i < 3; ++i) nrm[i] = g[0][i] + g[1][i] + g[2][i] + g[3][i];
+}
+
+/* Whether the rover, at the attitude R (world from chassis: its columns
+ * are the chassis axes), has overturned: its up axis (the chassis z) more
+ * than 90 deg from the ground's normal under it, the sum of the unit
+ * terrain normals under the four hubs (of the evaluation ev, whose contacts
+ * looked them up).  Upright, the rockers hold the wheels below the chassis, and
+ * the wheels are the model's only contacts with the ground (the chassis
+ * and the rockers have none); past 90 deg the chassis is the side that
+ * faces the ground, so the wheels can no longer be the only contacts, and
+ * left to the model the rover falls through the ground until its wheels
+ * meet the soil from the wrong side.  Writes a clause into buf naming the
+ * angle and the axis it turned about, and returns 1 if so, else 0 (a
+ * dot product, unless it has overturned).  The axis is a line, not a
+ * sense: past 180 deg a rover that pitched over backwards reads as one
+ * pitching forwards, so only "end over end" (about its lateral axis) or
+ * "sideways" (about its heading) is said. */
+static int overturned(const double R[9], const Eval *ev, char *buf, size_t n)
+{
+    double nrm[3];
+    ground_normal_sum(ev, nrm);
+    const double up[3] = {R[2], R[5], R[8]};
+    const double along = v3_dot(up, nrm);
+    if (!(along < 0.0)) return 0;
+    const double forward[3] = {R[0], R[3], R[6]}, lateral[3] = {R[1], R[4], R[7]};
+    const double cos_tilt = along / sqrt(v3_dot(nrm, nrm));
+    double axis[3];
     v3_cross(axis, nrm, up);                       /* the turn from the normal to the up axis is about this */
     const int end_over_end = fabs(v3_dot(axis, lateral)) >= fabs(v3_dot(axis, forward));
     snprintf(buf, n,
              "the rover has overturned: its up axis is %.0f deg from the ground's normal, turned %s; the wheels "
-             "are its only contacts with the ground, so it fell onto them from above (it tumbled: terrain too "
-             "steep or rough for the drive, not a soil property)",
+             "are the model's only contacts with the ground, and the chassis that now faces it has none (it "
+             "tumbled: terrain too steep or rough for the drive, not a soil property)",
              acos(fmax(-1.0, cos_tilt)) * 180.0 / M_PI,
              end_over_end ? "about its lateral axis (end over end)" : "about its heading (rolled sideways)");
     return 1;
+}
+
+/* overturned at the attitude of the evaluation ev itself. */
+static int rover_overturned(const Eval *ev, char *buf, size_t n)
+{
+    return overturned(ev->R, ev, buf, n);
+}
+
+int rover_attitude_is_upright(const double quat[4], const Eval *ev, double time, char *err, size_t n)
+{
+    const double w = quat[0], x = quat[1], y = quat[2], z = quat[3];
+    double nrm[3];
+    ground_normal_sum(ev, nrm);
+    /* the chassis up axis, the third column of quat_to_m3's rotation */
+    const double along = 2 * (x * z + w * y) * nrm[0] + 2 * (y * z - w * x) * nrm[1] + (1 - 2 * (x * x + y * y)) * nrm[2];
+    if (!(along < 0.0)) return 1;
+    double R[9];
+    char why[400];
+    quat_to_m3(R, quat);
+    if (!overturned(R, ev, why, sizeof why)) return 1;
+    return snprintf(err, n, "state diverged at t = %.4f s: %s", time, why), 0;
 }
 
 /* The likely cause of a wheel sinking deeper than its radius, from what
@@ -111,7 +144,7 @@ static int rover_overturned(const Model *m, const Eval *ev, char *buf, size_t n)
 static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
 {
     if (rover_slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
-    if (rover_overturned(m, ev, buf, n)) return;
+    if (rover_overturned(ev, buf, n)) return;
     const double speed = hub_approach_speed(m, ev, w), fall = sqrt(2.0 * m->p.env_gravity * m->p.wheel_radius);
     if (speed > fall) {
         snprintf(buf, n,
@@ -288,10 +321,22 @@ static int inputs_are_finite(const Inputs *in, char *err, size_t n)
     return 1;
 }
 
-int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
+/* One communication step at a fixed internal step, ending with the check
+ * that the rover has not overturned (rover_overturned): past 90 deg the
+ * state is one the model does not describe, so it is an error, not a
+ * result.  Checked at the communication point, on the end-of-step
+ * evaluation the step computes anyway (its attitude and the normals under
+ * the wheels): a dot product a communication step rather than one an
+ * internal step, and no result past an overturn reaches the importer (a
+ * wheel that lands from above within the step meets the sinkage check
+ * first, which names the overturn too).  A fixed step cannot take a step
+ * again, shorter, so checking each internal step would only stop it up to
+ * a communication step earlier.  The automatic step checks each internal
+ * step's end instead, among the checks of a diverging state
+ * (rover_attitude_is_upright), as a step whose end fails them is taken
+ * again, shorter. */
+static int do_step_fixed(Model *m, double h_comm, char *err, size_t errlen)
 {
-    if (!inputs_are_finite(&m->in, err, errlen)) return -1;
-    if (m->p.solver_tolerance > 0) return rover_do_step_automatic(m, h_comm, err, errlen);
     const double t_end = m->s.time + h_comm;
     int n = (int)ceil(h_comm / m->p.solver_step - 1e-9);
     if (n < 1) n = 1;
@@ -303,5 +348,17 @@ int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
     }
     m->s.time = t_end;
     rover_evaluate_end_of_step(m);
+    char why[400];
+    if (rover_overturned(&m->eval, why, sizeof why)) {
+        m->eval_valid = 0;                         /* a failed step leaves it cleared */
+        return snprintf(err, errlen, "state diverged at t = %.4f s: %s", m->s.time, why), -1;
+    }
     return 0;
+}
+
+int model_do_step(Model *m, double h_comm, char *err, size_t errlen)
+{
+    if (!inputs_are_finite(&m->in, err, errlen)) return -1;
+    if (m->p.solver_tolerance > 0) return rover_do_step_automatic(m, h_comm, err, errlen);
+    return do_step_fixed(m, h_comm, err, errlen);
 }

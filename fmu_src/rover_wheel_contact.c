@@ -486,7 +486,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
 
     /* 1. The terrain under each hub, then wheel by wheel the contact frame,
      * the sinkage, the spin and the slip. */
-    double zt[NUM_WHEELS], normal[NUM_WHEELS][3];
+    double zt[NUM_WHEELS], (*normal)[3] = ev->ground_normal;   /* kept: the upright check reads them */
     rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, zt, normal);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */

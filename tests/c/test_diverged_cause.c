@@ -1,20 +1,22 @@
 /*
- * A wheel sunk deeper than its radius stops the step with the likely
- * cause, and the cause named is the one that holds:
+ * A rover that has overturned, or a wheel sunk deeper than its radius,
+ * stops the step with the likely cause, and the cause named is the one
+ * that holds:
  *   - on flat ground tilted at 0.55 along x (28.8 deg, just under the soil's
  *     friction angle soil.phi = 30 deg), driven at the defaults (45 %
  *     throttle, 400 N drawbar), the rover slides down, pitches up and
- *     flips over backwards; a front wheel then lands from above and ends
- *     deeper than its radius.  The message says the rover overturned, end
+ *     flips over backwards.  As its up axis passes 90 deg from the ground's
+ *     normal (the automatic step: the internal step that crosses it, taken
+ *     again shorter down to its smallest; the fixed step: the next
+ *     communication point) the step fails, at both step settings alike: the message says the rover overturned, end
  *     over end, and does not blame the soil (whose stiffness has nothing
  *     to do with it) nor the slope (which the soil can hold);
+ *   - on the tilt of 0.3 the registration allows, the same rover stays
+ *     upright and runs its whole 30 s at both step settings;
  *   - an upright rover whose weight the soil cannot carry (the gravity
  *     raised to 100 m/s2 after the static equilibrium on level ground)
  *     sinks straight in; there the soil too soft for the load is the
  *     cause, and the message says so.
- * The tumble at the automatic step (the default; at the fixed 1 ms step the
- * same rover lands on its upturned wheels without sinking past their radius,
- * and no check stops it), the sinking at both.
  */
 #include <math.h>
 #include <stdio.h>
@@ -27,6 +29,7 @@
 
 #define COMM_STEP 0.01          /* s */
 #define MAX_STEPS 3000          /* 30 s: the tilted run fails within 10 s */
+#define FIXED_STEP 1e-3         /* s */
 
 /* A rover at its defaults, the inputs of the drawbar benchmark, on flat
  * ground tilted by slope_x, at the automatic step (fixed_step 0) or at
@@ -64,18 +67,49 @@ static void free_rover(Model *m)
     free(m);
 }
 
-static void test_a_rover_flipping_over_is_said_to_have_overturned(void)
+static const char *step_name(double fixed_step)
+{
+    return fixed_step > 0 ? "fixed 1 ms step" : "automatic step";
+}
+
+/* The angle (deg) a message gives between the up axis and the ground's
+ * normal, or -1 if it gives none. */
+static double overturn_angle(const char *err)
+{
+    const char *at = strstr(err, "its up axis is ");
+    double deg;
+    if (!at || sscanf(at, "its up axis is %lf deg", &deg) != 1) return -1.0;
+    return deg;
+}
+
+static void test_a_rover_flipping_over_is_stopped_as_overturned(double fixed_step)
 {
     char err[768] = "";
-    Model *m = new_rover(0.55, 0.0);
+    Model *m = new_rover(0.55, fixed_step);
     const int failed = run_until_failure(m, err, sizeof err);
-    const char *step = "automatic step";
-    CHECK(failed && strstr(err, "deeper than its radius") != NULL,
-          "%s: on a 0.55 tilt the rover ends with a wheel deeper than its radius: \"%s\"", step, err);
-    CHECK(strstr(err, "overturned") != NULL && strstr(err, "end over end") != NULL,
-          "%s: the message says the rover overturned end over end: \"%s\"", step, err);
+    const char *step = step_name(fixed_step);
+    const double deg = overturn_angle(err);
+    CHECK(failed && strstr(err, "state diverged at t = ") != NULL && strstr(err, "overturned") != NULL,
+          "%s: on a 0.55 tilt the rover's run stops, the rover overturned: \"%s\"", step, err);
+    CHECK(strstr(err, "end over end") != NULL, "%s: the message says it turned end over end: \"%s\"", step, err);
+    /* caught as it passes 90 deg (the automatic step at the internal step that crosses it, the fixed
+     * step at the next communication point, 10 ms of a flip's few rad/s later), not once it has come
+     * to rest upside down (180 deg) */
+    CHECK(deg >= 90.0 && deg < 135.0, "%s: it is stopped just past 90 deg (%.0f deg)", step, deg);
     CHECK(strstr(err, "too soft") == NULL && strstr(err, "soil.kh") == NULL && strstr(err, "friction angle") == NULL,
           "%s: and blames neither the soil's stiffness nor a slope steeper than soil.phi", step);
+    free_rover(m);
+}
+
+static void test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(double fixed_step)
+{
+    char err[768] = "";
+    Model *m = new_rover(0.3, fixed_step);
+    const int failed = run_until_failure(m, err, sizeof err);
+    const char *step = step_name(fixed_step);
+    CHECK(!failed && fabs(m->s.time - MAX_STEPS * COMM_STEP) < 1e-9,
+          "%s: on a 0.3 tilt the rover runs its whole %.0f s (stopped at t = %.2f s: \"%s\")", step,
+          MAX_STEPS * COMM_STEP, m->s.time, err);
     free_rover(m);
 }
 
@@ -86,7 +120,7 @@ static void test_an_upright_rover_sinking_under_its_load_blames_the_soil(double 
     m->p.env_gravity = 100.0;           /* about 10 times the load the static equilibrium carried */
     model_changed(m);
     const int failed = run_until_failure(m, err, sizeof err);
-    const char *step = fixed_step > 0 ? "fixed 1 ms step" : "automatic step";
+    const char *step = step_name(fixed_step);
     CHECK(failed && strstr(err, "deeper than its radius") != NULL && strstr(err, "too soft") != NULL,
           "%s: under ten times its load the upright rover sinks in, the soil too soft for it: \"%s\"", step, err);
     CHECK(strstr(err, "overturned") == NULL, "%s: and it is not said to have overturned", step);
@@ -95,9 +129,12 @@ static void test_an_upright_rover_sinking_under_its_load_blames_the_soil(double 
 
 int main(void)
 {
-    test_a_rover_flipping_over_is_said_to_have_overturned();
+    test_a_rover_flipping_over_is_stopped_as_overturned(0.0);
+    test_a_rover_flipping_over_is_stopped_as_overturned(FIXED_STEP);
+    test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(0.0);
+    test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(FIXED_STEP);
     test_an_upright_rover_sinking_under_its_load_blames_the_soil(0.0);
-    test_an_upright_rover_sinking_under_its_load_blames_the_soil(1e-3);
+    test_an_upright_rover_sinking_under_its_load_blames_the_soil(FIXED_STEP);
     printf("%d passed, %d failed\n", n_pass, n_fail);
     return n_fail != 0;
 }
