@@ -97,10 +97,14 @@ typedef struct {
     double step_next;              /* s, the automatic step's next internal step (0: none yet) */
     /* The automatic step's last accepted internal step, for the next one's correction
      * (rover_auto_step.c): its length (0: none, or not with the current inputs), the generalised
-     * forces at its start, its increments and the inputs it was taken with. */
+     * forces at its start, its increments, its own correction's velocities over its length
+     * squared (m/s^3, rad/s^3; valid where last_correction_valid) and the inputs it was taken
+     * with. */
     double last_step;              /* s */
     double last_Q[NU];
     double last_dq[NU], last_du[NU], last_dI[2];
+    double last_correction[NU];
+    int last_correction_valid;
     Inputs last_inputs;
 } State;
 

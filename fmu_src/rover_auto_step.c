@@ -43,9 +43,12 @@
  * in the second stage, solved with M + g h D + ... ((I - g h J)^-1 = I +
  * O(h)) and weighted 1 - g, it adds h^2/2 d + O(h^3).  It treats what J
  * leaves out explicitly, over two steps (as Adams-Bashforth does), which
- * holds as long as that part is slow beside the step; at a tolerance loose
- * enough for 20 ms steps the step runs over every declared parameter range
- * (tests/python/test_fmu_accuracy.py).  The first step after
+ * holds as long as that part is slow beside the step: where it is not, the
+ * extrapolation feeds the motion it extrapolates, so its change from one
+ * step to the next counts in the error estimate (error_ratio) and the step
+ * shortens until it is slow again.  So at a tolerance loose enough for
+ * 20 ms steps the step runs over every declared parameter range, the
+ * stiffest soil too (tests/python/test_fmu_accuracy.py).  The first step after
  * initialisation, after the inputs change (their forces are not in the last
  * step's) or after a state with none is restored goes without it, at first
  * order.
@@ -65,7 +68,8 @@
  * step's displacements (sinkage_at_end).
  *
  * The step is accepted when the largest component of the difference of
- * the two solutions' velocities (angular rates as the speed they give at a
+ * the two solutions' velocities, plus the correction's change from the
+ * last step (error_ratio), (angular rates as the speed they give at a
  * lever of wheel.radius for the spins, half rover.wheelbase for the
  * chassis and rocker rates) is within solver.tolerance (m/s); that is the
  * embedded solution's local error, which grows as h^2, so the next step is
@@ -86,6 +90,8 @@ typedef struct {
                                     * (rad, world), rocker angle, spin angles (rad) */
     double dI[2];                  /* PID integrals, rad */
     double du_first[NU];           /* the first-order solution's velocities */
+    double correction[NU];         /* the correction's share of du over h^2 (m/s^3, rad/s^3) */
+    int has_correction;            /* 0: the step went without it (correction[] unset) */
 } StepIncrement;
 
 /* The two stages from the state m->s and its evaluation ev (with its input
@@ -118,6 +124,8 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     }
     for (int i = K_BLOCK; i < NU; ++i)
         for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
+    double diag[NU];               /* the matrix's diagonal, for the correction's share of the error */
+    for (int i = 0; i < NU; ++i) diag[i] = A[i][i];
     if (dense_lu_factor(&lu) != 0) return -1;
 
     double c[2] = {0, 0}, rate[2] = {0, 0}, active[2] = {0, 0};
@@ -148,9 +156,12 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
         k2u[i] = Mk - g * Kq[i];
     }
     for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
-    if (s->last_step > 0) {
+    inc->has_correction = s->last_step > 0;
+    if (inc->has_correction) {
         /* the correction (above): R from the last step, h^2 / (2 (1 - g)) M^-1 R / h_last added to
-         * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution */
+         * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution; its share
+         * of the velocities, for the error estimate (error_ratio), by the matrix's diagonal alone
+         * (an estimate of a size needs no second solve) */
         double R[NU];
         for (int i = 0; i < NU; ++i) {
             /* K dq + D du, K's structural zeros (k_times) left out (0 dq + D du is D du) */
@@ -166,7 +177,11 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
         }
         for (int k = 0; k < 2; ++k) R[U_SPIN_L + k] -= c[k] * (s->last_dq[U_SPIN_L + k] + s->last_dI[k]);
         const double f = h * h / (2.0 * (1.0 - ROS_GAMMA) * s->last_step);
-        for (int i = 0; i < NU; ++i) k2u[i] += f * R[i];
+        const double share = (1.0 - ROS_GAMMA) * f / (h * h);
+        for (int i = 0; i < NU; ++i) {
+            k2u[i] += f * R[i];
+            inc->correction[i] = share * R[i] / diag[i];
+        }
     }
     dense_lu_solve(&lu, k2u);
 
@@ -185,15 +200,33 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     return 0;
 }
 
-/* The largest difference of the two solutions' velocities (levers above),
- * relative to solver.tolerance: the step is accepted at <= 1. */
-static double error_ratio(const Model *m, const StepIncrement *inc)
+/* The step's local error in its velocities (levers above), relative to
+ * solver.tolerance: the step of h is accepted at <= 1.
+ *
+ * Per velocity, the difference of the two solutions plus the error of the
+ * correction.  The correction holds (f' - J) f constant from the last step
+ * to this one, an explicit extrapolation; its error is its change from the
+ * last step's to this one's, h^2 times that of correction[] (its share of
+ * the velocities over h^2).  The embedded solution does not see it: both
+ * solutions share J, and the correction is what stands for J's error.  Where
+ * what J leaves out varies as fast as the step (on the stiffest soils at a
+ * loose tolerance, the chassis pitching on its wheels in a few steps a
+ * period), the extrapolation is outside its stability region and feeds the
+ * motion it extrapolates, which then grows step by step; its change is then
+ * as large as itself, and so counted the step shortens until what it
+ * extrapolates is slow beside the step again.  Where it barely changes, as
+ * over a run's smooth stretches, it adds little. */
+static double error_ratio(const Model *m, const StepIncrement *inc, double h)
 {
     const double half_base = 0.5 * m->p.rover_wheelbase, R = m->p.wheel_radius;
     const double lever[NU] = {1, 1, 1, half_base, half_base, half_base, half_base, R, R};
+    const int changed = inc->has_correction && m->s.last_correction_valid;
+    const double h2 = h * h;
     double worst = 0;
     for (int i = 0; i < NU; ++i) {
-        const double v = fabs(inc->du[i] - inc->du_first[i]) * lever[i];
+        double v = fabs(inc->du[i] - inc->du_first[i]);
+        if (changed) v += h2 * fabs(inc->correction[i] - m->s.last_correction[i]);
+        v *= lever[i];
         if (!(v <= worst)) worst = v;                  /* NaN counts as the worst */
     }
     return worst / m->p.solver_tolerance;
@@ -319,7 +352,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         int ok = two_stage(m, ev, hs, &inc) == 0;
         if (!ok) snprintf(why, sizeof why, "singular mass matrix at t = %.4f s", s->time);
         if (ok) {
-            ratio = error_ratio(m, &inc);
+            ratio = error_ratio(m, &inc, hs);
             if (ratio <= 1.0 || smallest) {
                 ok = apply_increment(m, ev, &inc, hs, why, sizeof why) == 0;
                 if (ok) {
@@ -328,6 +361,8 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                     memcpy(s->last_dq, inc.dq, sizeof s->last_dq);
                     memcpy(s->last_du, inc.du, sizeof s->last_du);
                     memcpy(s->last_dI, inc.dI, sizeof s->last_dI);
+                    if (inc.has_correction) memcpy(s->last_correction, inc.correction, sizeof s->last_correction);
+                    s->last_correction_valid = inc.has_correction;
                     s->last_inputs = m->in;
                     const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
                     /* never below STEP_MIN: a step accepted there with a large error would otherwise
