@@ -443,9 +443,10 @@ typedef struct {
 
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
 /* Raised with every change of ModelState's layout (2: the wheels' spin angles; 3: the automatic
- * step's last step; 4: the side bodies in the derived data; 5: the terrain's tilt), so that a
- * state saved by another version of the FMU is refused as such, even at an equal size. */
-#define SNAPSHOT_VERSION 5u
+ * step's last step; 4: the side bodies in the derived data; 5: the terrain's tilt; 6: the
+ * automatic step's last correction), so that a state saved by another version of the FMU is
+ * refused as such, even at an equal size. */
+#define SNAPSHOT_VERSION 6u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)
 {
