@@ -44,6 +44,7 @@ from ..campaign import RunData, aligned
 from .findings import Finding, _g
 from .limits import RoverLimits
 from .sensors import TURNING
+from .windows import travel_over_windows
 
 #: The turning check: yaw rates over TURN_WINDOW s against the sides' spin difference, in the
 #: windows (TURN_WINDOWS or more) where it is at least TURN_SPIN_DIFFERENCE rad/s (ten times the
@@ -114,12 +115,10 @@ def check_heading(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     names = ("yaw", "pos_x", "pos_y", "omega_left", "omega_right")
     if not all(run.has(n) for n in names):
         return []
-    tx = run.samples("pos_x")[0]
-    if len(tx) < 2 or tx[-1] - tx[0] <= 2 * TURN_WINDOW:
+    travel = travel_over_windows(run, TURN_WINDOW)
+    if travel is None:
         return []
-    t = np.arange(tx[0] + 0.5 * TURN_WINDOW, tx[-1] - 0.5 * TURN_WINDOW, 0.5 * TURN_WINDOW)
-    ends = aligned(run, ["pos_x", "pos_y"], np.concatenate([t - 0.5 * TURN_WINDOW, t + 0.5 * TURN_WINDOW]))
-    dx, dy = (np.diff(ends[n].reshape(2, -1), axis=0)[0] for n in ("pos_x", "pos_y"))
+    t, dx, dy = travel
     spins = aligned(run, ["omega_left", "omega_right"], t)
     forward = 0.5 * (spins["omega_left"] + spins["omega_right"])
     # The yaw as its sines and cosines: interpolating those needs no unwrapping, so one absurd
@@ -127,11 +126,11 @@ def check_heading(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     ty, yaw = run.samples("yaw")
     with np.errstate(invalid="ignore"):
         heading = np.arctan2(np.interp(t, ty, np.sin(yaw)), np.interp(t, ty, np.cos(yaw)))
-    travel = np.arctan2(dy, dx) + np.where(forward < 0, np.pi, 0.0)
+    direction = np.arctan2(dy, dx) + np.where(forward < 0, np.pi, 0.0)
     moving = np.isfinite(heading) & (np.hypot(dx, dy) >= HEADING_MOVE) & (np.abs(forward) >= TURNING)
     if int(np.sum(moving)) < TURN_WINDOWS:
         return []
-    off = np.abs(np.angle(np.exp(1j * (heading[moving] - travel[moving]))))
+    off = np.abs(np.angle(np.exp(1j * (heading[moving] - direction[moving]))))
     median = float(np.median(off))
     if median <= HEADING_ERROR:
         return []

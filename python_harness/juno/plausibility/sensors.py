@@ -54,6 +54,7 @@ import numpy as np
 from ..campaign import RunData, aligned
 from .findings import FloatArray, Finding, _format_spans, _g, _largest, _own, _spans
 from .limits import RoverLimits
+from .windows import travel_over_windows
 
 #: Torque (and drawbar force) warning: beyond this times the drive's limit, min(stall,
 #: drive.torqueMax): the current sensor's noise (1.5 N m + 1 %) and the motor constants'
@@ -308,12 +309,10 @@ def check_rolling(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
 def _speed_over_windows(run: RunData, window: float) -> tuple[Optional[FloatArray], FloatArray]:
     """Times every half ``window`` (s) and the speed (m/s) of pos_x, pos_y over ``window``
     centred on each; (None, empty) for a run shorter than two windows."""
-    tx = run.samples("pos_x")[0]
-    if len(tx) < 2 or tx[-1] - tx[0] <= 2 * window:
+    travel = travel_over_windows(run, window)
+    if travel is None:
         return None, np.empty(0)
-    t = np.arange(tx[0] + 0.5 * window, tx[-1] - 0.5 * window, 0.5 * window)
-    ends = aligned(run, ["pos_x", "pos_y"], np.concatenate([t - 0.5 * window, t + 0.5 * window]))
-    dx, dy = (np.diff(ends[n].reshape(2, -1), axis=0)[0] for n in ("pos_x", "pos_y"))
+    t, dx, dy = travel
     return t, np.hypot(dx, dy) / window
 
 
