@@ -116,14 +116,7 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     const double (*K)[NU] = (const double (*)[NU])ev->K;
     DenseLU lu;
     double (*A)[NU] = lu.a, k1u[NU], k1q[NU], k1I[2], k2u[NU];
-    /* K's structural zeros (k_times) left out: adding g g 0 changes nothing */
-    const double gg = g * g;
-    for (int i = 0; i < K_BLOCK; ++i) {
-        for (int j = 0; j < K_BLOCK; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + gg * K[i][j];
-        for (int j = K_BLOCK; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j];
-    }
-    for (int i = K_BLOCK; i < NU; ++i)
-        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + g * ev->D[i][j] + (j == i ? gg * K[i][j] : 0.0);
+    step_matrix(ev, g, A);
     double diag[NU];               /* the matrix's diagonal, for the correction's share of the error */
     for (int i = 0; i < NU; ++i) diag[i] = A[i][i];
     if (dense_lu_factor(&lu) != 0) return -1;

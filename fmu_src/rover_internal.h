@@ -86,6 +86,21 @@ static inline void k_times(const double (*K)[NU], const double x[NU], double out
     for (int k = U_SPIN_L; k <= U_SPIN_R; ++k) out[k] = K[k][k] * x[k];
 }
 
+/* The linearly implicit step's matrix A = M + c D + c^2 K, with c the step (the fixed step's h,
+ * the automatic step's stage gamma h); K's structural zeros (k_times) are left out: adding
+ * c c 0 changes nothing. */
+static inline void step_matrix(const Eval *ev, double c, double A[NU][NU])
+{
+    const double (*K)[NU] = (const double (*)[NU])ev->K;
+    const double cc = c * c;
+    for (int i = 0; i < K_BLOCK; ++i) {
+        for (int j = 0; j < K_BLOCK; ++j) A[i][j] = ev->M[i][j] + c * ev->D[i][j] + cc * K[i][j];
+        for (int j = K_BLOCK; j < NU; ++j) A[i][j] = ev->M[i][j] + c * ev->D[i][j];
+    }
+    for (int i = K_BLOCK; i < NU; ++i)
+        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + c * ev->D[i][j] + (j == i ? cc * K[i][j] : 0.0);
+}
+
 /* rover_wheel_contact.c */
 
 /* Terrain elevation (m) at world (x, y) and, if n, the unit normal there,

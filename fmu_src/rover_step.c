@@ -252,14 +252,7 @@ static int advance(Model *m, double h, char *err, size_t errlen)
     const double (*K)[NU] = (const double (*)[NU])ev->K;
     DenseLU lu;
     double (*A)[NU] = lu.a, b[NU], Ku[NU];
-    /* K's structural zeros (k_times) left out: adding h h 0 changes nothing */
-    const double hh = h * h;
-    for (int i = 0; i < K_BLOCK; ++i) {
-        for (int j = 0; j < K_BLOCK; ++j) A[i][j] = ev->M[i][j] + h * ev->D[i][j] + hh * K[i][j];
-        for (int j = K_BLOCK; j < NU; ++j) A[i][j] = ev->M[i][j] + h * ev->D[i][j];
-    }
-    for (int i = K_BLOCK; i < NU; ++i)
-        for (int j = 0; j < NU; ++j) A[i][j] = ev->M[i][j] + h * ev->D[i][j] + (j == i ? hh * K[i][j] : 0.0);
+    step_matrix(ev, h, A);
     k_times(K, s->u, Ku);
     for (int i = 0; i < NU; ++i) b[i] = h * (ev->Q[i] - h * Ku[i]);
     if (m->p.drive_mode == DRIVE_PID)   /* the reference's share of the implicit PID integral */
