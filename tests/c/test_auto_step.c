@@ -25,23 +25,16 @@
 
 #include "check.h"
 #include "model.h"
+#include "rover_fixture.h"
 
 static Model *new_model(int drive_mode, double solver_step, double tolerance, double rut_fraction)
 {
-    char err[512];
-    Model *m = (Model *)calloc(1, sizeof *m);
-    if (!m) exit(2);
-    model_set_defaults(m);
-    terrain_init_flat(&m->terrain);
+    Model *m = rover_at_defaults();
     m->p.drive_mode = drive_mode;
     m->p.solver_step = solver_step;
     m->p.solver_tolerance = tolerance;
     m->p.multipass_rutFraction = rut_fraction;
-    if (model_initialize(m, err, sizeof err) != 0) {
-        printf("model_initialize: %s\n", err);
-        exit(2);
-    }
-    return m;
+    return initialised(m, "drive mode, step, tolerance, rut");
 }
 
 static void step_to(Model *m, double t_end, double h_comm)

@@ -25,6 +25,7 @@
 
 #include "check.h"
 #include "model.h"
+#include "rover_fixture.h"
 #include "rover_internal.h"
 
 #define COMM_STEP 0.01          /* s */
@@ -36,20 +37,12 @@
  * that fixed step; initialised. */
 static Model *new_rover(double slope_x, double fixed_step)
 {
-    char err[768];
-    Model *m = (Model *)calloc(1, sizeof *m);
-    if (!m) exit(2);
-    model_set_defaults(m);
-    terrain_init_flat(&m->terrain);
+    Model *m = rover_at_defaults();
     m->p.terrain_slopeX = slope_x;
     if (fixed_step > 0) m->p.solver_tolerance = 0.0, m->p.solver_step = fixed_step;
     m->in.drawbarForce = 400.0;
     m->in.throttleLeft = m->in.throttleRight = 0.45;
-    if (model_initialize(m, err, sizeof err) != 0) {
-        printf("model_initialize (slope %g): %s\n", slope_x, err);
-        exit(2);
-    }
-    return m;
+    return initialised(m, "the tilted rover");
 }
 
 /* Steps m until a step fails (its message into err, returns 1) or

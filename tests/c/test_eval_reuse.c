@@ -18,6 +18,7 @@
 
 #include "check.h"
 #include "model.h"
+#include "rover_fixture.h"
 
 /* Inputs that change every step: a few different values per channel. */
 static void set_inputs(Model *m, int k)
@@ -34,19 +35,11 @@ static void set_inputs(Model *m, int k)
 
 static Model *new_model(int drive_mode, double solver_step, double rut_fraction)
 {
-    char err[512];
-    Model *m = (Model *)calloc(1, sizeof *m);
-    if (!m) exit(2);
-    model_set_defaults(m);
-    terrain_init_flat(&m->terrain);
+    Model *m = rover_at_defaults();
     m->p.drive_mode = drive_mode;
     m->p.solver_step = solver_step;
     m->p.multipass_rutFraction = rut_fraction;
-    if (model_initialize(m, err, sizeof err) != 0) {
-        printf("model_initialize: %s\n", err);
-        exit(2);
-    }
-    return m;
+    return initialised(m, "drive mode, step, rut");
 }
 
 static int same_state(const Model *a, const Model *b)

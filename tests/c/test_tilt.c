@@ -27,6 +27,7 @@
 
 #include "check.h"
 #include "model.h"
+#include "rover_fixture.h"
 #include "rover_internal.h"
 
 /* The grid: nodes every CELL m over [-HALF, HALF] m both ways, wide
@@ -70,11 +71,7 @@ static void write_plane_grid(double sx, double sy, char *path, size_t n)
  * tilted flat ground (grid NULL) or on the grid file; initialised. */
 static Model *new_rover(double sx, double sy, double yaw, const char *grid)
 {
-    char err[512];
-    Model *m = (Model *)calloc(1, sizeof *m);
-    if (!m) exit(2);
-    model_set_defaults(m);
-    terrain_init_flat(&m->terrain);
+    Model *m = rover_at_defaults();
     m->p.init_yaw = yaw;
     m->p.solver_step = 1e-3;
     m->p.solver_tolerance = 0.0;
@@ -85,11 +82,7 @@ static Model *new_rover(double sx, double sy, double yaw, const char *grid)
         m->p.terrain_slopeX = sx;
         m->p.terrain_slopeY = sy;
     }
-    if (model_initialize(m, err, sizeof err) != 0) {
-        printf("model_initialize (%s, slope %g, %g, yaw %g): %s\n", grid ? "grid" : "tilt", sx, sy, yaw, err);
-        exit(2);
-    }
-    return m;
+    return initialised(m, grid ? "the grid" : "the tilt");
 }
 
 /* The largest difference of the wheels' forces (N) and of the sinkages
