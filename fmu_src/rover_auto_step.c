@@ -290,7 +290,7 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
     double quat[4] = {s->quat[0], s->quat[1], s->quat[2], s->quat[3]};
     quat_integrate_world(quat, &inc->dq[U_WX], 1.0);
     if (!rover_motion_is_sane(m, ev, s->time + h, pos, u, beta, err, errlen) ||
-        !rover_attitude_is_upright(quat, ev, s->time + h, err, errlen))
+        !rover_attitude_is_upright(m, quat, ev, s->time + h, err, errlen))
         return -1;
     memcpy(s->u, u, sizeof s->u);
     memcpy(s->pos, pos, sizeof s->pos);
@@ -339,7 +339,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         /* at the smallest step by intent (h), not by hs, which round-off can leave just above it:
          * compared by hs, a step that must be accepted there would be rejected for ever */
         const int smallest = h <= STEP_MIN;
-        char why[512];
+        char why[768];
         StepIncrement inc;
         double ratio = HUGE_VAL;
         int ok = two_stage(m, ev, hs, &inc) == 0;

@@ -159,7 +159,8 @@ int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const doub
 /* 1 if the chassis, at attitude quat (world from chassis, w x y z), is
  * upright over the ground under the wheels of ev (rover_step.c: not
  * overturned); else 0, with the overturn named in err at time (s). */
-int rover_attitude_is_upright(const double quat[4], const Eval *ev, double time, char *err, size_t n);
+int rover_attitude_is_upright(const Model *m, const double quat[4], const Eval *ev, double time, char *err,
+                              size_t n);
 
 /* rover_auto_step.c */
 

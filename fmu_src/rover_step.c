@@ -74,6 +74,46 @@ static void ground_normal_sum(const Eval *ev, double nrm[3])
     for (int i = 0; i < 3; ++i) nrm[i] = g[0][i] + g[1][i] + g[2][i] + g[3][i];
 }
 
+/* What the model knows of why the rover tumbled (overturned, or fell onto
+ * a wheel), into buf: the steepest slope of the ground under the wheels
+ * of ev and how the internal step is chosen, and the cause they point
+ * at.  The line between the terrain and the rest: on a slope s, holding
+ * the rover against sliding takes tan s / tan soil.phi of the grip the
+ * soil's friction gives (Mohr-Coulomb, F_taumax = Fn tan phi); the terrain
+ * is named where that exceeds one half, the slope taking the larger part
+ * of the grip from the drive (so the rover slides and pitches over, as on
+ * slopes near soil.phi).  On gentler ground the slope is the lesser part
+ * of what tipped the rover, and what is left is the integration (a fixed
+ * step too coarse for the soil's stiffness, or an automatic step's
+ * solver.tolerance too loose for it) or a drive or drawbar load beyond
+ * what holds the rover down. */
+static void tumble_cause(const Model *m, const Eval *ev, char *buf, size_t n)
+{
+    int w;
+    const double slope = steepest_slope(m, (const double (*)[3])ev->hub, NUM_WHEELS, &w);
+    const int fixed = !(m->p.solver_tolerance > 0);
+    char step[96];
+    if (fixed)
+        snprintf(step, sizeof step, "the internal step is fixed, solver.step = %g s", m->p.solver_step);
+    else
+        snprintf(step, sizeof step, "the internal step is automatic, solver.tolerance = %g m/s", m->p.solver_tolerance);
+    const double deg = slope * 180.0 / M_PI, phi_deg = m->p.soil_phi * 180.0 / M_PI;
+    if (tan(slope) > 0.5 * tan(m->p.soil_phi)) {
+        snprintf(buf, n,
+                 "the ground under the wheels slopes up to %.1f deg, steep against soil.phi = %.1f deg; %s: it "
+                 "tumbled, the terrain too steep or rough for the drive, not the soil's stiffness",
+                 deg, phi_deg, step);
+        return;
+    }
+    snprintf(buf, n,
+             "the ground under the wheels slopes at most %.1f deg, too little against soil.phi = %.1f deg to tip "
+             "the rover; %s: not the terrain but %s or a drive or drawbar load beyond what holds the rover down",
+             deg, phi_deg, step,
+             fixed ? "a fixed step too coarse for the soil's stiffness (try the automatic step, solver.tolerance > 0, "
+                     "or a smaller solver.step)"
+                   : "a solver.tolerance too loose for the soil's stiffness (try a smaller one)");
+}
+
 /* Whether the rover, at the attitude R (world from chassis: its columns
  * are the chassis axes), has overturned: its up axis (the chassis z) more
  * than 90 deg from the ground's normal under it, the sum of the unit
@@ -84,12 +124,12 @@ static void ground_normal_sum(const Eval *ev, double nrm[3])
  * faces the ground, so the wheels can no longer be the only contacts, and
  * left to the model the rover falls through the ground until its wheels
  * meet the soil from the wrong side.  Writes a clause into buf naming the
- * angle and the axis it turned about, and returns 1 if so, else 0 (a
- * dot product, unless it has overturned).  The axis is a line, not a
- * sense: past 180 deg a rover that pitched over backwards reads as one
- * pitching forwards, so only "end over end" (about its lateral axis) or
- * "sideways" (about its heading) is said. */
-static int overturned(const double R[9], const Eval *ev, char *buf, size_t n)
+ * angle, the axis it turned about and why it tumbled (tumble_cause), and
+ * returns 1 if so, else 0 (a dot product, unless it has overturned).  The
+ * axis is a line, not a sense: past 180 deg a rover that pitched over
+ * backwards reads as one pitching forwards, so only "end over end" (about
+ * its lateral axis) or "sideways" (about its heading) is said. */
+static int overturned(const Model *m, const double R[9], const Eval *ev, char *buf, size_t n)
 {
     double nrm[3];
     ground_normal_sum(ev, nrm);
@@ -101,22 +141,23 @@ static int overturned(const double R[9], const Eval *ev, char *buf, size_t n)
     double axis[3];
     v3_cross(axis, nrm, up);                       /* the turn from the normal to the up axis is about this */
     const int end_over_end = fabs(v3_dot(axis, lateral)) >= fabs(v3_dot(axis, forward));
+    char cause[400];
+    tumble_cause(m, ev, cause, sizeof cause);
     snprintf(buf, n,
              "the rover has overturned: its up axis is %.0f deg from the ground's normal, turned %s; the wheels "
-             "are the model's only contacts with the ground, and the chassis that now faces it has none (it "
-             "tumbled: terrain too steep or rough for the drive, not a soil property)",
+             "are the model's only contacts with the ground, and the chassis that now faces it has none (%s)",
              acos(fmax(-1.0, cos_tilt)) * 180.0 / M_PI,
-             end_over_end ? "about its lateral axis (end over end)" : "about its heading (rolled sideways)");
+             end_over_end ? "about its lateral axis (end over end)" : "about its heading (rolled sideways)", cause);
     return 1;
 }
 
 /* overturned at the attitude of the evaluation ev itself. */
-static int rover_overturned(const Eval *ev, char *buf, size_t n)
+static int rover_overturned(const Model *m, const Eval *ev, char *buf, size_t n)
 {
-    return overturned(ev->R, ev, buf, n);
+    return overturned(m, ev->R, ev, buf, n);
 }
 
-int rover_attitude_is_upright(const double quat[4], const Eval *ev, double time, char *err, size_t n)
+int rover_attitude_is_upright(const Model *m, const double quat[4], const Eval *ev, double time, char *err, size_t n)
 {
     const double w = quat[0], x = quat[1], y = quat[2], z = quat[3];
     double nrm[3];
@@ -125,9 +166,9 @@ int rover_attitude_is_upright(const double quat[4], const Eval *ev, double time,
     const double along = 2 * (x * z + w * y) * nrm[0] + 2 * (y * z - w * x) * nrm[1] + (1 - 2 * (x * x + y * y)) * nrm[2];
     if (!(along < 0.0)) return 1;
     double R[9];
-    char why[400];
+    char why[640];
     quat_to_m3(R, quat);
-    if (!overturned(R, ev, why, sizeof why)) return 1;
+    if (!overturned(m, R, ev, why, sizeof why)) return 1;
     return snprintf(err, n, "state diverged at t = %.4f s: %s", time, why), 0;
 }
 
@@ -138,18 +179,21 @@ int rover_attitude_is_upright(const double quat[4], const Eval *ev, double time,
  *    meet it from above, and the speed at this moment says little, being
  *    what is left after the soil has braked the fall;
  *  - the wheel struck the ground faster than a fall from its own radius
- *    height, sqrt(2 g R): the rover fell or tumbled, and no soil stops a
- *    wheel within its radius from such a speed at these stiffnesses;
+ *    height, sqrt(2 g R): the rover fell or tumbled (why, tumble_cause),
+ *    and no soil stops a wheel within its radius from such a speed at
+ *    these stiffnesses;
  *  - otherwise the soil yields that far under the load: too soft. */
 static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
 {
     if (rover_slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
-    if (rover_overturned(ev, buf, n)) return;
+    if (rover_overturned(m, ev, buf, n)) return;
     const double speed = hub_approach_speed(m, ev, w), fall = sqrt(2.0 * m->p.env_gravity * m->p.wheel_radius);
     if (speed > fall) {
+        char cause[400];
+        tumble_cause(m, ev, cause, sizeof cause);
         snprintf(buf, n,
                  "it struck the ground at %.2f m/s, faster than a fall from its radius height (%.2f m/s): the "
-                 "rover fell or tumbled (terrain too steep or rough?)", speed, fall);
+                 "rover fell or tumbled (%s)", speed, fall, cause);
         return;
     }
     snprintf(buf, n, "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
@@ -159,7 +203,7 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
 int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
                          double beta, char *err, size_t n)
 {
-    char cause[400];
+    char cause[640];
     for (int i = 0; i < 3; ++i)
         if (!isfinite(pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", time), 0;
     for (int i = 0; i < NU; ++i)
@@ -341,8 +385,8 @@ static int do_step_fixed(Model *m, double h_comm, char *err, size_t errlen)
     }
     m->s.time = t_end;
     rover_evaluate_end_of_step(m);
-    char why[400];
-    if (rover_overturned(&m->eval, why, sizeof why)) {
+    char why[640];
+    if (rover_overturned(m, &m->eval, why, sizeof why)) {
         m->eval_valid = 0;                         /* a failed step leaves it cleared */
         return snprintf(err, errlen, "state diverged at t = %.4f s: %s", m->s.time, why), -1;
     }

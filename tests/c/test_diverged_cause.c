@@ -8,9 +8,18 @@
  *     flips over backwards.  As its up axis passes 90 deg from the ground's
  *     normal (the automatic step: the internal step that crosses it, taken
  *     again shorter down to its smallest; the fixed step: the next
- *     communication point) the step fails, at both step settings alike: the message says the rover overturned, end
- *     over end, and does not blame the soil (whose stiffness has nothing
- *     to do with it) nor the slope (which the soil can hold);
+ *     communication point) the step fails, at both step settings alike:
+ *     the message says the rover overturned, end over end, on terrain too
+ *     steep for the drive, names the step setting, and does not blame the
+ *     soil's stiffness (which has nothing to do with it) nor a slope
+ *     steeper than soil.phi (the soil can hold this one);
+ *   - on level ground, a soil about six times stiffer than the default
+ *     (soil.kh = 1e6), a full throttle and a 2000 N drawbar, at a fixed
+ *     internal step of 0.1 s (communication steps of 0.1 s) the rover
+ *     pitches up and overturns within 5 s, while at the automatic step (of at most the
+ *     same 0.1 s) it runs its whole 30 s: the step is the cause, and the
+ *     message names it (solver.step = 0.1 s) and does not call the level
+ *     ground too steep;
  *   - on the tilt of 0.3 the registration allows, the same rover stays
  *     upright and runs its whole 30 s at both step settings;
  *   - an upright rover whose weight the soil cannot carry (the gravity
@@ -45,13 +54,20 @@ static Model *new_rover(double slope_x, double fixed_step)
     return initialised(m, "the tilted rover");
 }
 
-/* Steps m until a step fails (its message into err, returns 1) or
- * MAX_STEPS have passed (returns 0). */
+/* Steps m in communication steps of comm_step until a step fails (its
+ * message into err, returns 1) or MAX_STEPS * COMM_STEP (30 s) have passed
+ * (returns 0). */
+static int run_until_failure_at(Model *m, double comm_step, char *err, size_t n)
+{
+    const int steps = (int)lround(MAX_STEPS * COMM_STEP / comm_step);
+    for (int k = 0; k < steps; ++k)
+        if (model_do_step(m, comm_step, err, n) != 0) return 1;
+    return 0;
+}
+
 static int run_until_failure(Model *m, char *err, size_t n)
 {
-    for (int k = 0; k < MAX_STEPS; ++k)
-        if (model_do_step(m, COMM_STEP, err, n) != 0) return 1;
-    return 0;
+    return run_until_failure_at(m, COMM_STEP, err, n);
 }
 
 static void free_rover(Model *m)
@@ -91,6 +107,51 @@ static void test_a_rover_flipping_over_is_stopped_as_overturned(double fixed_ste
     CHECK(deg >= 90.0 && deg < 135.0, "%s: it is stopped just past 90 deg (%.0f deg)", step, deg);
     CHECK(strstr(err, "too soft") == NULL && strstr(err, "soil.kh") == NULL && strstr(err, "friction angle") == NULL,
           "%s: and blames neither the soil's stiffness nor a slope steeper than soil.phi", step);
+    CHECK(strstr(err, "slopes up to 28.8 deg") != NULL &&
+              strstr(err, "terrain too steep or rough for the drive") != NULL,
+          "%s: it blames the terrain, naming its slope: \"%s\"", step, err);
+    CHECK(strstr(err, fixed_step > 0 ? "internal step is fixed, solver.step = 0.001 s" : "internal step is automatic")
+              != NULL, "%s: and names the step setting: \"%s\"", step, err);
+    free_rover(m);
+}
+
+#define COARSE_STEP 0.1         /* s: the largest solver.step, and the communication step with it */
+
+/* A rover on level ground, on a soil about six times stiffer than the default,
+ * at full throttle against a 2000 N drawbar, at the automatic step (of at
+ * most COARSE_STEP) or the fixed COARSE_STEP; initialised. */
+static Model *new_rover_on_stiff_level_soil(int fixed)
+{
+    Model *m = rover_at_defaults();
+    m->p.soil_kh = 1e6;
+    m->p.solver_step = COARSE_STEP;
+    if (fixed) m->p.solver_tolerance = 0.0;
+    m->in.drawbarForce = 2000.0;
+    m->in.throttleLeft = m->in.throttleRight = 1.0;
+    return initialised(m, "the rover on stiff level soil");
+}
+
+static void test_a_rover_overturned_by_a_coarse_fixed_step_on_level_ground_blames_the_step(void)
+{
+    char err[768] = "";
+    Model *m = new_rover_on_stiff_level_soil(0);
+    const int failed_automatic = run_until_failure_at(m, COARSE_STEP, err, sizeof err);
+    CHECK(!failed_automatic,
+          "automatic step: on stiff level soil the rover runs its whole 30 s (stopped at t = %.2f s: \"%s\")",
+          m->s.time, err);
+    free_rover(m);
+
+    err[0] = '\0';
+    m = new_rover_on_stiff_level_soil(1);
+    const int failed = run_until_failure_at(m, COARSE_STEP, err, sizeof err);
+    CHECK(failed && strstr(err, "overturned") != NULL && m->s.time < 5.0 + 1e-9,
+          "fixed 0.1 s step: the same rover overturns within 5 s (t = %.2f s): \"%s\"", m->s.time, err);
+    CHECK(strstr(err, "slopes at most 0.0 deg") != NULL && strstr(err, "not the terrain") != NULL &&
+              strstr(err, "too steep") == NULL,
+          "fixed 0.1 s step: the message says the level ground is not the cause: \"%s\"", err);
+    CHECK(strstr(err, "internal step is fixed, solver.step = 0.1 s") != NULL &&
+              strstr(err, "fixed step too coarse for the soil's stiffness") != NULL,
+          "fixed 0.1 s step: and names the step setting as a cause: \"%s\"", err);
     free_rover(m);
 }
 
@@ -124,6 +185,7 @@ int main(void)
 {
     test_a_rover_flipping_over_is_stopped_as_overturned(0.0);
     test_a_rover_flipping_over_is_stopped_as_overturned(FIXED_STEP);
+    test_a_rover_overturned_by_a_coarse_fixed_step_on_level_ground_blames_the_step();
     test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(0.0);
     test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(FIXED_STEP);
     test_an_upright_rover_sinking_under_its_load_blames_the_soil(0.0);
