@@ -106,8 +106,9 @@ static void tumble_cause(const Model *m, const Eval *ev, char *buf, size_t n)
         return;
     }
     snprintf(buf, n,
-             "the ground under the wheels slopes at most %.1f deg, too little against soil.phi = %.1f deg to tip "
-             "the rover; %s: not the terrain but %s or a drive or drawbar load beyond what holds the rover down",
+             "the ground under the wheels slopes at most %.1f deg, too gentle against soil.phi = %.1f deg to make "
+             "the rover slide or tip over; %s: not the terrain but %s or a drive or drawbar load beyond what holds "
+             "the rover down",
              deg, phi_deg, step,
              fixed ? "a fixed step too coarse for the soil's stiffness (try the automatic step, solver.tolerance > 0, "
                      "or a smaller solver.step)"
