@@ -31,12 +31,13 @@ its own held-out gain); sensor noise is white at the sample rate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from .campaign import Campaign, RunData, read_run
+from .floor_tests import CampaignFloorTests, RunFloorTest
 from .identify import PreparedRun
 from .sensor_noise import column_noise
 
@@ -75,6 +76,11 @@ class ReplaySignal:
         return self.rms / self.noise if self.noise > 0 else float("inf")
 
     @property
+    def excess(self) -> float:
+        """The ratio to the sensor noise over the floor."""
+        return self.ratio / self.floor
+
+    @property
     def disagrees(self) -> bool:
         return bool(self.ratio > self.floor)
 
@@ -89,19 +95,8 @@ class ReplaySignal:
 
 
 @dataclass
-class TerrainReplay:
-    """The replay test of one terrain run: every compared signal."""
-
-    run: str
-    signals: list[ReplaySignal] = field(default_factory=list)
-
-    @property
-    def significant(self) -> bool:
-        return any(s.disagrees for s in self.signals)
-
-    def disagreeing(self) -> list[ReplaySignal]:
-        """The signals beyond their floors, largest relative to the floor first."""
-        return sorted((s for s in self.signals if s.disagrees), key=lambda s: -s.ratio / s.floor)
+class TerrainReplay(RunFloorTest):
+    """The replay test of one terrain run: every compared signal (ReplaySignal)."""
 
     def summary(self) -> str:
         found = self.disagreeing()
@@ -116,17 +111,8 @@ class TerrainReplay:
 
 
 @dataclass
-class TerrainReplayTests:
-    """The replay test of every terrain run of a campaign, in the campaign's order."""
-
-    runs: list[TerrainReplay] = field(default_factory=list)
-
-    @property
-    def significant(self) -> bool:
-        return any(r.significant for r in self.runs)
-
-    def disagreeing(self) -> list[TerrainReplay]:
-        return [r for r in self.runs if r.significant]
+class TerrainReplayTests(CampaignFloorTests):
+    """The replay test of every terrain run of a campaign (TerrainReplay), in the campaign's order."""
 
     def summary(self) -> str:
         found = self.disagreeing()
