@@ -267,6 +267,15 @@ static char locale_decimal_point(void)
     return '.';
 }
 
+/* scan_decimal inlined into both its callers, and decimal_by_reciprocal
+ * into plain_decimal (as calls they cost a tenth of the reading: their
+ * registers saved and restored for every value). */
+#if defined(__GNUC__)
+#define SCAN_INLINE inline __attribute__((always_inline))
+#else
+#define SCAN_INLINE inline
+#endif
+
 /* Powers of ten that doubles hold exactly: 10^k = 2^k 5^k and 5^22 < 2^53. */
 static const double pow10_exact[23] = {
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
@@ -274,18 +283,6 @@ static const double pow10_exact[23] = {
 };
 
 #if defined(__SIZEOF_INT128__) && defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
-/* m * 10^e10 correctly rounded (round half to even), for 1 <= m < 2^64 and
- * -27 <= e10 <= 27, with 128-bit integers: the digit strings fast_decimal's
- * division cannot take exactly (more than 2^53, e.g. the 17 significant
- * digits of a shortest round-trip double).  10^e10 = 5^e10 2^e10 and
- * 5^27 < 2^64:
- *   e10 >= 0: P = m 5^e10 < 2^127 exactly, rounded to 53 bits, times 2^e10;
- *   e10 < 0: q = floor(m 2^s / 5^n) (n = -e10, s shifts m to the top of 128
- *            bits, so q has at least 64 bits) and its remainder as a sticky
- *            bit, q rounded to 53 bits, times 2^(-s-n).
- * Results lie between 1e-27 and 2^64 1e27, far from overflow and from the
- * subnormals, so the scaling by a power of two is exact.  Returns 0
- * outside that range (the caller then uses strtod). */
 __extension__ typedef unsigned __int128 u128;   /* GCC and Clang; __extension__: not ISO C */
 
 /* 5^0 .. 5^27 (5^27 < 2^63) */
@@ -297,6 +294,96 @@ static const uint64_t pow5[28] = {
     7450580596923828125u
 };
 
+/* A normal double kept * 2^e2 (2^52 <= kept < 2^53), built from its fields
+ * rather than by ldexp. */
+static double double_from_parts(uint64_t kept, int e2)
+{
+    const uint64_t bits = ((uint64_t)(52 + e2 + 1023) << 52) | (kept & (((uint64_t)1 << 52) - 1));
+    double v;
+    memcpy(&v, &bits, sizeof v);
+    return v;
+}
+
+/* 1/5^n for n = 1..27 as 128-bit fixed point: r = floor(2^s / 5^n) with s
+ * chosen so that 2^127 <= r < 2^128 (s = 127 + the bit length of 5^n). */
+static const struct { uint64_t hi, lo; int s; } recip5[28] = {
+    {0u, 0u, 0},   /* n = 0 is never used: 10^0 is exact */
+    {0xccccccccccccccccu, 0xccccccccccccccccu, 130},
+    {0xa3d70a3d70a3d70au, 0x3d70a3d70a3d70a3u, 132},
+    {0x83126e978d4fdf3bu, 0x645a1cac083126e9u, 134},
+    {0xd1b71758e219652bu, 0xd3c36113404ea4a8u, 137},
+    {0xa7c5ac471b478423u, 0x0fcf80dc33721d53u, 139},
+    {0x8637bd05af6c69b5u, 0xa63f9a49c2c1b10fu, 141},
+    {0xd6bf94d5e57a42bcu, 0x3d32907604691b4cu, 144},
+    {0xabcc77118461cefcu, 0xfdc20d2b36ba7c3du, 146},
+    {0x89705f4136b4a597u, 0x31680a88f8953030u, 148},
+    {0xdbe6fecebdedd5beu, 0xb573440e5a884d1bu, 151},
+    {0xafebff0bcb24aafeu, 0xf78f69a51539d748u, 153},
+    {0x8cbccc096f5088cbu, 0xf93f87b7442e45d3u, 155},
+    {0xe12e13424bb40e13u, 0x2865a5f206b06fb9u, 158},
+    {0xb424dc35095cd80fu, 0x538484c19ef38c94u, 160},
+    {0x901d7cf73ab0acd9u, 0x0f9d37014bf60a10u, 162},
+    {0xe69594bec44de15bu, 0x4c2ebe687989a9b3u, 165},
+    {0xb877aa3236a4b449u, 0x09befeb9fad487c2u, 167},
+    {0x9392ee8e921d5d07u, 0x3aff322e62439fcfu, 169},
+    {0xec1e4a7db69561a5u, 0x2b31e9e3d06c32e5u, 172},
+    {0xbce5086492111aeau, 0x88f4bb1ca6bcf584u, 174},
+    {0x971da05074da7beeu, 0xd3f6fc16ebca5e03u, 176},
+    {0xf1c90080baf72cb1u, 0x5324c68b12dd6338u, 179},
+    {0xc16d9a0095928a27u, 0x75b7053c0f178293u, 181},
+    {0x9abe14cd44753b52u, 0xc4926a9672793542u, 183},
+    {0xf79687aed3eec551u, 0x3a83ddbd83f52204u, 186},
+    {0xc612062576589ddau, 0x95364afe032a819du, 188},
+    {0x9e74d1b791e07e48u, 0x775ea264cf55347du, 190},
+};
+
+/* m / 10^n correctly rounded for 1 <= m < 2^64, 1 <= n <= 27, by a
+ * multiplication with recip5[n] instead of long_decimal's 128-bit division,
+ * which costs several times more.  With w = m 2^z (top bit at bit 63) and
+ * X = w 2^s / 5^n, m / 10^n = X 2^(-s-n-z).  P = w r falls short of X by
+ * w (2^s / 5^n - r), more than 0 and less than 2^64, so t = floor(P / 2^64)
+ * has X / 2^64 strictly between t and t + 2.  t's top bit is bit 126 or
+ * 127 (P >= 2^63 2^127); the 53 bits from there down are the candidate,
+ * the bits below it (rest, all but the top 53 of t's) set against half
+ * their range decide the rounding:
+ *   rest <= half - 2: X / 2^64 lies below the midpoint: the candidate;
+ *   rest >= half: above it (a carry out of rest also rounds up);
+ *   rest = half - 1: too close to tell (an exact tie lands here, as P < X):
+ *     returns 0 and the caller divides.
+ * The rest spans t's low word and the low bits of its high word, so the
+ * tests are on two 64-bit words. */
+static SCAN_INLINE int decimal_by_reciprocal(uint64_t m, int n, double *v)
+{
+    const int z = __builtin_clzll(m);
+    const uint64_t w = m << z;
+    const u128 t = (u128)w * recip5[n].hi + (((u128)w * recip5[n].lo) >> 64);
+    const uint64_t hi = (uint64_t)(t >> 64), lo = (uint64_t)t;
+    const int below = 10 + (int)(hi >> 63);          /* bits of hi under the top 53 */
+    const uint64_t rest_hi = hi & (((uint64_t)1 << below) - 1), half_hi = (uint64_t)1 << (below - 1);
+    uint64_t kept = hi >> below;
+    int e2 = below + 64 + 64 - recip5[n].s - n - z;
+
+    if (rest_hi == half_hi - 1 && lo == UINT64_MAX)
+        return 0;
+    if (rest_hi >= half_hi && ++kept >> 53)      /* rounded up to 2^53 */
+        kept >>= 1, e2++;
+    *v = double_from_parts(kept, e2);
+    return 1;
+}
+
+/* m * 10^e10 correctly rounded (round half to even), for 1 <= m < 2^64 and
+ * -27 <= e10 <= 27, with 128-bit integers: the digit strings fast_decimal's
+ * division cannot take exactly (more than 2^53, e.g. the 17 significant
+ * digits of a shortest round-trip double).  10^e10 = 5^e10 2^e10 and
+ * 5^27 < 2^64:
+ *   e10 >= 0: P = m 5^e10 < 2^127 exactly, rounded to 53 bits, times 2^e10;
+ *   e10 < 0: decimal_by_reciprocal, or where it cannot tell the rounding,
+ *            q = floor(m 2^s / 5^n) (n = -e10, s shifts m to the top of 128
+ *            bits, so q has at least 64 bits) and its remainder as a sticky
+ *            bit, q rounded to 53 bits, times 2^(-s-n).
+ * Results lie between 1e-27 and 2^64 1e27, far from overflow and from the
+ * subnormals, so the scaling by a power of two is exact.  Returns 0
+ * outside that range (the caller then uses strtod). */
 static int long_decimal(uint64_t m, int e10, double *v)
 {
     u128 q;
@@ -305,6 +392,8 @@ static int long_decimal(uint64_t m, int e10, double *v)
 
     if (e10 < -27 || e10 > 27)
         return 0;
+    if (e10 < 0 && decimal_by_reciprocal(m, -e10, v))
+        return 1;
     p5 = pow5[e10 < 0 ? -e10 : e10];
     if (e10 >= 0) {
         q = (u128)m * p5;
@@ -331,12 +420,9 @@ static int long_decimal(uint64_t m, int e10, double *v)
     }
     if (kept >> 53)                        /* rounded up to 2^53 */
         kept >>= 1, shift++;
-    {
-        /* kept * 2^(scale + shift) with 2^52 <= kept < 2^53: a normal double
-         * (the range above), built from its fields rather than by ldexp */
-        const uint64_t bits = ((uint64_t)(52 + scale + shift + 1023) << 52) | (kept & (((uint64_t)1 << 52) - 1));
-        memcpy(v, &bits, sizeof *v);
-    }
+    /* kept * 2^(scale + shift) with 2^52 <= kept < 2^53: a normal double
+     * (the range above) */
+    *v = double_from_parts(kept, scale + shift);
     return 1;
 }
 #else
@@ -358,6 +444,7 @@ static int long_decimal(uint64_t m, int e10, double *v)
  * and moves to higher bytes, so the flags below it are exact.  Elsewhere
  * *k = 0, and the caller's byte loop reads the digits. */
 #if defined(__GNUC__) && defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define DIGIT_RUN_SWAR 1
 static uint64_t digit_run(const char *p, int *k)
 {
     const uint64_t zeros = 0x3030303030303030u, mask = 0x000000FF000000FFu;
@@ -375,6 +462,7 @@ static uint64_t digit_run(const char *p, int *k)
     return (((v & mask) * mul1) + (((v >> 16) & mask) * mul2)) >> 32;
 }
 #else
+#define DIGIT_RUN_SWAR 0
 static uint64_t digit_run(const char *p, int *k)
 {
     (void)p;
@@ -383,16 +471,13 @@ static uint64_t digit_run(const char *p, int *k)
 }
 #endif
 
-/* 10^0 .. 10^8 */
-static const uint64_t pow10_u64[9] = {1u, 10u, 100u, 1000u, 10000u, 100000u, 1000000u, 10000000u, 100000000u};
-
-/* scan_decimal inlined into both its callers (as a call it cost a tenth of
- * the reading: its registers saved and restored for every value). */
-#if defined(__GNUC__)
-#define SCAN_INLINE inline __attribute__((always_inline))
-#else
-#define SCAN_INLINE inline
-#endif
+/* 10^0 .. 10^19 (10^19 < 2^64) */
+static const uint64_t pow10_u64[20] = {
+    1u, 10u, 100u, 1000u, 10000u, 100000u, 1000000u, 10000000u, 100000000u, 1000000000u,
+    10000000000u, 100000000000u, 1000000000000u, 10000000000000u, 100000000000000u,
+    1000000000000000u, 10000000000000000u, 100000000000000000u, 1000000000000000000u,
+    10000000000000000000u
+};
 
 /* The common decimal token [+-]digits[.digits][(e|E)[+-]digits] (the
  * bytes p..end; the byte at end is not a digit, point, sign or e) with at
@@ -480,30 +565,67 @@ static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, doub
 #endif
 }
 
-/* scan_decimal for the grids' usual values, [-]digits.digits with at most
- * seven digits on each side of the point (as "%.6f" writes them), from two
- * eight-byte reads (digit_run) rather than byte by byte: the same digits m
- * and exponent -(fraction digits) as scan_decimal finds, hence the same
- * m / 10^k (m < 2^53, one correctly rounded division).  Anything else
- * goes to scan_decimal.  Reads
- * at most 17 bytes from p, so needs end - p > 17. */
+/* The bytes plain_decimal may read beyond p: its caller keeps more than
+ * this many before the buffer's end. */
+#define PLAIN_DECIMAL_REACH 32
+
+/* scan_decimal for the grids' usual values, [-]digits.digits with one to
+ * seven digits before the point and at most 19 significant digits in all:
+ * "%.6f"'s "0.003880" as much as the shortest round-trip
+ * "0.0038795912416837394" that Python writes.  The digits are read in runs
+ * of eight (digit_run) with the point's place known, rather than byte by
+ * byte and counted: the same digits m and exponent -(fraction digits) as
+ * scan_decimal finds, converted the same way (m / 10^k for m <= 2^53 and
+ * k <= 22, else decimal_by_reciprocal or long_decimal), hence the same
+ * value.  Like scan_decimal it returns where the number stops, before an
+ * exponent too: the caller takes the value only where a token ends there
+ * (and hands "1.5e3" and "1.5x" to scan_decimal, which reads exponents).
+ * Anything else (a '+', no digit before the point, more digits) goes to
+ * scan_decimal here.  Reads p[0..PLAIN_DECIMAL_REACH] at most: one integer
+ * run from p + 1 at the latest, then up to three fraction runs from p + 9. */
 static SCAN_INLINE const char *plain_decimal(const char *p, const char *end, double *v)
 {
-#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0 && DIGIT_RUN_SWAR
+    const uint64_t max_exact = (uint64_t)1 << 53;
     const int neg = *p == '-';
-    const char *t = p + neg;
-    int ki, kf;
-    uint64_t whole;
+    const char *const t = p + neg;
+    int ki, k, runs;
+    uint64_t m;
     if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.')   /* one digit: "0.25" */
-        whole = (uint64_t)((unsigned char)t[0] - '0'), ki = 1;
+        m = (uint64_t)((unsigned char)t[0] - '0'), ki = 1;
     else
-        whole = digit_run(t, &ki);
+        m = digit_run(t, &ki);
     if (ki > 0 && ki < 8 && t[ki] == '.') {
-        const uint64_t frac = digit_run(t + ki + 1, &kf);
-        if (kf > 0 && kf < 8) {                     /* m < 10^14 < 2^53: exact as a double */
-            const double x = (double)(whole * pow10_u64[kf] + frac) / pow10_exact[kf];
+        const char *const frac = t + ki + 1;
+        const char *f = frac;
+        uint64_t run = digit_run(f, &k);
+        double x;
+        m = m * pow10_u64[k] + run;
+        f += k;
+        if (k < 8) {                    /* "%.6f": at most 7 + 7 digits, m < 2^53 */
+            x = (double)m / pow10_exact[k];
             *v = neg ? -x : x;
-            return t + ki + 1 + kf;
+            return f;
+        }
+        /* more runs while m < 10^(19-k) before k more digits: at most 19
+         * significant digits, m < 10^19 < 2^64 */
+        for (runs = 0; runs < 2; runs++) {
+            run = digit_run(f, &k);
+            if (m >= pow10_u64[19 - k])
+                break;
+            m = m * pow10_u64[k] + run;
+            f += k;
+            if (k < 8) {
+                const int nf = (int)(f - frac);   /* 8 to 23 */
+                if (m <= max_exact && nf <= 22)
+                    x = (double)m / pow10_exact[nf];
+                else if (m == 0)
+                    x = 0.0;
+                else if (!decimal_by_reciprocal(m, nf, &x) && !long_decimal(m, -nf, &x))
+                    break;
+                *v = neg ? -x : x;
+                return f;
+            }
         }
     }
 #endif
@@ -797,7 +919,7 @@ typedef struct {
  * plain_decimal (or scan_decimal behind it) reads whole, followed by white
  * space, after spaces, tabs and line ends (LF, CRLF) within the buffer.
  * Stops at the first value it does not take that way (after a lone CR, \v
- * or \f; within 17 bytes of the buffer's end; anything scan_decimal
+ * or \f; within PLAIN_DECIMAL_REACH bytes of the buffer's end; anything scan_decimal
  * declines or that runs on, such as "1.5x": the rest of read_values reads
  * that value as lex_next does, or reports it), having consumed only white
  * space after the last value it stored.  The line and token counts it
@@ -832,7 +954,7 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
                 break;
             }
         }
-        if (e - p <= 17)
+        if (e - p <= PLAIN_DECIMAL_REACH)
             break;
         q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
         if (q == NULL || q == e || !ends_token(*q))

@@ -722,8 +722,10 @@ static void test_odd_but_valid(void)
  * parses common decimals itself and hands the rest to strtod): fixed
  * corner cases around its limits (2^53 digits, 10^+-22 and 10^+-27, 17
  * to 20 significant digits, ties above 2^53, signs, zeros, the grids'
- * usual "%.6f" values and the limits of their shortcut) and 8000
- * random tokens of up to 20 digits with random point, sign and exponent. */
+ * usual "%.6f" values and the limits of their shortcut, Python's shortest
+ * round-trip values, exact ties between two doubles) and 9000 random
+ * tokens: of up to 20 digits with random point, sign and exponent, and
+ * shaped like Python's shortest round-trip values. */
 static void test_numbers_match_strtod(void)
 {
     static const char *const fixed[] = {
@@ -741,10 +743,22 @@ static void test_numbers_match_strtod(void)
         "9999999999999999999e27", "1e-27", "1e27", "1e28", "1e-28",
         /* the grids' usual "%.6f" shapes, and either side of seven digits each side of the point */
         "0.004940", "-0.000114", "-0.000000", "0.000000", "0.500000", "9.999999", "1234567.1234567",
-        "-1234567.7654321", "12345678.5", "0.12345678", "12345678.12345678", "7.", "-7.0000001e2", "5.25e-3"};
-    /* NRAND random tokens of 1 to 20 digits; the second half with 16 to 19
-     * significant digits (beyond 2^53: the exact integer path) */
-    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 8000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
+        "-1234567.7654321", "12345678.5", "0.12345678", "12345678.12345678", "7.", "-7.0000001e2", "5.25e-3",
+        /* shortest round-trip values as Python writes them (17 significant digits after up to three
+         * zeros), the limits of 19 digits and of three runs of eight after the point, and exact
+         * ties between two doubles m / 10^k (k = 1..4: the reciprocal cannot tell, the division
+         * decides) with their neighbours */
+        "0.00024398663911276647", "-0.0009433532997486452", "0.0038795912416837394", "-0.047928081333166754",
+        "1234567.123456789012", "1234567.1234567890123", "0.1234567890123456789", "0.12345678901234567890",
+        "0.00000000000000012345678", "0.000000000000000000000001", "-0.000000000000000000000000",
+        "2251799813685248.25", "2251799813685248.2500000001", "2251799813685248.2499999999",
+        "1125899906842624.125", "1125899906842624.375", "562949953421312.0625", "562949953421312.0625000001",
+        "4503599627370498.5"};
+    /* NRAND random tokens: a third of 1 to 20 digits, a third of 16 to 19
+     * significant digits (beyond 2^53: the exact integer path), a third
+     * shaped like Python's shortest round-trip values ([-]d.ddd or
+     * [-]0.000ddd with 15 to 19 significant digits) */
+    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 9000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
     static char tok[N][48];
     const char *path;
     FILE *f;
@@ -758,8 +772,24 @@ static void test_numbers_match_strtod(void)
             snprintf(tok[i], sizeof tok[i], "%s", fixed[i]);
             continue;
         }
+        if (i >= NFIX + 2 * (NRAND / 3)) {
+            const int zeros = (int)urand(0, 4);
+            nd = 15 + (int)urand(0, 5);
+            if (urand(0, 1) < 0.4) *q++ = '-';
+            if (zeros > 0 || urand(0, 1) < 0.5) {
+                q += sprintf(q, "0.%.*s", zeros, "000");
+                *q++ = (char)('1' + (int)urand(0, 9));
+            } else {
+                *q++ = (char)('1' + (int)urand(0, 9));
+                *q++ = '.';
+            }
+            for (k = 1; k < nd; k++)
+                *q++ = (char)('0' + (int)urand(0, 10));
+            *q = '\0';
+            continue;
+        }
         if (urand(0, 1) < 0.3) *q++ = urand(0, 1) < 0.8 ? '-' : '+';
-        nd = i < NFIX + NRAND / 2 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
+        nd = i < NFIX + NRAND / 3 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
         point = (int)urand(-1, nd + 1);            /* -1: no point */
         for (k = 0; k < nd; k++) {
             if (k == point) *q++ = '.';
