@@ -268,8 +268,8 @@ static char locale_decimal_point(void)
 }
 
 /* scan_decimal inlined into both its callers, and decimal_by_reciprocal
- * into plain_decimal (as calls they cost a tenth of the reading: their
- * registers saved and restored for every value). */
+ * into plain_decimal: as calls, their registers are saved and restored for
+ * every value (a tenth of the reading for scan_decimal). */
 #if defined(__GNUC__)
 #define SCAN_INLINE inline __attribute__((always_inline))
 #else
