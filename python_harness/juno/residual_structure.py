@@ -45,8 +45,7 @@ Method (docs/diagnosis.md, "What no candidate explains"):
 Only drawbar runs are tested: over the 3-D terrain the replay drifts from the measured path
 even at the true parameters (the terrain run's block means at the truth are many times the
 sensor noise on synthetic campaigns), so residual structure there is not evidence of an
-unknown cause; juno.terrain_replay judges the terrain runs against floors calibrated on that
-drift instead.  Assumptions: sensor noise is white at the sample rate (correlated sensor noise
+unknown cause.  Assumptions: sensor noise is white at the sample rate (correlated sensor noise
 slower than a block shows as structure), and its level does not change within a run.
 """
 

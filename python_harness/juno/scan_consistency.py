@@ -48,8 +48,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .floor_tests import CampaignFloorTests, RunFloorTest
-
 #: The floors of the RMS of the held-out block means, per signal (m for the height, rad for the
 #: angles): about twice the largest a scan with nothing wrong left on synthetic campaigns with
 #: nothing hidden, of both designs (the 16 of docs/results/scan-calibration.md: height 2.4 mm,
@@ -75,11 +73,6 @@ class ScanSignal:
     floor: float
 
     @property
-    def excess(self) -> float:
-        """The RMS of the held-out block means over the floor."""
-        return self.rms / self.floor
-
-    @property
     def disagrees(self) -> bool:
         return bool(self.rms > self.floor)
 
@@ -94,11 +87,21 @@ class ScanSignal:
 
 
 @dataclass
-class ScanConsistency(RunFloorTest):
-    """The scan test of one terrain run (``run``): every signal (ScanSignal), and the attitude
-    gains (pitch, roll) fitted on its training blocks."""
+class ScanConsistency:
+    """The scan test of one terrain run (``run``): every signal, and the attitude gains (pitch,
+    roll) fitted on its training blocks."""
 
+    run: str
+    signals: list[ScanSignal] = field(default_factory=list)
     gains: tuple[float, float] = (1.0, 1.0)
+
+    @property
+    def significant(self) -> bool:
+        return any(s.disagrees for s in self.signals)
+
+    def disagreeing(self) -> list[ScanSignal]:
+        """The signals that disagree, largest relative to their floor first."""
+        return sorted((s for s in self.signals if s.disagrees), key=lambda s: -s.rms / s.floor)
 
     def summary(self) -> str:
         found = self.disagreeing()
@@ -113,13 +116,22 @@ class ScanConsistency(RunFloorTest):
 
 
 @dataclass
-class ScanTests(CampaignFloorTests):
+class ScanTests:
     """The scan test of every terrain run of a campaign, each against its own scan: the runs
-    tested (ScanConsistency, in the campaign's order) and the runs that could not be (run id ->
-    why).  The floors apply per run (the module docstring says what that means for a campaign of
-    several)."""
+    tested (in the campaign's order) and the runs that could not be (run id -> why).  The floors
+    apply per run (the module docstring says what that means for a campaign of several)."""
 
+    runs: list[ScanConsistency] = field(default_factory=list)
     untested: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def significant(self) -> bool:
+        """Whether some terrain run's measured pose disagrees with its scan."""
+        return any(r.significant for r in self.runs)
+
+    def disagreeing(self) -> list[ScanConsistency]:
+        """The terrain runs whose measured pose disagrees with their scan, in the campaign's order."""
+        return [r for r in self.runs if r.significant]
 
     def summary(self) -> str:
         """One sentence: the runs that disagree and their signals, or that every run tested agrees."""

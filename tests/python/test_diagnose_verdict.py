@@ -7,10 +7,9 @@ import numpy as np
 
 from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_structure
 from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
-from juno.diagnose.render import _replay_table, _scan_table, _structure_table
+from juno.diagnose.render import _scan_table, _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, ScanTests
-from juno.terrain_replay import FLOORS as REPLAY_FLOORS, ReplaySignal, TerrainReplay, TerrainReplayTests
 
 
 def _structure(**ratios: float) -> ResidualStructure:
@@ -70,42 +69,6 @@ def test_a_named_cause_is_not_judged_by_the_scan_test():
     scan lies), which the kinematic pose on the scan as it is does not know: the scan test says
     nothing about it."""
     v = verdict(["soil_patch"], _structure(torque_left=2.0), _structure(torque_left=0.0), scan=_scan(20.0))
-    assert (v.cause, v.causes, v.unexplained) == ("soil_patch", ["soil_patch"], None)
-
-
-def _replay(torque_ratio: float) -> TerrainReplayTests:
-    """The replay test of a campaign with one terrain run, whose held-out torque block means are
-    ``torque_ratio`` times the torque sensor's 4 N m noise (its positions well within their floor)."""
-    return TerrainReplayTests([TerrainReplay("t3d", [
-        ReplaySignal("torque_left", "N m", 3, 4.0 * torque_ratio, -4.0 * torque_ratio, 4.0, REPLAY_FLOORS["torque_left"]),
-        ReplaySignal("pos_x", "m", 3, 0.005, 0.0, 0.005, REPLAY_FLOORS["pos_x"])])])
-
-
-def test_nothing_named_but_a_terrain_replay_that_departs_from_the_run_is_unexplained():
-    """The drawbar runs clean and the scan agreeing, but the base model's replay of the terrain run
-    misses its torque by twice the floor a right model stays under: unexplained, naming the run."""
-    v = verdict([], _structure(torque_left=0.0), None, scan=_scan(1.0),
-                replay=_replay(2.0 * REPLAY_FLOORS["torque_left"]))
-    assert v.cause == "unexplained" and v.causes == []
-    assert v.unexplained.scan is None and v.unexplained.replay.significant
-    assert "terrain run t3d" in explanation(v, "") and "torque_left" in explanation(v, "")
-    (run,) = v.unexplained.to_json()["terrain_replay"]["runs"]
-    assert [s["signal"] for s in run["signals"] if s["disagrees"]] == ["torque_left"]
-    lines = _replay_table(v.unexplained)
-    assert any(line.startswith("| t3d | torque_left | 40 N m | 10 | 5 |") for line in lines), lines
-
-
-def test_a_terrain_replay_within_its_floors_leaves_none_none():
-    v = verdict([], _structure(torque_left=0.0), None, replay=_replay(0.5 * REPLAY_FLOORS["torque_left"]))
-    assert (v.cause, v.unexplained) == ("none", None)
-
-
-def test_a_named_cause_is_not_judged_by_the_terrain_replay_test():
-    """The floors hold for the base model when nothing is hidden; a catalog effect on the terrain
-    makes the base model's replay depart as an unknown one does, and the named cause's model is
-    judged by its own held-out gain."""
-    v = verdict(["soil_patch"], _structure(torque_left=2.0), _structure(torque_left=0.0),
-                replay=_replay(3.0 * REPLAY_FLOORS["torque_left"]))
     assert (v.cause, v.causes, v.unexplained) == ("soil_patch", ["soil_patch"], None)
 
 

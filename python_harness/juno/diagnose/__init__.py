@@ -60,11 +60,6 @@
    after the charge and the paired test does not prefer the leader to it
    (tie_settled), both get a second round, and the final models are
    compared by the rules of step 4 (choose_branch).
-6. The verdict (verdict.py): what the models leave beyond sensor noise on the
-   drawbar runs (juno.residual_structure); with no cause named, also each
-   terrain run's measured pose against its scan (juno.scan_consistency) and the
-   base model's replay of each terrain run against floors calibrated on right
-   models (juno.terrain_replay).  A named cause, ``none``, or ``unexplained``.
 
 Every terrain run is replayed on the grid of its own scan.  The campaign needs at least one
 drawbar run (the soil and every physical extension are fitted there); without a terrain run the

@@ -177,10 +177,9 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     part of it."""
     u = result.unexplained
     if u is not None and not u.signals and not u.ripples:
-        found = [t.summary() for t in (u.scan, u.replay) if t is not None and t.significant]
         lines = ["**Cause: unexplained.** No extension in the catalog explains the data, and "
-                 + ("; ".join(found) or "structure remains") + ".", ""]
-        return lines + _scan_table(u) + _replay_table(u)
+                 + (u.scan.summary() if u.scan is not None else "structure remains") + ".", ""]
+        return lines + _scan_table(u)
     lines = ["**Cause: unexplained.** The drawbar runs' held-out residuals hold structure beyond sensor noise "
              "that no extension in the catalog explains (a sensor error, or physics the model does not have)."]
     if u is not None and u.absorbed_by:
@@ -188,28 +187,7 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
                      "not named.")
     lines.append("")
     if u is not None:
-        lines += _structure_table(u) + _scan_table(u) + _replay_table(u)
-    return lines
-
-
-def _replay_table(u: Unexplained) -> list[str]:
-    """One row per signal of a terrain run whose base-model replay departs from it beyond what a
-    right model's does (juno.terrain_replay): the run, the RMS of the signal's held-out block
-    means, its ratio to the sensor noise against the floor."""
-    if u.replay is None or not u.replay.significant:
-        return []
-    lines = ["The base model's replay of each terrain run, against the run:", "",
-             "| terrain run | signal | held-out block means (RMS) | x sensor noise | floor | mean |",
-             "|---|---|---|---|---|---|"]
-    for run in u.replay.disagreeing():
-        for s in run.disagreeing():
-            lines.append(f"| {run.run} | {s.signal} | {s.rms:.3g} {s.unit} | {s.ratio:.2g} | {s.floor:g} | "
-                         f"{s.offset:+.3g} {s.unit} |")
-    lines.append("")
-    follow = [r.run for r in u.replay.runs if not r.significant]
-    if follow:
-        lines += [f"The replay follows terrain run{'s' if len(follow) > 1 else ''} {', '.join(follow)} as closely "
-                  "as a right model's does.", ""]
+        lines += _structure_table(u) + _scan_table(u)
     return lines
 
 

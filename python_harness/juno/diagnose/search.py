@@ -36,7 +36,6 @@ from ..parallel import BackgroundTask, TaskPool
 from ..periodic_structure import PeriodicBases
 from ..residual_structure import ResidualStructure, residual_structure
 from ..scan_consistency import ScanTests, campaign_scan_consistency
-from ..terrain_replay import terrain_replay_tests
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
 
@@ -174,18 +173,13 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
                                            workers if scheduler is None else None)
         scan = scan_against_pose(campaign, setting.grids, say)
-        replay = terrain_replay_tests(campaign, search.problem.prepared, search.problem.meta, search.problem.train,
-                                      first.base.residuals)
-        if replay is not None:
-            say(replay.summary())
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
-    judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan, replay=replay)
+    judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan)
     result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                               judged, structures)
     if result.structure is not None:
         result.structure["scan"] = scan.to_json() if scan is not None else None
-        result.structure["terrain_replay"] = replay.to_json() if replay is not None else None
     return result
 
 

@@ -15,11 +15,6 @@ residual structure test (juno/residual_structure.py) what the models leave:
   named, the scan test says nothing about it (the catalog's soil causes change how deep the
   wheels sink, which the kinematic pose takes as uniform, and the registration moves the scan
   the test takes as it is);
-- no cause named, and the base model's replay of some terrain run departs from it beyond what a
-  right model's does (juno.terrain_replay): ``unexplained``, with the runs and signals.  Why only
-  then: the test's floors are calibrated on the base model with nothing hidden; a named cause's
-  model is judged by its own held-out gain, and a catalog effect on the terrain makes the base
-  model's replay depart as much as an unknown one does;
 - causes named, and their model leaves no structure: the causes;
 - causes named, and their model leaves structure: if it removes at least EXPLAINED_SHARE of
   the base model's structure, the causes, with the remainder reported as ``unexplained``
@@ -42,7 +37,6 @@ from typing import Any
 from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
 from ..scan_consistency import ScanTests
-from ..terrain_replay import TerrainReplayTests
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -64,15 +58,12 @@ class Unexplained:
     ripples: list[PeriodicSignal] = field(default_factory=list)
     #: every terrain run's pose against its scan (juno.scan_consistency), when one disagrees
     scan: ScanTests | None = None
-    #: every terrain run's replay against it (juno.terrain_replay), when one departs
-    replay: TerrainReplayTests | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
                 "ripples": [r.to_json() for r in self.ripples],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
                 "scan": self.scan.to_json() if self.scan is not None else None,
-                "terrain_replay": self.replay.to_json() if self.replay is not None else None,
                 "summary": self.summary()}
 
     def summary(self, most: int = 3) -> str:
@@ -83,8 +74,7 @@ class Unexplained:
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
         scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
-        replay = [self.replay.summary()] if self.replay is not None and self.replay.significant else []
-        return "; ".join(parts + [r.sentence() for r in self.ripples] + scan + replay)
+        return "; ".join(parts + [r.sentence() for r in self.ripples] + scan)
 
 
 def _signal_sentence(s: SignalStructure) -> str:
@@ -107,17 +97,15 @@ class Verdict:
 
 
 def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None,
-            scan: ScanTests | None = None, replay: TerrainReplayTests | None = None) -> Verdict:
+            scan: ScanTests | None = None) -> Verdict:
     """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
-    tests of the base model and of the model with those causes (None when none was named), the
-    terrain runs' scan tests and the base model's terrain replay tests (None: no terrain run
-    tested; both used only when no cause is named)."""
+    tests of the base model and of the model with those causes (None when none was named), and
+    the terrain runs' scan tests (None: no terrain run tested; used only when no cause is named)."""
     if not causes:
         disagrees = scan if scan is not None and scan.significant else None
-        departs = replay if replay is not None and replay.significant else None
-        if base.significant or disagrees is not None or departs is not None:
+        if base.significant or disagrees is not None:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
-                                                          scan=disagrees, replay=departs))
+                                                          scan=disagrees))
         return Verdict("none", [], None)
     assert extended is not None
     if not extended.significant:
