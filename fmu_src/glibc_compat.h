@@ -6,7 +6,11 @@
  * needs that version at load time: exp, log and pow (GLIBC_2.29, the same computation without
  * the old SVID error handling), hypot (GLIBC_2.35) and stat (GLIBC_2.33, before it a wrapper
  * of __xstat).  Every newer glibc still exports the old versions, so the FMU binds to those:
- * the results are the same computation for every finite argument the model passes.
+ * the results are the same computation for every finite argument the model passes.  exp and
+ * log, called a dozen times an internal step, bind to __exp_finite and __log_finite
+ * (GLIBC_2.15): the same computation as exp and log without the old versions' wrapper, which
+ * checks the result for the SVID error handling (about 20 instructions a call; the model
+ * builds with -fno-math-errno and reads no errno).
  *
  * The build force-includes this header in every source of the FMU (CMakeLists.txt); elsewhere
  * (another C library, another processor, Windows) it does nothing.
@@ -17,8 +21,8 @@
 #if defined(__linux__) && defined(__x86_64__) && !defined(JUNO_NO_GLIBC_COMPAT)
 #include <features.h>
 #if defined(__GLIBC__)
-__asm__(".symver exp,exp@GLIBC_2.2.5");
-__asm__(".symver log,log@GLIBC_2.2.5");
+__asm__(".symver exp,__exp_finite@GLIBC_2.15");
+__asm__(".symver log,__log_finite@GLIBC_2.15");
 __asm__(".symver pow,pow@GLIBC_2.2.5");
 __asm__(".symver hypot,hypot@GLIBC_2.2.5");
 
