@@ -10,7 +10,6 @@
  * the multi-pass rut and the terrain registration offsets.
  */
 #include <math.h>
-#include <string.h>
 
 #include "rover_internal.h"
 
@@ -27,18 +26,21 @@
  * y), so the results are the dense loops' bit for bit (up to the sign of
  * an exact zero); bench_fmu --compare checks this against the dense build. */
 
-/* Adds to the point Jacobian J the motion of a point on a wheel body
- * (offset r from its hub): -[r]x times the wheel's angular Jacobian, for
+/* The point Jacobian J of a point on a wheel body (offset r from its hub)
+ * from the hub's Jh: Jh plus -[r]x times the wheel's angular Jacobian, in
  * the columns where Jw is not zero (the angular rates, the rocker rate and
- * this wheel's spin). */
-static void add_wheel_offset(double J[3][NU], double Jw[3][NU], const double r[3], int sp)
+ * this wheel's spin), the only columns written: the others are the hub's
+ * (the identity of the velocity columns, the other spin's 0), which
+ * point_vecs_times_jac takes as known and does not read, so they are not
+ * copied. */
+static void offset_point_jacobian(double J[3][NU], double Jh[3][NU], double Jw[3][NU], const double r[3], int sp)
 {
     const int cols[5] = {U_WX + 0, U_WX + 1, U_WX + 2, U_BETA, sp};
     for (int n = 0; n < 5; ++n) {
         const int k = cols[n];
         double w[3] = {Jw[0][k], Jw[1][k], Jw[2][k]}, c[3];
         v3_cross(c, w, r);
-        for (int i = 0; i < 3; ++i) J[i][k] += c[i];
+        for (int i = 0; i < 3; ++i) J[i][k] = Jh[i][k] + c[i];
     }
 }
 
@@ -358,7 +360,8 @@ static double wheel_spin(const Model *m, const Eval *ev, double Jw[3][NU], int s
 typedef struct {
     double nvec[3];                /* Eqn 6: from the centroid towards the hub */
     double t[3];                   /* tangential direction of Eqns 8-9 */
-    double Jp[3][NU];              /* velocity Jacobian of the rim (or lug tip) point on the centroid ray */
+    double Jp[3][NU];              /* velocity Jacobian of the rim (or lug tip) point on the centroid ray,
+                                    * its angular, rocker and own spin columns (offset_point_jacobian) */
 } ShearGeometry;
 
 /* The rim point's geometry into sg; returns its velocity along l, the
@@ -376,8 +379,7 @@ static double shear_geometry(double Jh[3][NU], double Jw[3][NU], int sp, const C
     /* The shear acts on the rim where the centroid ray meets it, so its
      * moment about the axle is exactly -R F_t (-(R + h) F_t with lugs) and
      * the normal force passes through the hub. */
-    memcpy(sg->Jp, Jh, sizeof sg->Jp);
-    add_wheel_offset(sg->Jp, Jw, r_rim, sp);
+    offset_point_jacobian(sg->Jp, Jh, Jw, r_rim, sp);
     double v_rim[3];                                 /* Jp u: the hub's velocity + omega x r_rim */
     v3_cross(v_rim, cf->omega, r_rim);
     v3_add(v_rim, cf->v_hub, v_rim);
