@@ -74,6 +74,18 @@ static void ground_normal_sum(const Eval *ev, double nrm[3])
     for (int i = 0; i < 3; ++i) nrm[i] = g[0][i] + g[1][i] + g[2][i] + g[3][i];
 }
 
+/* How the internal step is chosen, as a clause into buf: fixed, with
+ * solver.step, or automatic, with solver.tolerance.  Returns 1 if fixed. */
+static int step_setting(const Model *m, char *buf, size_t n)
+{
+    const int fixed = !(m->p.solver_tolerance > 0);
+    if (fixed)
+        snprintf(buf, n, "the internal step is fixed, solver.step = %g s", m->p.solver_step);
+    else
+        snprintf(buf, n, "the internal step is automatic, solver.tolerance = %g m/s", m->p.solver_tolerance);
+    return fixed;
+}
+
 /* What the model knows of why the rover tumbled (overturned, or fell onto
  * a wheel), into buf: the steepest slope of the ground under the wheels
  * of ev and how the internal step is chosen, and the cause they point
@@ -91,12 +103,8 @@ static void tumble_cause(const Model *m, const Eval *ev, char *buf, size_t n)
 {
     int w;
     const double slope = steepest_slope(m, (const double (*)[3])ev->hub, NUM_WHEELS, &w);
-    const int fixed = !(m->p.solver_tolerance > 0);
     char step[96];
-    if (fixed)
-        snprintf(step, sizeof step, "the internal step is fixed, solver.step = %g s", m->p.solver_step);
-    else
-        snprintf(step, sizeof step, "the internal step is automatic, solver.tolerance = %g m/s", m->p.solver_tolerance);
+    const int fixed = step_setting(m, step, sizeof step);
     const double deg = slope * 180.0 / M_PI, phi_deg = m->p.soil_phi * 180.0 / M_PI;
     if (tan(slope) > 0.5 * tan(m->p.soil_phi)) {
         snprintf(buf, n,
@@ -183,7 +191,18 @@ int rover_attitude_is_upright(const Model *m, const double quat[4], const Eval *
  *    height, sqrt(2 g R): the rover fell or tumbled (why, tumble_cause),
  *    and no soil stops a wheel within its radius from such a speed at
  *    these stiffnesses;
- *  - otherwise the soil yields that far under the load: too soft. */
+ *  - otherwise the soil yields that far under the load: too soft, or, at
+ *    a fixed step, the step too coarse for the soil's stiffness.  The
+ *    clause names the step setting, and at a fixed step both causes and
+ *    the run that tells them apart (the automatic step or a smaller
+ *    solver.step: if it holds the wheel, the step was the cause).  No
+ *    threshold picks one of the two: the step is linearly implicit in the
+ *    contact's stiffness, stable for the linearised contact at any step,
+ *    so the explicit limit (a step beyond 1/pi of the contact's natural
+ *    period) does not bound it.  What a coarse step misses is the change
+ *    of the stiffness within the step (the volumetric force stiffens as
+ *    the wheel sinks, and a wheel entering the soil has none at the
+ *    step's start), which the evaluation at one moment does not measure. */
 static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size_t n)
 {
     if (rover_slope_beyond_friction(m, (const double (*)[3])ev->hub, buf, n)) return;
@@ -197,8 +216,18 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
                  "rover fell or tumbled (%s)", speed, fall, cause);
         return;
     }
-    snprintf(buf, n, "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
-             "wheel.width)");
+    char step[96];
+    if (step_setting(m, step, sizeof step)) {
+        snprintf(buf, n,
+                 "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
+                 "wheel.width), or %s, too coarse for the soil's stiffness (run it again at the automatic step, "
+                 "solver.tolerance > 0, or a smaller solver.step: if that run holds the wheel, the step was the "
+                 "cause)", step);
+        return;
+    }
+    snprintf(buf, n,
+             "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
+             "wheel.width); %s", step);
 }
 
 int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],

@@ -31,7 +31,16 @@
  *   - an upright rover whose weight the soil cannot carry (the gravity
  *     raised to 100 m/s2 after the static equilibrium on level ground)
  *     sinks straight in; there the soil too soft for the load is the
- *     cause, and the message says so.
+ *     cause, and the message says so;
+ *   - a wheel sunk past its radius under an upright rover at rest on level
+ *     ground (neither the terrain, an overturn nor a fall) is blamed on
+ *     the soil, and the message names the step setting: at a fixed step
+ *     (0.1 s) it also names the step too coarse for the soil's stiffness
+ *     and the run that tells the two apart (the automatic step or a
+ *     smaller solver.step); at the automatic step it names
+ *     solver.tolerance and blames no step.  A coarse fixed step sinks a
+ *     wheel on a stiff soil only in runs chaotic in their parameters, so
+ *     the check of the sinkage specifies this message, not a run.
  */
 #include <math.h>
 #include <stdio.h>
@@ -288,6 +297,56 @@ static void test_an_upright_rover_sinking_under_its_load_blames_the_soil(double 
     free_rover(m);
 }
 
+#define COARSE_FIXED_STEP 0.1   /* s */
+
+/* The message of the state check for the rover m at rest where it
+ * stands, its wheel FL sunk to its radius, at time 1e4 s (the widest time
+ * the message gives in full); into err, returns what the check returns
+ * (1 sane, 0 not). */
+static int sanity_with_front_left_sunk(const Model *m, char *err, size_t n)
+{
+    Eval *ev = (Eval *)calloc(1, sizeof *ev);
+    if (!ev) exit(2);
+    rover_evaluate(m, ev, 0);
+    ev->wheel[0].sinkage = m->p.wheel_radius;
+    const int sane = rover_motion_is_sane(m, ev, 1e4, m->s.pos, m->s.u, m->s.beta, err, n);
+    free(ev);
+    return sane;
+}
+
+static void test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_the_step(double fixed_step)
+{
+    const char *step = fixed_step > 0 ? "fixed 0.1 s step" : "automatic step";
+    Model *m = new_resting_rover(0.0, fixed_step);
+    char err[768] = "";
+    CHECK(sanity_with_front_left_sunk(m, err, sizeof err) == 0 &&
+              strstr(err, "state diverged at t = 10000.0000 s: wheel FL sank") != NULL &&
+              strstr(err, "deeper than its radius") != NULL,
+          "%s: a wheel sunk to its radius is a diverged state: \"%s\"", step, err);
+    CHECK(strstr(err, "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
+                      "wheel.width)") != NULL &&
+              strstr(err, "overturned") == NULL && strstr(err, "struck the ground") == NULL &&
+              strstr(err, "friction angle") == NULL,
+          "%s: on level ground, upright and at rest, the soil is blamed: \"%s\"", step, err);
+    char setting[96];
+    CHECK(strstr(err, step_setting(fixed_step, setting, sizeof setting)) != NULL,
+          "%s: the message names the step setting: \"%s\"", step, err);
+    if (fixed_step > 0) {
+        CHECK(strstr(err, "or the internal step is fixed, solver.step = 0.1 s, too coarse for the soil's "
+                          "stiffness") != NULL,
+              "%s: it names the step too coarse for the soil's stiffness as the other cause: \"%s\"", step, err);
+        /* the longest of the messages, whole: no buffer on its way cuts it short */
+        CHECK(strstr(err, "(run it again at the automatic step, solver.tolerance > 0, or a smaller solver.step: "
+                          "if that run holds the wheel, the step was the cause)") != NULL,
+              "%s: and the run that tells the two apart, the message whole: \"%s\"", step, err);
+    } else {
+        CHECK(strstr(err, "too coarse") == NULL && strstr(err, "too loose") == NULL &&
+                  strstr(err, "solver.step") == NULL,
+              "%s: it blames no step setting: \"%s\"", step, err);
+    }
+    free_rover(m);
+}
+
 int main(void)
 {
     test_a_rover_flipping_over_is_stopped_as_overturned(0.0);
@@ -301,6 +360,8 @@ int main(void)
     test_an_upright_rover_on_the_steepest_allowed_tilt_runs_its_whole_time(FIXED_STEP);
     test_an_upright_rover_sinking_under_its_load_blames_the_soil(0.0);
     test_an_upright_rover_sinking_under_its_load_blames_the_soil(FIXED_STEP);
+    test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_the_step(0.0);
+    test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_the_step(COARSE_FIXED_STEP);
     printf("%d passed, %d failed\n", n_pass, n_fail);
     return n_fail != 0;
 }
