@@ -15,6 +15,7 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
+#include <stdlib.h>
 
 #include "dense_lu.h"
 #include "rover_internal.h"
@@ -230,6 +231,39 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
              "wheel.width); %s", step);
 }
 
+/* The largest magnitude of a generalised velocity (m/s or rad/s) a sane
+ * state has: far beyond any speed the rover drives at or any spin its
+ * motors give. */
+#define VELOCITY_LIMIT 1e3
+
+/* The largest rocker angle (rad, 69 deg) a sane state has.  The model puts
+ * no stop on the rockers, so this stands for one: at it, each rocker has
+ * turned so far against the chassis that the wheels at its two ends are
+ * rover.wheelbase sin(1.2) apart in height (0.76 m at the defaults, more
+ * than a wheel's diameter), and, the differential turning the other side's
+ * rocker the other way, a front wheel stands as far from the other side's
+ * front wheel. */
+#define ROCKER_ANGLE_LIMIT 1.2
+
+/* What each generalised velocity (see U_*) is, with its unit. */
+static const char *const velocity_names[NU] = {
+    "m/s, the chassis's velocity along world x",        "m/s, the chassis's velocity along world y",
+    "m/s, the chassis's velocity along world z",        "rad/s, the chassis's angular velocity about world x",
+    "rad/s, the chassis's angular velocity about world y", "rad/s, the chassis's angular velocity about world z",
+    "rad/s, the rocker rate (the left rocker against the chassis, the right turning opposite)",
+    "rad/s, the left wheels' spin relative to their rocker", "rad/s, the right wheels' spin relative to their rocker"};
+
+/* x into buf with the fewest significant digits (at least %g's six) that
+ * print its magnitude beyond limit, as it is: an angle just past the limit
+ * would otherwise read as the limit itself. */
+static void print_beyond(double x, double limit, char *buf, size_t n)
+{
+    for (int digits = 6; digits <= 17; ++digits) {
+        snprintf(buf, n, "%.*g", digits, x);
+        if (fabs(strtod(buf, NULL)) > limit) return;
+    }
+}
+
 int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
                          double beta, char *err, size_t n)
 {
@@ -237,10 +271,29 @@ int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const doub
     for (int i = 0; i < 3; ++i)
         if (!isfinite(pos[i])) return snprintf(err, n, "state diverged at t = %.4f s: position is not finite", time), 0;
     for (int i = 0; i < NU; ++i)
-        if (!isfinite(u[i]) || fabs(u[i]) > 1e3)
-            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g", time, i, u[i]), 0;
-    if (fabs(beta) > 1.2)
-        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad", time, beta), 0;
+        if (!isfinite(u[i]) || fabs(u[i]) > VELOCITY_LIMIT) {
+            char limit[64];
+            if (isfinite(u[i]))
+                snprintf(limit, sizeof limit, "beyond the magnitude of %g the model accepts", VELOCITY_LIMIT);
+            else
+                snprintf(limit, sizeof limit, "not finite (the model accepts magnitudes up to %g)", VELOCITY_LIMIT);
+            tumble_cause(m, ev, cause, sizeof cause);
+            return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g %s, %s; %s", time, i,
+                            u[i], velocity_names[i], limit, cause), 0;
+        }
+    if (fabs(beta) > ROCKER_ANGLE_LIMIT) {
+        /* a positive angle turns the left rocker's front hub down (rover_evaluate's Ry(beta)) */
+        char angle[32];
+        print_beyond(beta, ROCKER_ANGLE_LIMIT, angle, sizeof angle);
+        tumble_cause(m, ev, cause, sizeof cause);
+        return snprintf(err, n,
+                        "state diverged at t = %.4f s: rocker angle %s rad, beyond the %g rad (%.0f deg) the model "
+                        "accepts: there the rockers have turned so far that the left front wheel stands %.2f m %s "
+                        "the left rear and the right front (rover.wheelbase = %g m); %s",
+                        time, angle, ROCKER_ANGLE_LIMIT, ROCKER_ANGLE_LIMIT * 180.0 / M_PI,
+                        m->p.rover_wheelbase * sin(ROCKER_ANGLE_LIMIT), beta > 0 ? "below" : "above",
+                        m->p.rover_wheelbase, cause), 0;
+    }
     for (int w = 0; w < NUM_WHEELS; ++w)
         if (ev->wheel[w].sinkage >= m->p.wheel_radius) {
             sinkage_cause(m, ev, w, cause, sizeof cause);

@@ -40,7 +40,18 @@
  *     smaller solver.step); at the automatic step it names
  *     solver.tolerance and blames no step.  A coarse fixed step sinks a
  *     wheel on a stiff soil only in runs chaotic in their parameters, so
- *     the check of the sinkage specifies this message, not a run.
+ *     the check of the sinkage specifies this message, not a run;
+ *   - a rocker angle beyond 1.2 rad (69 deg; the model has no stop on the
+ *     rockers) or a velocity beyond 1e3 in magnitude, checked directly on
+ *     a rover at rest on level ground, is a diverged state whose message
+ *     keeps the angle or the velocity and says what it is: for the rocker,
+ *     how far the left front wheel then stands below the left rear and the
+ *     right front (rover.wheelbase sin 1.2, 0.76 m, the geometry an
+ *     evaluation at 1.2 rad gives), for a velocity which one it is, with
+ *     its unit; both say the ground slopes at most 0.0 deg, not the
+ *     terrain, and name the step setting, at a fixed step and at the
+ *     automatic one, the whole message within the FMI layer's 768
+ *     characters.
  */
 #include <math.h>
 #include <stdio.h>
@@ -347,6 +358,126 @@ static void test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_th
     free_rover(m);
 }
 
+/* The FMI layer's error buffer (fmi2_cs.c): a message longer than this is cut short. */
+#define FMI_ERROR_BUFFER 768
+
+/* The message of the motion check for the rover m at rest where it
+ * stands, with its rocker angle beta and velocity component i set to
+ * value (i < 0: none), at time 1e4 s (the widest time the message gives
+ * in full); into err, returns what the check returns (1 sane, 0 not). */
+static int sanity_of_motion(const Model *m, double beta, int i, double value, char *err, size_t n)
+{
+    Eval *ev = (Eval *)calloc(1, sizeof *ev);
+    if (!ev) exit(2);
+    rover_evaluate(m, ev, 0);
+    double u[NU];
+    memcpy(u, m->s.u, sizeof u);
+    if (i >= 0) u[i] = value;
+    const int sane = rover_motion_is_sane(m, ev, 1e4, m->s.pos, u, beta, err, n);
+    free(ev);
+    return sane;
+}
+
+/* Whether err says the level ground is not the cause, names the step
+ * setting as one and is whole: its last clause, the drive or drawbar
+ * load, is there, and the message fits the FMI layer's error buffer. */
+static int blames_the_step_not_level_ground(const char *err, double fixed_step)
+{
+    return strstr(err, "slopes at most 0.0 deg") != NULL && strstr(err, "not the terrain") != NULL &&
+           strstr(err, "too steep") == NULL && blames_the_step_setting(err, fixed_step) &&
+           strstr(err, "beyond what holds the rover down") != NULL && strlen(err) + 1 < FMI_ERROR_BUFFER;
+}
+
+/* How far (m) the left front hub stands below the left rear and the right
+ * front hubs (chassis z) for the rover m at rest with rocker angle beta:
+ * below[0] the left rear, below[1] the right front. */
+static void left_front_below(const Model *m, double beta, double below[2])
+{
+    Model *turned_rockers = (Model *)malloc(sizeof *turned_rockers);
+    Eval *ev = (Eval *)calloc(1, sizeof *ev);
+    if (!turned_rockers || !ev) exit(2);
+    *turned_rockers = *m;
+    turned_rockers->s.beta = beta;
+    rover_evaluate(turned_rockers, ev, 0);
+    double z[NUM_WHEELS];           /* the hubs' heights along the chassis's up axis */
+    for (int w = 0; w < NUM_WHEELS; ++w)
+        z[w] = ev->R[2] * ev->hub[w][0] + ev->R[5] * ev->hub[w][1] + ev->R[8] * ev->hub[w][2];
+    below[0] = z[WHEEL_RL] - z[WHEEL_FL];
+    below[1] = z[WHEEL_FR] - z[WHEEL_FL];
+    free(ev);
+    free(turned_rockers);
+}
+
+static void test_a_rocker_turned_past_its_limit_says_where_the_wheels_stand(double fixed_step)
+{
+    const char *step = fixed_step > 0 ? "fixed step" : "automatic step";
+    Model *m = new_resting_rover(0.0, fixed_step);
+    char err[FMI_ERROR_BUFFER] = "";
+    CHECK(sanity_of_motion(m, 1.2, -1, 0.0, err, sizeof err) == 1 && err[0] == '\0',
+          "%s: a rocker angle of 1.2 rad is sane: \"%s\"", step, err);
+    CHECK(sanity_of_motion(m, 1.3, -1, 0.0, err, sizeof err) == 0 &&
+              strstr(err, "state diverged at t = 10000.0000 s: rocker angle 1.3 rad, beyond the 1.2 rad (69 deg) "
+                          "the model accepts") != NULL,
+          "%s: a rocker angle of 1.3 rad is a diverged state, the angle and the limit named: \"%s\"", step, err);
+    double below[2];
+    left_front_below(m, 1.2, below);
+    char stands[160];
+    snprintf(stands, sizeof stands,
+             "the left front wheel stands %.2f m below the left rear and the right front (rover.wheelbase = 0.82 m)",
+             0.82 * sin(1.2));
+    CHECK(strstr(err, stands) != NULL && strstr(err, "0.76 m below") != NULL,
+          "%s: it says where the wheels stand at the limit: \"%s\"", step, err);
+    CHECK(fabs(below[0] - 0.82 * sin(1.2)) < 5e-3 && fabs(below[1] - 0.82 * sin(1.2)) < 5e-3,
+          "%s: as the rover's geometry at 1.2 rad has them (left front %.3f m below the left rear, %.3f m below "
+          "the right front)", step, below[0], below[1]);
+    CHECK(blames_the_step_not_level_ground(err, fixed_step),
+          "%s: on level ground it is not the terrain, the step setting is named, the message whole (%zu chars): "
+          "\"%s\"", step, strlen(err), err);
+    err[0] = '\0';
+    CHECK(sanity_of_motion(m, -1.3, -1, 0.0, err, sizeof err) == 0 && strstr(err, "rocker angle -1.3 rad") != NULL &&
+              strstr(err, "the left front wheel stands 0.76 m above the left rear and the right front") != NULL,
+          "%s: turned the other way, the left front wheel stands above them: \"%s\"", step, err);
+    err[0] = '\0';
+    CHECK(sanity_of_motion(m, 1.2 + 1e-9, -1, 0.0, err, sizeof err) == 0 &&
+              strstr(err, "rocker angle 1.200000001 rad, beyond the 1.2 rad") != NULL,
+          "%s: an angle just past the limit is given with the digits that show it past: \"%s\"", step, err);
+    free_rover(m);
+}
+
+static void test_a_velocity_past_its_limit_names_which_velocity_it_is(double fixed_step)
+{
+    const char *step = fixed_step > 0 ? "fixed step" : "automatic step";
+    Model *m = new_resting_rover(0.0, fixed_step);
+    const struct {
+        int component;
+        double value;
+        const char *says, *limit;
+    } cases[] = {
+        {U_VX + 2, -1500.0, "velocity component 2 = -1500 m/s, the chassis's velocity along world z",
+         "beyond the magnitude of 1000 the model accepts"},
+        {U_WX + 1, 2000.0, "velocity component 4 = 2000 rad/s, the chassis's angular velocity about world y",
+         "beyond the magnitude of 1000 the model accepts"},
+        {U_BETA, 1001.0, "velocity component 6 = 1001 rad/s, the rocker rate", "beyond the magnitude of 1000"},
+        {U_SPIN_R, NAN, "velocity component 8 = nan rad/s, the right wheels' spin relative to their rocker",
+         "rocker, not finite (the model accepts magnitudes up to 1000); "},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        char err[FMI_ERROR_BUFFER] = "";
+        const int sane = sanity_of_motion(m, m->s.beta, cases[k].component, cases[k].value, err, sizeof err);
+        CHECK(!sane && strstr(err, "state diverged at t = 10000.0000 s: ") != NULL &&
+                  strstr(err, cases[k].says) != NULL && strstr(err, cases[k].limit) != NULL,
+              "%s: component %d = %g is a diverged state, named with its unit: \"%s\"", step, cases[k].component,
+              cases[k].value, err);
+        CHECK(blames_the_step_not_level_ground(err, fixed_step),
+              "%s, component %d: on level ground it is not the terrain, the step setting is named, the message "
+              "whole (%zu chars)", step, cases[k].component, strlen(err));
+    }
+    char err[FMI_ERROR_BUFFER] = "";
+    CHECK(sanity_of_motion(m, m->s.beta, U_SPIN_L, 1000.0, err, sizeof err) == 1 && err[0] == '\0',
+          "%s: a wheel spin of 1e3 rad/s is sane: \"%s\"", step, err);
+    free_rover(m);
+}
+
 int main(void)
 {
     test_a_rover_flipping_over_is_stopped_as_overturned(0.0);
@@ -362,6 +493,10 @@ int main(void)
     test_an_upright_rover_sinking_under_its_load_blames_the_soil(FIXED_STEP);
     test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_the_step(0.0);
     test_a_wheel_sunk_under_a_resting_rover_blames_the_soil_and_names_the_step(COARSE_FIXED_STEP);
+    test_a_rocker_turned_past_its_limit_says_where_the_wheels_stand(0.0);
+    test_a_rocker_turned_past_its_limit_says_where_the_wheels_stand(CHECKED_FIXED_STEP);
+    test_a_velocity_past_its_limit_names_which_velocity_it_is(0.0);
+    test_a_velocity_past_its_limit_names_which_velocity_it_is(CHECKED_FIXED_STEP);
     printf("%d passed, %d failed\n", n_pass, n_fail);
     return n_fail != 0;
 }
