@@ -281,6 +281,11 @@ int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const doub
             return snprintf(err, n, "state diverged at t = %.4f s: velocity component %d = %g %s, %s; %s", time, i,
                             u[i], velocity_names[i], limit, cause), 0;
         }
+    if (!isfinite(beta)) {
+        tumble_cause(m, ev, cause, sizeof cause);
+        return snprintf(err, n, "state diverged at t = %.4f s: rocker angle %g rad, not finite; %s", time, beta,
+                        cause), 0;
+    }
     if (fabs(beta) > ROCKER_ANGLE_LIMIT) {
         /* a positive angle turns the left rocker's front hub down (rover_evaluate's Ry(beta)) */
         char angle[32];

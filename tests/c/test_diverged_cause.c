@@ -441,6 +441,10 @@ static void test_a_rocker_turned_past_its_limit_says_where_the_wheels_stand(doub
     CHECK(sanity_of_motion(m, 1.2 + 1e-9, -1, 0.0, err, sizeof err) == 0 &&
               strstr(err, "rocker angle 1.200000001 rad, beyond the 1.2 rad") != NULL,
           "%s: an angle just past the limit is given with the digits that show it past: \"%s\"", step, err);
+    err[0] = '\0';
+    CHECK(sanity_of_motion(m, NAN, -1, 0.0, err, sizeof err) == 0 && strstr(err, "rocker angle ") != NULL &&
+              strstr(err, " rad, not finite; ") != NULL && blames_the_step_not_level_ground(err, fixed_step),
+          "%s: a rocker angle that is not a number is a diverged state too: \"%s\"", step, err);
     free_rover(m);
 }
 
