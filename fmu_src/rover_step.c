@@ -218,17 +218,15 @@ static void sinkage_cause(const Model *m, const Eval *ev, int w, char *buf, size
         return;
     }
     char step[96];
-    if (step_setting(m, step, sizeof step)) {
+    const char *const soft = "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, "
+                             "wheel.radius, wheel.width)";
+    if (step_setting(m, step, sizeof step))
         snprintf(buf, n,
-                 "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
-                 "wheel.width), or %s, too coarse for the soil's stiffness (run it again at the automatic step, "
+                 "%s, or %s, too coarse for the soil's stiffness (run it again at the automatic step, "
                  "solver.tolerance > 0, or a smaller solver.step: if that run holds the wheel, the step was the "
-                 "cause)", step);
-        return;
-    }
-    snprintf(buf, n,
-             "the soil is too soft for the load on these wheels (check soil.kh, soil.eta, wheel.radius, "
-             "wheel.width); %s", step);
+                 "cause)", soft, step);
+    else
+        snprintf(buf, n, "%s; %s", soft, step);
 }
 
 /* The largest magnitude of a generalised velocity (m/s or rad/s) a sane
