@@ -350,8 +350,11 @@ static const struct { uint64_t hi, lo; int s; } recip5[28] = {
  *   rest >= half: above it (a carry out of rest also rounds up);
  *   rest = half - 1: too close to tell (an exact tie lands here, as P < X):
  *     returns 0 and the caller divides.
- * The rest spans t's low word and the low bits of its high word, so the
- * tests are on two 64-bit words. */
+ * The rest spans t's low word and the low bits of its high word: its top
+ * bit (the round bit) alone decides, but for rest = half - 1, which needs
+ * lo all ones and is tested only then.  Rounding up adds one at the round
+ * bit; a carry into bit 53 (kept = 2^53) goes on into the exponent field,
+ * as kept's own top bit is added to the field rather than masked off. */
 static SCAN_INLINE int decimal_by_reciprocal(uint64_t m, int n, double *v)
 {
     const int z = __builtin_clzll(m);
@@ -359,15 +362,14 @@ static SCAN_INLINE int decimal_by_reciprocal(uint64_t m, int n, double *v)
     const u128 t = (u128)w * recip5[n].hi + (((u128)w * recip5[n].lo) >> 64);
     const uint64_t hi = (uint64_t)(t >> 64), lo = (uint64_t)t;
     const int below = 10 + (int)(hi >> 63);          /* bits of hi under the top 53 */
-    const uint64_t rest_hi = hi & (((uint64_t)1 << below) - 1), half_hi = (uint64_t)1 << (below - 1);
-    uint64_t kept = hi >> below;
-    int e2 = below + 64 + 64 - recip5[n].s - n - z;
+    const uint64_t kept = ((hi >> (below - 1)) + 1) >> 1;   /* 2^52 <= kept <= 2^53 */
+    const int e2 = below + 64 + 64 - recip5[n].s - n - z;
+    uint64_t bits;
 
-    if (rest_hi == half_hi - 1 && lo == UINT64_MAX)
-        return 0;
-    if (rest_hi >= half_hi && ++kept >> 53)      /* rounded up to 2^53 */
-        kept >>= 1, e2++;
-    *v = double_from_parts(kept, e2);
+    if (lo == UINT64_MAX && ((hi + 1) & (((uint64_t)1 << below) - 1)) == (uint64_t)1 << (below - 1))
+        return 0;                                     /* rest_hi = half_hi - 1 */
+    bits = ((uint64_t)(52 + e2 + 1023 - 1) << 52) + kept;
+    memcpy(v, &bits, sizeof *v);
     return 1;
 }
 
@@ -435,33 +437,81 @@ static int long_decimal(uint64_t m, int e10, double *v)
 }
 #endif
 
-/* A run of up to eight digits at p, from the eight bytes there read at
- * once (little-endian SWAR, GCC and Clang; Lemire's eight-digit test and
- * parse_eight_digits_unrolled): the number of leading digits k (0..8) into
- * *k and their value (0 for none), parsed as eight digits with the k moved
- * to the end and '0's before them.  The first non-digit byte is the lowest
- * one flagged: a carry or borrow between bytes starts only at a non-digit
- * and moves to higher bytes, so the flags below it are exact.  Elsewhere
- * *k = 0, and the caller's byte loop reads the digits. */
+/* Eight digits at a time (little-endian SWAR, GCC and Clang; Lemire's
+ * eight-digit test and parse_eight_digits_unrolled), on the eight bytes at
+ * a place read as one word: byte 0 is the first character. */
 #if defined(__GNUC__) && defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
 #define DIGIT_RUN_SWAR 1
+
+static uint64_t load_word(const char *p)
+{
+    uint64_t w;
+    memcpy(&w, p, 8);                   /* any alignment */
+    return w;
+}
+
+/* 0x80 in the first byte of w that is not an ASCII digit and 0 in every
+ * byte before it (the bytes after it may be flagged or not): a carry or
+ * borrow between bytes starts only at a non-digit and moves to higher
+ * bytes.  0 when all eight are digits. */
+static uint64_t nondigit_flags(uint64_t w)
+{
+    return ((w + 0x4646464646464646u) | (w - 0x3030303030303030u)) & 0x8080808080808080u;
+}
+
+/* How many digits lead the word whose nondigit_flags are flags (not 0). */
+static int leading_digit_count(uint64_t flags)
+{
+    return __builtin_ctzll(flags) >> 3;
+}
+
+/* The number eight digit values (0..9, one a byte) spell. */
+static uint64_t eight_digit_values(uint64_t d)
+{
+    const uint64_t mask = 0x000000FF000000FFu;
+    const uint64_t mul1 = 100 + (1000000ull << 32), mul2 = 1 + (10000ull << 32);
+    d = d * 10 + (d >> 8);              /* pairs of digits */
+    return (((d & mask) * mul1) + (((d >> 16) & mask) * mul2)) >> 32;
+}
+
+/* The number eight ASCII digits spell. */
+static uint64_t eight_digits(uint64_t w)
+{
+    return eight_digit_values(w - 0x3030303030303030u);
+}
+
+/* ceil(2^32 / 10^(8-k)) for k = 1..7: multiplying a multiple of 10^(8-k)
+ * below 10^8 by it and dropping 32 bits divides exactly (the excess is
+ * under 10^8 / 2^32 < 1). */
+static const uint64_t div10_8_minus[8] = {
+    0u, 430u, 4295u, 42950u, 429497u, 4294968u, 42949673u, 429496730u
+};
+
+/* The number the k (0..7) digits that lead w spell, where flags =
+ * nondigit_flags(w) is not 0 and k = leading_digit_count(flags): the
+ * bytes from the first flagged one on are cleared, so that the eight read
+ * as digit values spell that number times 10^(8-k), which an exact
+ * division by multiplication takes off (no shift by a variable count). */
+static uint64_t leading_digits(uint64_t w, uint64_t flags, int k)
+{
+    const uint64_t before = ((flags & (0 - flags)) >> 7) - 1;   /* the bytes before the flagged one */
+    return (eight_digit_values((w - 0x3030303030303030u) & before) * div10_8_minus[k]) >> 32;
+}
+
+/* A run of up to eight digits at p: the number of leading digits k (0..8)
+ * into *k and their value (0 for none). */
 static uint64_t digit_run(const char *p, int *k)
 {
-    const uint64_t zeros = 0x3030303030303030u, mask = 0x000000FF000000FFu;
-    const uint64_t mul1 = 100 + (1000000ull << 32), mul2 = 1 + (10000ull << 32);
-    uint64_t v, flags;
-    memcpy(&v, p, 8);
-    flags = ((v + 0x4646464646464646u) | (v - zeros)) & 0x8080808080808080u;
-    *k = flags ? __builtin_ctzll(flags) >> 3 : 8;
-    if (*k == 0)
-        return 0;
-    if (*k < 8)
-        v = (v << (64 - 8 * *k)) | (zeros >> (8 * *k));
-    v -= zeros;
-    v = v * 10 + (v >> 8);              /* pairs of digits */
-    return (((v & mask) * mul1) + (((v >> 16) & mask) * mul2)) >> 32;
+    const uint64_t w = load_word(p), flags = nondigit_flags(w);
+    if (flags == 0) {
+        *k = 8;
+        return eight_digits(w);
+    }
+    *k = leading_digit_count(flags);
+    return leading_digits(w, flags, *k);
 }
 #else
+/* Elsewhere *k = 0, and the caller's byte loop reads the digits. */
 #define DIGIT_RUN_SWAR 0
 static uint64_t digit_run(const char *p, int *k)
 {
@@ -569,65 +619,103 @@ static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, doub
  * this many before the buffer's end. */
 #define PLAIN_DECIMAL_REACH 32
 
-/* scan_decimal for the grids' usual values, [-]digits.digits with one to
- * seven digits before the point and at most 19 significant digits in all:
- * "%.6f"'s "0.003880" as much as the shortest round-trip
- * "0.0038795912416837394" that Python writes.  The digits are read in runs
- * of eight (digit_run) with the point's place known, rather than byte by
- * byte and counted: the same digits m and exponent -(fraction digits) as
- * scan_decimal finds, converted the same way (m / 10^k for m <= 2^53 and
- * k <= 22, else decimal_by_reciprocal or long_decimal), hence the same
- * value.  Like scan_decimal it returns where the number stops, before an
- * exponent too: the caller takes the value only where a token ends there
- * (and hands "1.5e3" and "1.5x" to scan_decimal, which reads exponents).
- * Anything else (a '+', no digit before the point, more digits) goes to
- * scan_decimal here.  Reads p[0..PLAIN_DECIMAL_REACH] at most: one integer
- * run from p + 1 at the latest, then up to three fraction runs from p + 9. */
-static SCAN_INLINE const char *plain_decimal(const char *p, const char *end, double *v)
+#if DIGIT_RUN_SWAR
+/* The digits after a decimal point at frac: their number nf (returned,
+ * 0 to 23) and the number they spell (*m), or -1 where there are more
+ * than 23 of them or more than 19 significant ones (m would wrap).  Read
+ * as whole words of eight digits where they are whole, so that the usual
+ * lengths take one word ("%.6f"), or two and a part (the 16 to 21 digits
+ * of a shortest round-trip value after "0."), and no digit count per
+ * word.  Reads frac[0..23] at most. */
+static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
 {
-#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0 && DIGIT_RUN_SWAR
+    const uint64_t a = load_word(frac), fa = nondigit_flags(a);
+    uint64_t b, fb, c, fc, first16;
+    int k;
+
+    if (fa != 0) {                      /* up to seven digits */
+        k = leading_digit_count(fa);
+        *m = leading_digits(a, fa, k);
+        return k;
+    }
+    b = load_word(frac + 8);
+    c = load_word(frac + 16);
+    fb = nondigit_flags(b);
+    fc = nondigit_flags(c);             /* with fb: their constants loaded once */
+    if (fb != 0) {                      /* 8 to 15 */
+        k = leading_digit_count(fb);
+        *m = eight_digits(a) * pow10_u64[k] + leading_digits(b, fb, k);
+        return 8 + k;
+    }
+    if (fc == 0)
+        return -1;
+    k = leading_digit_count(fc);        /* 16 to 23 */
+    first16 = eight_digits(a) * 100000000u + eight_digits(b);
+    if (first16 >= pow10_u64[19 - k])   /* first16 10^k + the rest would reach 10^19 */
+        return -1;
+    *m = first16 * pow10_u64[k] + leading_digits(c, fc, k);
+    return 16 + k;
+}
+
+/* The grids' usual values, [-]digits.digits with one to seven digits
+ * before the point and at most 19 significant digits in all: "%.6f"'s
+ * "0.003880" as much as the shortest round-trip "0.0038795912416837394"
+ * that Python writes.  Returns where the number stops (before an exponent
+ * too: the caller takes the value only where a token ends there) with *v
+ * set, or NULL for any other shape (a '+', no digit before the point, more
+ * digits), which scan_decimal reads.  The digits m and the exponent
+ * -(fraction digits) are scan_decimal's, converted the same way (m / 10^k
+ * for m <= 2^53 and k <= 22, else decimal_by_reciprocal or long_decimal),
+ * hence the same value.  Reads p[0..PLAIN_DECIMAL_REACH] at most: the
+ * integer digits from p + 1 at the latest, the fraction's three words
+ * from p + 9. */
+static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
+{
     const uint64_t max_exact = (uint64_t)1 << 53;
     const int neg = *p == '-';
     const char *const t = p + neg;
-    int ki, k, runs;
-    uint64_t m;
-    if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.')   /* one digit: "0.25" */
-        m = (uint64_t)((unsigned char)t[0] - '0'), ki = 1;
-    else
+    const char *frac;
+    uint64_t m, fm;
+    int ki, nf;
+    double x;
+
+    if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.') {   /* one digit: "0.25" */
+        m = (uint64_t)((unsigned char)t[0] - '0');
+        frac = t + 2;
+    } else {
         m = digit_run(t, &ki);
-    if (ki > 0 && ki < 8 && t[ki] == '.') {
-        const char *const frac = t + ki + 1;
-        const char *f = frac;
-        uint64_t run = digit_run(f, &k);
-        double x;
-        m = m * pow10_u64[k] + run;
-        f += k;
-        if (k < 8) {                    /* "%.6f": at most 7 + 7 digits, m < 2^53 */
-            x = (double)m / pow10_exact[k];
-            *v = neg ? -x : x;
-            return f;
-        }
-        /* more runs while m < 10^(19-k) before k more digits: at most 19
-         * significant digits, m < 10^19 < 2^64 */
-        for (runs = 0; runs < 2; runs++) {
-            run = digit_run(f, &k);
-            if (m >= pow10_u64[19 - k])
-                break;
-            m = m * pow10_u64[k] + run;
-            f += k;
-            if (k < 8) {
-                const int nf = (int)(f - frac);   /* 8 to 23 */
-                if (m <= max_exact && nf <= 22)
-                    x = (double)m / pow10_exact[nf];
-                else if (m == 0)
-                    x = 0.0;
-                else if (!decimal_by_reciprocal(m, nf, &x) && !long_decimal(m, -nf, &x))
-                    break;
-                *v = neg ? -x : x;
-                return f;
-            }
-        }
+        if (ki == 0 || ki == 8 || t[ki] != '.')
+            return NULL;
+        frac = t + ki + 1;
     }
+    nf = fraction_digits(frac, &fm);
+    if (nf < 0)
+        return NULL;
+    if (m != 0) {                       /* m 10^nf + fm, below 10^19 */
+        if (nf > 18 || m >= pow10_u64[19 - nf])
+            return NULL;
+        fm += m * pow10_u64[nf];
+    }
+    if (fm <= max_exact && nf <= 22)
+        x = (double)fm / pow10_exact[nf];
+    else if (fm == 0)
+        x = 0.0;
+    else if (!decimal_by_reciprocal(fm, nf, &x) && !long_decimal(fm, -nf, &x))
+        return NULL;
+    *v = neg ? -x : x;
+    return frac + nf;
+}
+#endif
+
+/* scan_decimal with a shortcut for the grids' usual values (grid_decimal),
+ * where double arithmetic has no extended precision (as scan_decimal
+ * needs) and the eight-digit words can be read. */
+static SCAN_INLINE const char *plain_decimal(const char *p, const char *end, double *v)
+{
+#if defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0 && DIGIT_RUN_SWAR
+    const char *const q = grid_decimal(p, v);
+    if (q != NULL)
+        return q;
 #endif
     return scan_decimal(p, end, v);
 }
@@ -927,52 +1015,68 @@ typedef struct {
  * stores and counts NODATA as read_values does. */
 static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain *g)
 {
-    const long nc = g->ncols, nr = g->nrows, n = nc * nr;
-    const int has_nodata = h->line[K_NODATA] != 0;
-    const double nodata = h->val[K_NODATA];
+    const long nc = g->ncols, nr = g->nrows;
+    /* NaN where the header gives no NODATA_value: equal to no value */
+    const double nodata = h->line[K_NODATA] != 0 ? h->val[K_NODATA] : NAN;
     const unsigned char *p = lx->buf + lx->pos, *const e = lx->buf + lx->end;   /* *e is NUL (lex_getc) */
-    long k = c->k, col = c->col, frow = c->frow, line = lx->line, ntok = lx->ntok_line;
-    long tok_line = lx->tok_line, tok_index = lx->tok_index;
-    double *row = g->z + (size_t)(nr - 1 - frow) * (size_t)nc;
+    /* values start before last_start: PLAIN_DECIMAL_REACH bytes follow them */
+    const unsigned char *const last_start = lx->end > PLAIN_DECIMAL_REACH ? e - PLAIN_DECIMAL_REACH : lx->buf;
+    long frow = c->frow, nnodata = c->nnodata, line = lx->line, ntok = lx->ntok_line;
+    long tok_line = lx->tok_line, tok_index = lx->tok_index, k;
+    double *row, *cell, *row_end;
 
-    if (lx->at_file_start)
+    if (lx->at_file_start || frow == nr)
         return;
-    while (k < n) {
+    row = g->z + (size_t)(nr - 1 - frow) * (size_t)nc;
+    cell = row + c->col;
+    row_end = row + nc;
+    for (;;) {
         const unsigned char *q;
         double v;
-        while (*p == ' ')                     /* the usual separator, then the rest of the */
-            p++;                              /* blanks and line ends, counted as lex_newline does */
-        while (*p <= ' ') {
-            if (*p == ' ' || *p == '\t') {
-                p++;
-            } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
-                p += *p == '\r' ? 2 : 1;
-                if (line < 0x7fffffffL)
-                    line++;
-                ntok = 0;
-            } else {
-                break;
+        if (*p <= ' ') {                /* blanks and line ends, counted as lex_newline does */
+            while (*p <= ' ') {
+                if (*p == ' ' || *p == '\t') {
+                    p++;
+                } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
+                    p += *p == '\r' ? 2 : 1;
+                    if (ntok > 0)       /* the line's last token */
+                        tok_line = line, tok_index = ntok;
+                    if (line < 0x7fffffffL)
+                        line++;
+                    ntok = 0;
+                } else {
+                    break;
+                }
             }
         }
-        if (e - p <= PLAIN_DECIMAL_REACH)
+        if (p >= last_start)
             break;
         q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
-        if (q == NULL || q == e || !ends_token(*q))
+        if (q == NULL)
             break;
-        p = q;
-        tok_line = line;
-        tok_index = ++ntok;
-        if (has_nodata && v == nodata) {
+        if (*q == ' ')                  /* the usual separator, taken at once */
+            p = q + 1;
+        else if (ends_token(*q))        /* not at e: its NUL does not end a token */
+            p = q;
+        else
+            break;
+        ntok++;
+        if (v == nodata) {
             v = NAN;
-            c->nnodata++;
+            nnodata++;
         }
-        row[col] = v;
-        k++;
-        if (++col == nc) {
-            col = 0, frow++;
+        *cell++ = v;
+        if (cell == row_end) {
+            if (++frow == nr)
+                break;
             row -= nc;
+            cell = row;
+            row_end = row + nc;
         }
     }
+    if (ntok > 0)
+        tok_line = line, tok_index = ntok;
+    k = frow * nc + (frow == nr ? 0 : (long)(cell - row));
     lx->pos = (size_t)(p - lx->buf);
     if (k > c->k)
         c->last_line = tok_line;
@@ -980,7 +1084,7 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
     lx->tok_index = tok_index;
     lx->line = line;
     lx->ntok_line = ntok;
-    c->k = k, c->col = col, c->frow = frow;
+    c->k = k, c->col = k - frow * nc, c->frow = frow, c->nnodata = nnodata;
 }
 
 /* Reads the nrows*ncols values (the first one is already in lx if
