@@ -428,6 +428,15 @@ static int long_decimal(uint64_t m, int e10, double *v)
     return 1;
 }
 #else
+/* Without 128-bit integers both decline: strtod reads those values. */
+static int decimal_by_reciprocal(uint64_t m, int n, double *v)
+{
+    (void)m;
+    (void)n;
+    (void)v;
+    return 0;
+}
+
 static int long_decimal(uint64_t m, int e10, double *v)
 {
     (void)m;
@@ -679,7 +688,10 @@ static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
     int ki, nf;
     double x;
 
-    if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.') {   /* one digit: "0.25" */
+    if (t[0] == '0' && t[1] == '.') {   /* "0.25": no integer digits to add */
+        m = 0;
+        frac = t + 2;
+    } else if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.') {   /* "1.25" */
         m = (uint64_t)((unsigned char)t[0] - '0');
         frac = t + 2;
     } else {
@@ -1011,8 +1023,9 @@ typedef struct {
  * declines or that runs on, such as "1.5x": the rest of read_values reads
  * that value as lex_next does, or reports it), having consumed only white
  * space after the last value it stored.  The line and token counts it
- * leaves in lx are lex_next_simple_number's after the same values; it
- * stores and counts NODATA as read_values does. */
+ * leaves in lx are lex_next_simple_number's after the same values (the
+ * last token's line and place are noted at each line end and at the end,
+ * not for every value); it stores and counts NODATA as read_values does. */
 static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain *g)
 {
     const long nc = g->ncols, nr = g->nrows;
