@@ -754,11 +754,18 @@ static void test_numbers_match_strtod(void)
         "2251799813685248.25", "2251799813685248.2500000001", "2251799813685248.2499999999",
         "1125899906842624.125", "1125899906842624.375", "562949953421312.0625", "562949953421312.0625000001",
         "4503599627370498.5"};
-    /* NRAND random tokens: a third of 1 to 20 digits, a third of 16 to 19
-     * significant digits (beyond 2^53: the exact integer path), a third
-     * shaped like Python's shortest round-trip values ([-]d.ddd or
-     * [-]0.000ddd with 15 to 19 significant digits) */
-    enum { NFIX = sizeof fixed / sizeof fixed[0], NRAND = 9000 + NFIX % 2, N = NFIX + NRAND };   /* N even: two rows */
+    /* the reader takes the digits after the point in words of eight:
+     * NSHAPE tokens with every count of them from 0 to 25 (each side of
+     * one, two and three whole words), after integer parts of one to
+     * eight digits with and without a sign, some with leading zeros after
+     * the point, and NRAND random tokens: a third of 1 to 20 digits, a
+     * third of 16 to 19 significant digits (beyond 2^53: the exact integer
+     * path), a third shaped like Python's shortest round-trip values
+     * ([-]d.ddd or [-]0.000ddd with 15 to 19 significant digits) */
+    static const char *const int_parts[] = {"0", "-0", "7", "-3", "+0", "12", "-1234567", "12345678"};
+    enum { NFIX = sizeof fixed / sizeof fixed[0], NINT = sizeof int_parts / sizeof int_parts[0],
+           NFRAC = 26, NSHAPE = 2 * NINT * NFRAC, NRAND = 9000 + (NFIX + NSHAPE) % 2,
+           N = NFIX + NSHAPE + NRAND };   /* N even: two rows */
     static char tok[N][48];
     const char *path;
     FILE *f;
@@ -772,7 +779,15 @@ static void test_numbers_match_strtod(void)
             snprintf(tok[i], sizeof tok[i], "%s", fixed[i]);
             continue;
         }
-        if (i >= NFIX + 2 * (NRAND / 3)) {
+        if (i < NFIX + NSHAPE) {
+            const int s = i - NFIX, nf = s % NFRAC, zeros = (s / NFRAC) % 2 ? nf / 3 : 0;
+            q += sprintf(q, "%s.", int_parts[s / (2 * NFRAC)]);
+            for (k = 0; k < nf; k++)
+                *q++ = (char)('0' + (k < zeros ? 0 : (int)urand(0, 10)));
+            *q = '\0';
+            continue;
+        }
+        if (i >= NFIX + NSHAPE + 2 * (NRAND / 3)) {
             const int zeros = (int)urand(0, 4);
             nd = 15 + (int)urand(0, 5);
             if (urand(0, 1) < 0.4) *q++ = '-';
@@ -789,7 +804,7 @@ static void test_numbers_match_strtod(void)
             continue;
         }
         if (urand(0, 1) < 0.3) *q++ = urand(0, 1) < 0.8 ? '-' : '+';
-        nd = i < NFIX + NRAND / 3 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
+        nd = i < NFIX + NSHAPE + NRAND / 3 ? 1 + (int)urand(0, 20) : 16 + (int)urand(0, 4);
         point = (int)urand(-1, nd + 1);            /* -1: no point */
         for (k = 0; k < nd; k++) {
             if (k == point) *q++ = '.';
