@@ -62,6 +62,7 @@ from .periodic_structure import (PeriodicBases, PeriodicSignal, PeriodicStructur
                                  series_of_residuals)
 from .rover_model import SOIL_PARAMETERS
 from .sensor_noise import column_noise
+from .timing_structure import SignalOffset, TimingStructure, regressors, timing_structure
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import JunoFMU, SimulationError
 
@@ -156,19 +157,22 @@ class SignalStructure:
 
 @dataclass
 class ResidualStructure:
-    """Every signal's structure test, and the drive torques' test for a ripple in the wheel angle
-    (``periodic``: juno.periodic_structure, on the same held-out samples); ``significant`` if any
-    signal has structure or a ripple."""
+    """Every signal's structure test, the drive torques' test for a ripple in the wheel angle
+    (``periodic``: juno.periodic_structure) and every signal's test for a time offset from the
+    replay's inputs (``timing``: juno.timing_structure), on the same held-out samples;
+    ``significant`` if any signal has structure, a ripple or an offset."""
 
     signals: list[SignalStructure]
     level: float                  # the per-signal p threshold (FALSE_ALARM / signals)
     replicas: int
     runs: list[str]
     periodic: PeriodicStructure | None = None
+    timing: TimingStructure | None = None
 
     @property
     def significant(self) -> bool:
-        return any(s.significant for s in self.signals) or bool(self.periodic and self.periodic.significant)
+        return (any(s.significant for s in self.signals) or bool(self.periodic and self.periodic.significant)
+                or bool(self.timing and self.timing.significant))
 
     @property
     def excess(self) -> float:
@@ -183,6 +187,10 @@ class ResidualStructure:
         and none models a ripple in the wheel angle)."""
         return float(sum(s.ratio ** 2 for s in self.signals))
 
+    def offsets(self) -> list[SignalOffset]:
+        """The signals time-stamped off the replay's inputs (juno.timing_structure), clearest first."""
+        return self.timing.found() if self.timing else []
+
     def ripples(self) -> list[PeriodicSignal]:
         """The signals with a ripple in the wheel angle, largest (relative to their noise) first."""
         return self.periodic.found() if self.periodic else []
@@ -196,7 +204,8 @@ class ResidualStructure:
                 "material_fraction": MATERIAL_FRACTION, "material_fraction_contact": MATERIAL_FRACTION_CONTACT,
                 "contact_signals": list(CONTACT_SIGNALS), "replicas": self.replicas, "runs": self.runs,
                 "signals": [s.to_json() for s in self.signals],
-                "periodic": self.periodic.to_json() if self.periodic else None}
+                "periodic": self.periodic.to_json() if self.periodic else None,
+                "timing": self.timing.to_json() if self.timing else None}
 
 
 UNITS = {"torque_left": "N m", "torque_right": "N m", "pos_x": "m per 1 s", "pos_y": "m per 1 s",
@@ -406,6 +415,7 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     if failure is not None:
         raise failure
     null_means = np.empty((replicas, len(observed)))
+    null_residuals = np.empty((replicas, len(residuals)))
     for i in range(replicas):
         d = np.zeros(len(residuals))
         for j, p in enumerate(tested):
@@ -413,6 +423,7 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
             a, b = offsets[p.run_id]
             d[a:b] = (replays[k][0] - residuals[a:b]) + draws[k][1]
         null_means[i] = _block_means(d[units.index], units.key)
+        null_residuals[i] = d
 
     sigma_of = {c: s for p in tested for c, (_t, _v, _o, s, _l) in p.targets.items()}
     means_by_signal = {str(sig): observed[units.unit_signal == sig] for sig in np.unique(units.unit_signal)}
@@ -422,7 +433,10 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
                for sig in np.unique(units.unit_signal)]
     periodic = periodic_structure(series_of_residuals(prepared, meta, train, residuals, data, noise), UNITS,
                                   bases=periodic_bases)
-    return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs, periodic)
+    held_out = np.zeros(len(residuals), bool)
+    held_out[units.index] = True
+    timing = timing_structure(meta["signal"], held_out, regressors(prepared, residuals), residuals, null_residuals)
+    return ResidualStructure(signals, FALSE_ALARM / max(len(signals), 1), replicas, runs, periodic, timing)
 
 
 def _replica_task(args: tuple[FMUHandle, PreparedRun, dict[str, float], dict[str, object]]

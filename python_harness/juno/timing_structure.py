@@ -1,0 +1,196 @@
+"""Residual structure that follows a signal's rate of change: a clock offset between instruments.
+
+A drawbar replay is driven by measured inputs (the wheel spins and the drawbar force, on the
+motor and load-cell clocks) and compared with measured outputs (positions, pitch, torques) that
+other instruments may time-stamp on clocks of their own.  When an output's clock is offset from
+the inputs' by tau, its sample at time t holds the value the rover had at t + tau, and its
+residual against a right model is, to first order, tau times the signal's rate of change:
+
+    r(t) = y_measured(t) - y_model(t) = y(t + tau) - y(t) ~ tau dy/dt.
+
+The block means of residual_structure do not see it: a rate of change that comes and goes within
+a block (the rover slowing as the drawbar load rises, speeding up as it falls) averages away.
+This test fits the one parameter tau per compared signal, and reports it for the positions.
+
+Method (docs/diagnosis.md, "What no candidate explains"):
+
+1. **The regressor.** For every held-out sample of a compared signal (the same samples the
+   structure test uses), the replay's rate of change of the compared quantity (for the
+   positions, compared as increments over a lag, the increments'), by a central difference over
+   +-RATE_HALF_WIDTH s of the replay at the signal's sample times.  The replay carries no sensor
+   noise, so the regressor is not attenuated by noise of its own.
+2. **The estimate.** tau = sum(g r) / sum(g^2) over the signal's held-out samples in every drawbar
+   run (r the residual, g the regressor, both in the signal's units): least squares for a
+   common offset.
+3. **The null by simulation.** The same contrast of each bootstrap replica of the structure test
+   (the replay with fresh input noise, and fresh output noise; residual_structure step 3) gives
+   tau's distribution when the model is right; the observed tau minus the replicas' mean, over
+   their standard deviation, is taken as Student's t with replicas - 1 degrees of freedom (scaled
+   by sqrt(1 + 1 / replicas) for the estimated mean).
+4. **The test.** A position (TIMED_SIGNALS) is offset when its two-sided p is below
+   FALSE_ALARM / (number of positions tested) (Bonferroni) and the offset lies between
+   MATERIAL_OFFSET and LINEAR_LIMIT.
+   Below MATERIAL_OFFSET an offset is the replay's own: it applies its inputs held over each
+   communication step (juno.simulator), a delay of half a step that a right model's positions
+   show as offsets of a few hundredths of a second.  Beyond LINEAR_LIMIT the first-order expansion does not hold
+   (the rover's speed changes within about a second), so a fitted tau that large says only that
+   the residual correlates with the rate of change, not that the signal is shifted; a shift that
+   large leaves block-mean structure of its own, which residual_structure reports.
+
+Why the positions alone: their timing follows the spins' through kinematics (the rover moves at
+the wheels' spin times their radius, less the slip), which a right model reproduces to within
+the replay's half-step delay.  The pitch follows the chassis' settling under a changing load and
+the drive torques the replay's speed controller following the measured spins: on right models
+these leave offsets of their own, resolved at up to about 0.1 s (MATERIAL_OFFSET's calibration),
+as large as the smallest offset reported.  Their offsets are estimated and reported in the JSON
+(``timed`` false), not tested; a clock offset of the IMU alone is not found (a known limit).
+
+Assumptions: one constant offset per signal over the campaign's drawbar runs; the rover's speed
+changes within the held-out blocks (a rising or falling drawbar load), which is where an offset
+shows; a signal whose rate of change is nearly constant has no information about an offset
+(tau's null spread is then large and nothing is reported).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+#: At most this many false offset reports per campaign (Bonferroni over the positions tested).
+FALSE_ALARM = 0.01
+#: The signals whose offsets are tested (see the module docstring: the positions).
+TIMED_SIGNALS = ("pos_x", "pos_y", "pos_z")
+#: Half-width (s) of the central difference that gives a compared signal's rate of change: wide
+#: enough to span two samples of the slowest instruments (5 Hz positions), narrow enough to follow
+#: the rover's speed changes, which take about a second.
+RATE_HALF_WIDTH = 0.25
+#: The smallest offset (s) reported: twice the replay's communication step
+#: (residual_structure.OUTPUT_INTERVAL, 0.05 s), whose sample-and-hold of the inputs delays the
+#: replay by half a step.  Calibrated by simulation (scripts/structure_calibration.py,
+#: docs/results/structure-calibration.md): on campaigns with nothing hidden, of both designs, the
+#: fitted right model leaves offsets in the positions of up to about 0.04 s that the test resolves;
+#: the floor lies twice above them, and below the clock offset the decoy of juno.effects hides (0.25 s at strength 1).
+MATERIAL_OFFSET = 0.1
+#: The largest offset (s) reported as one: where the first-order expansion stops holding.
+LINEAR_LIMIT = 1.0
+
+
+@dataclass
+class SignalOffset:
+    """The offset test of one compared signal: ``offset`` (s; the measured value stamped t is the
+    replay's at t + offset, so a positive offset is a clock running behind the inputs'), the
+    null's spread of it (``spread``, s), the p-value, whether it is reported (``significant``),
+    the held-out samples it was fitted on, and the RMS of offset x rate of change over them
+    (``explained``, in units of the signal's sigma)."""
+
+    signal: str
+    offset: float
+    spread: float
+    p_value: float
+    significant: bool
+    samples: int
+    explained: float = 0.0
+    timed: bool = True
+
+
+    def to_json(self) -> dict[str, Any]:
+        return {"signal": self.signal, "offset": self.offset, "null_spread": self.spread,
+                "p_value": self.p_value, "significant": self.significant, "samples": self.samples,
+                "explained_rms": self.explained, "timed": self.timed}
+
+    def sentence(self) -> str:
+        """The offset in words: which way the signal's clock runs from the replay inputs' clock."""
+        return (f"{self.signal}'s clock runs {abs(self.offset):.2g} s {self.direction()} the clock of the replay's "
+                f"inputs (its sample stamped t follows the model at t {self.offset:+.2g} s; p {self.p_value:.1g})")
+
+    def direction(self) -> str:
+        """'behind' when the signal's sample stamped t was taken later than t on the inputs' clock
+        (a positive offset), 'ahead of' otherwise."""
+        return "behind" if self.offset > 0 else "ahead of"
+
+
+@dataclass
+class TimingStructure:
+    """Every compared signal's offset test; ``significant`` if any signal is offset."""
+
+    signals: list[SignalOffset]
+    level: float
+
+    @property
+    def significant(self) -> bool:
+        return any(s.significant for s in self.signals)
+
+    def found(self) -> list[SignalOffset]:
+        """The offset signals, largest offset relative to its null spread first."""
+        return sorted((s for s in self.signals if s.significant), key=lambda s: -abs(s.offset) / s.spread)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"significant": self.significant, "false_alarm": FALSE_ALARM, "level": self.level,
+                "material_offset": MATERIAL_OFFSET, "linear_limit": LINEAR_LIMIT, "rate_half_width": RATE_HALF_WIDTH,
+                "signals": [s.to_json() for s in self.signals]}
+
+
+def rate_of_change(times: np.ndarray, values: np.ndarray, half_width: float = RATE_HALF_WIDTH) -> np.ndarray:
+    """The rate of change (units per s) of the series ``values`` at its own ``times`` (s), by a
+    central difference over +-``half_width`` s interpolated between the series' samples; NaN
+    where the difference would reach past either end."""
+    t = np.asarray(times, float)
+    v = np.asarray(values, float)
+    g = (np.interp(t + half_width, t, v) - np.interp(t - half_width, t, v)) / (2.0 * half_width)
+    g[(t - half_width < t[0]) | (t + half_width > t[-1])] = np.nan
+    return g
+
+
+def regressors(prepared: Sequence[Any], residuals: np.ndarray, kinds: Sequence[str] = ("drawbar",)) -> np.ndarray:
+    """For every residual of ``prepared`` (identify.PreparedRun, in run_residuals' order; the
+    scaled ``residuals`` of the replay), the rate of change of the replay's compared quantity
+    (measured minus residual) in scaled units (over the signal's sigma) per s; NaN for the runs
+    not of ``kinds`` and where no central difference fits."""
+    parts = []
+    start = 0
+    for p in prepared:
+        for _column, (ts, vs, _out, sigma, _lag) in p.targets.items():
+            n = len(ts)
+            if p.kind not in kinds or n < 3:
+                parts.append(np.full(n, np.nan))
+            else:
+                model = vs - residuals[start:start + n] * sigma
+                parts.append(rate_of_change(ts, model) / sigma)
+            start += n
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def timing_structure(signal_of: np.ndarray, tested: np.ndarray, g: np.ndarray, residuals: np.ndarray,
+                     null_residuals: np.ndarray) -> TimingStructure:
+    """The offset test (module docstring) over the residuals where ``tested`` (held-out samples of
+    the drawbar runs), labelled by their signal (``signal_of``), with regressor ``g`` (regressors)
+    and ``null_residuals`` (replicas x residuals, the structure test's bootstrap): all in scaled
+    units.  Every signal's offset is estimated; only TIMED_SIGNALS' can be significant."""
+    from scipy.stats import t as student_t
+    use = tested & np.isfinite(g)
+    names = [str(s) for s in np.unique(signal_of[use])]
+    replicas = null_residuals.shape[0]
+    level = FALSE_ALARM / max(sum(n in TIMED_SIGNALS for n in names), 1)
+    out = []
+    for name in names:
+        mine = use & (signal_of == name)
+        gm = g[mine]
+        gg = float(np.sum(gm * gm))
+        if gg <= 0 or replicas < 3:
+            continue
+        observed = float(np.sum(gm * residuals[mine])) / gg
+        null = null_residuals[:, mine] @ gm / gg
+        spread = float(np.std(null, ddof=1)) * np.sqrt(1.0 + 1.0 / replicas)
+        if not spread > 0:
+            continue
+        t_stat = (observed - float(np.mean(null))) / spread
+        p = float(2.0 * student_t.sf(abs(t_stat), replicas - 1))
+        offset = observed - float(np.mean(null))
+        explained = abs(offset) * float(np.sqrt(np.mean(gm * gm)))
+        material = MATERIAL_OFFSET <= abs(offset) <= LINEAR_LIMIT
+        timed = name in TIMED_SIGNALS
+        out.append(SignalOffset(name, offset, spread, p, bool(timed and p < level and material),
+                                int(np.sum(mine)), explained, timed))
+    return TimingStructure(out, level)
