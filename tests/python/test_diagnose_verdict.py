@@ -10,6 +10,7 @@ from juno.residual_structure import Covariate, ResidualStructure, SignalStructur
 from juno.diagnose.render import _scan_table, _structure_table
 from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, ScanTests
+from juno.timing_structure import LINEAR_LIMIT, MATERIAL_OFFSET
 
 
 def _structure(**ratios: float) -> ResidualStructure:
@@ -163,3 +164,37 @@ def test_a_ripple_with_no_cause_named_is_unexplained():
 def test_noise_alone_in_the_wheel_angle_keeps_a_right_model_none():
     v = verdict([], _with_ripple(_structure(torque_left=0.0, pitch=0.0), 0.0), None)
     assert (v.cause, v.unexplained) == ("none", None)
+
+
+def _with_offset(structure: ResidualStructure, offset: float, p_value: float = 1e-9) -> ResidualStructure:
+    """``structure`` with the timing test's result: pos_x's clock ``offset`` s from the inputs'."""
+    from juno.timing_structure import SignalOffset, TimingStructure
+    significant = p_value < 0.01 / 6 and MATERIAL_OFFSET <= abs(offset) <= LINEAR_LIMIT
+    structure.timing = TimingStructure([SignalOffset("pos_x", offset, 0.02, p_value, significant, 500, 0.4)],
+                                       0.01 / 6)
+    return structure
+
+
+def test_a_clock_offset_with_no_cause_named_is_unexplained_with_the_offset():
+    v = verdict([], _with_offset(_structure(torque_left=0.0, pitch=0.0), 0.2), None)
+    assert v.cause == "unexplained" and v.causes == [] and v.unexplained.signals == []
+    assert [o.signal for o in v.unexplained.offsets] == ["pos_x"]
+    words = explanation(v, "")
+    assert "pos_x's clock runs 0.2 s behind the clock of the replay's inputs" in words
+    assert v.unexplained.to_json()["offsets"][0]["offset"] == 0.2
+    assert "clock offset?" in "\n".join(_structure_table(v.unexplained))
+
+
+def test_an_offset_the_named_cause_leaves_is_reported_beside_it():
+    """The offset is a fact of the instruments' clocks, not of the physics the causes describe:
+    like a ripple, it counts neither for nor against a cause that removes the block structure."""
+    base = _with_offset(_structure(torque_left=2.0), -0.2)
+    after = _with_offset(_structure(torque_left=0.0), -0.2)
+    v = verdict(["drivetrain_loss"], base, after)
+    assert v.cause == "drivetrain_loss" and v.unexplained is not None and v.unexplained.absorbed_by == []
+    assert "runs 0.2 s ahead of" in explanation(v, "the drivetrain loses torque")
+
+
+def test_an_offset_the_test_does_not_report_leaves_a_right_model_none():
+    assert verdict([], _with_offset(_structure(torque_left=0.0), 0.2, p_value=0.2), None).cause == "none"
+    assert verdict([], _with_offset(_structure(torque_left=0.0), 0.5 * MATERIAL_OFFSET), None).cause == "none"

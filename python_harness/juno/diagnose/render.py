@@ -176,7 +176,7 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     """The verdict 'unexplained': what the residuals hold, and the catalog causes that absorb only
     part of it."""
     u = result.unexplained
-    if u is not None and not u.signals and not u.ripples:
+    if u is not None and not u.signals and not u.ripples and not u.offsets:
         lines = ["**Cause: unexplained.** No extension in the catalog explains the data, and "
                  + (u.scan.summary() if u.scan is not None else "structure remains") + ".", ""]
         return lines + _scan_table(u)
@@ -227,6 +227,10 @@ def _structure_table(u: Unexplained) -> list[str]:
         lines.append(f"| {r.signal} | {r.amplitude / np.sqrt(2.0):.3g} {r.unit} (amplitude {r.amplitude:.3g}) | "
                      f"{r.ratio / np.sqrt(2.0):.2g} | the wheel angle at {r.lugs} per revolution "
                      f"(lug passing?; p {r.p_value:.2g}) |")
+    for o in u.offsets:      # the offset times the signal's rate of change, over the held-out samples
+        lines.append(f"| {o.signal} | offset {o.offset:+.3g} s (null spread {o.spread:.2g} s) | "
+                     f"{o.explained:.2g} | its own rate of change: its clock runs {o.direction()} the "
+                     f"replay inputs' (clock offset?; p {o.p_value:.2g}) |")
     lines.append("")
     return lines
 

@@ -37,6 +37,7 @@ from typing import Any
 from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
 from ..scan_consistency import ScanTests
+from ..timing_structure import SignalOffset
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -58,10 +59,13 @@ class Unexplained:
     ripples: list[PeriodicSignal] = field(default_factory=list)
     #: every terrain run's pose against its scan (juno.scan_consistency), when one disagrees
     scan: ScanTests | None = None
+    #: the signals time-stamped off the replay's inputs (juno.timing_structure)
+    offsets: list[SignalOffset] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
                 "ripples": [r.to_json() for r in self.ripples],
+                "offsets": [o.to_json() for o in self.offsets],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
                 "scan": self.scan.to_json() if self.scan is not None else None,
                 "summary": self.summary()}
@@ -74,7 +78,7 @@ class Unexplained:
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
         scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
-        return "; ".join(parts + [r.sentence() for r in self.ripples] + scan)
+        return "; ".join(parts + [r.sentence() for r in self.ripples] + [o.sentence() for o in self.offsets] + scan)
 
 
 def _signal_sentence(s: SignalStructure) -> str:
@@ -105,15 +109,17 @@ def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStruct
         disagrees = scan if scan is not None and scan.significant else None
         if base.significant or disagrees is not None:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
-                                                          scan=disagrees))
+                                                          scan=disagrees, offsets=base.offsets()))
         return Verdict("none", [], None)
     assert extended is not None
     if not extended.significant:
         return Verdict(causes[0], causes, None)
-    if not extended.structured():       # only a ripple is left: the causes explain what they act on
-        return Verdict(causes[0], causes, Unexplained("+".join(causes), [], ripples=extended.ripples()))
+    if not extended.structured():       # only a ripple or an offset is left: the causes explain what they act on
+        return Verdict(causes[0], causes, Unexplained("+".join(causes), [], ripples=extended.ripples(),
+                                                      offsets=extended.offsets()))
     removed = 1.0 - extended.block_excess / base.block_excess if base.block_excess > 0 else 0.0
-    left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples())
+    left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples(),
+                       offsets=extended.offsets())
     if removed >= EXPLAINED_SHARE:
         return Verdict(causes[0], causes, left)
     left.absorbed_by = list(causes)
@@ -129,7 +135,7 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     if verdict_.cause == "unexplained":
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
-        if not u.signals and not u.ripples:
+        if not u.signals and not u.ripples and not u.offsets:
             return f"no extension in the catalog explains the data, and {u.summary()}"
         return ("the drawbar runs' held-out residuals hold structure beyond sensor noise that no extension in the "
                 f"catalog explains: {u.summary()}{absorbed}")

@@ -273,7 +273,8 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
         doubts.append("the fitted model leaves structure beyond sensor noise in its residuals ("
                       + "; ".join([f"{s.signal}: {s.ratio:.2g} x its noise" + (f", following {s.follows[0].name}"
                                                                                   if s.follows else "")
-                                   for s in test.structured()] + [r.sentence() for r in test.ripples()])
+                                   for s in test.structured()] + [r.sentence() for r in test.ripples()]
+                                  + [o.sentence() for o in test.offsets()])
                       + "): the model does not describe these data, and its parameters absorb what it misses")
     return doubts, (test.to_json() if test.signals else None)
 
