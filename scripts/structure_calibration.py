@@ -1,12 +1,16 @@
 """How much residual structure a right model leaves: the calibration of the residual structure
-test's materiality floor (juno.residual_structure.MATERIAL_FRACTION).
+test's materiality floor (juno.residual_structure.MATERIAL_FRACTION) and of the smallest time
+offset the timing test reports (juno.timing_structure.MATERIAL_OFFSET).
 
 Opt-in study (minutes per campaign).  For each seed and campaign design, a campaign with nothing
 hidden is synthesized, the soil is fitted jointly (juno identify's joint fit), and the structure
 test is run on the fit's residuals: the model is the truth's, so every structure it reports is
-what the replay and the fit leave, not a cause.  The table gives, per signal, the largest ratio
-of structure to sensor noise seen; the floor must lie above it for a right model to be reported
-as consistent with sensor noise.  Writes docs/results/structure-calibration.md and .json (with
+what the replay and the fit leave, not a cause.  The first table gives, per signal, the largest
+ratio of structure to sensor noise seen; the floor must lie above it for a right model to be
+reported as consistent with sensor noise.  The second gives, per signal, the largest time offset
+from the replay's inputs the timing test resolves at all (p < 5 %) in a right model's residuals
+(the replay's own lag, such as the drive torque's behind the spins it follows); the smallest
+offset reported must lie above it.  Writes docs/results/structure-calibration.md and .json (with
 date, commit and machine).
 
     .venv/bin/python scripts/structure_calibration.py --seeds 6 --first-seed 90000
@@ -42,9 +46,12 @@ from juno.campaign import load_campaign  # noqa: E402
 from juno.identify import identify_joint  # noqa: E402
 from juno.residual_structure import CONTACT_SIGNALS, MATERIAL_FRACTION, MATERIAL_FRACTION_CONTACT  # noqa: E402
 from juno.simulator import JunoFMU  # noqa: E402
+from juno.timing_structure import LINEAR_LIMIT, MATERIAL_OFFSET, TIMED_SIGNALS  # noqa: E402
 from juno.synthesize import synthesize  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results"
+#: An offset counts as resolved, for the calibration of the smallest one reported, below this p.
+RESOLVED_P = 0.05
 
 
 def one_campaign(fmu: JunoFMU, seed: int, design: str, time_scale: float) -> dict:
@@ -54,7 +61,11 @@ def one_campaign(fmu: JunoFMU, seed: int, design: str, time_scale: float) -> dic
                           time_scale=time_scale, design=design)
         fit = identify_joint(fmu, load_campaign(path), workers=1)
     signals = (fit.structure or {}).get("signals", [])
+    timing = ((fit.structure or {}).get("timing") or {}).get("signals", [])
     return {"seed": seed, "design": design, "time_scale": time_scale,
+            "offsets": {s["signal"]: s["offset"] for s in timing},
+            "offset_p_values": {s["signal"]: s["p_value"] for s in timing},
+            "offsets_reported": [s["signal"] for s in timing if s["significant"]],
             "ratios": {s["signal"]: s["ratio_to_noise"] for s in signals},
             "p_values": {s["signal"]: s["p_value"] for s in signals},
             "significant": [s["signal"] for s in signals if s["significant"]], "doubts": fit.doubts}
@@ -80,7 +91,42 @@ def page(cases: list[dict], started: str) -> str:
         lines.append(f"| {design} | {scale:g} | {len(mine)} | " + " | ".join(f"{w:.2f}" for w in worst)
                      + f" | {flagged} of {len(mine)} |")
     lines += ["", "Each cell: the largest ratio of structure to sensor noise over the seeds.", ""]
-    return "\n".join(lines)
+    return "\n".join(lines + _offset_lines(cases, groups))
+
+
+def _largest_resolved_offset(cases: list[dict], signal: str) -> float | None:
+    """The largest |offset| (s) of ``signal`` over ``cases`` among those resolved (p < RESOLVED_P)
+    within the first-order range (|offset| <= LINEAR_LIMIT: a larger fitted offset is a residual
+    that correlates with the rate of change, not an offset, and is never reported)."""
+    resolved = [abs(c["offsets"][signal]) for c in cases
+                if signal in c.get("offsets", {}) and c["offset_p_values"][signal] < RESOLVED_P
+                and abs(c["offsets"][signal]) <= LINEAR_LIMIT]
+    return max(resolved) if resolved else None
+
+
+def _offset_lines(cases: list[dict], groups: list[tuple[str, float]]) -> list[str]:
+    """The timing test's table: per signal the largest offset a right model's residuals resolve."""
+    signals = sorted({s for c in cases for s in c.get("offsets", {})})
+    if not signals:
+        return []
+    lines = ["## Time offsets a right model leaves", "",
+             "The timing test ([diagnosis.md](../diagnosis.md#what-no-candidate-explains), "
+             "juno/timing_structure.py) on the same fits: each cell is the largest |offset| (s) from the "
+             f"replay's inputs, within the first-order range (at most {LINEAR_LIMIT:g} s), that the test resolves "
+             f"at p < {RESOLVED_P:g} over the seeds (- where none is resolved). Offsets are tested in "
+             f"{', '.join(TIMED_SIGNALS)}, where the smallest reported is {MATERIAL_OFFSET:g} s: a right model must "
+             "stay below it there; the other signals' offsets are estimated, not tested.",
+             "", "| design | time scale | seeds | " + " | ".join(signals) + " | reported offsets |",
+             "|---|---|---|" + "---|" * len(signals) + "---|"]
+    for design, scale in groups:
+        mine = [c for c in cases if c["design"] == design and c["time_scale"] == scale]
+        cells = []
+        for s in signals:
+            worst = _largest_resolved_offset(mine, s)
+            cells.append("-" if worst is None else f"{worst:.3f}")
+        flagged = sum(bool(c.get("offsets_reported")) for c in mine)
+        lines.append(f"| {design} | {scale:g} | {len(mine)} | " + " | ".join(cells) + f" | {flagged} of {len(mine)} |")
+    return lines + [""]
 
 
 def one_scan_case(fmu: JunoFMU, seed: int, design: str, effect: str, strength: float) -> dict:
@@ -184,11 +230,15 @@ def main(argv: list[str] | None = None) -> int:
                     case = one_campaign(fmu, seed, design, scale)
                     cases.append(case)
                     print(f"{design:8s} x{scale:g} seed {seed}: " + ", ".join(
-                        f"{k} {v:.2f}" for k, v in case["ratios"].items()) + f"; structure {case['significant']} "
+                        f"{k} {v:.2f}" for k, v in case["ratios"].items()) + f"; structure {case['significant']}; "
+                        + "offsets " + ", ".join(f"{k} {v:+.3f} s (p {case['offset_p_values'][k]:.2g})"
+                                                 for k, v in case["offsets"].items())
+                        + f", reported {case['offsets_reported']} "
                         f"({time.perf_counter() - t0:.0f} s)", flush=True)
     _write(RESULTS / "structure-calibration.json",
            json.dumps({"provenance": {"run": started, "commit": commit_description(), "machine": machine_description()},
-                       "material_fraction": MATERIAL_FRACTION, "cases": cases}, indent=1) + "\n")
+                       "material_fraction": MATERIAL_FRACTION, "material_offset": MATERIAL_OFFSET,
+                       "cases": cases}, indent=1) + "\n")
     _write(RESULTS / "structure-calibration.md", page(cases, started))
     return 0
 
