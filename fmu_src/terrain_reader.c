@@ -267,7 +267,7 @@ static char locale_decimal_point(void)
     return '.';
 }
 
-/* scan_decimal inlined into both its callers, and decimal_by_reciprocal
+/* scan_decimal inlined into both its callers, and reciprocal_bits
  * into plain_decimal: as calls, their registers are saved and restored for
  * every value (a tenth of the reading for scan_decimal). */
 #if defined(__GNUC__)
@@ -355,22 +355,26 @@ static const struct { uint64_t hi, lo; int s; } recip5[28] = {
  * lo all ones and is tested only then.  Rounding up adds one at the round
  * bit; a carry into bit 53 (kept = 2^53) goes on into the exponent field,
  * as kept's own top bit is added to the field rather than masked off. */
-static SCAN_INLINE int decimal_by_reciprocal(uint64_t m, int n, double *v)
+static SCAN_INLINE uint64_t reciprocal_bits(uint64_t m, int n)
 {
     const int z = __builtin_clzll(m);
     const uint64_t w = m << z;
-    const u128 t = (u128)w * recip5[n].hi + (((u128)w * recip5[n].lo) >> 64);
-    const uint64_t hi = (uint64_t)(t >> 64), lo = (uint64_t)t;
-    const int below = 10 + (int)(hi >> 63);          /* bits of hi under the top 53 */
+    /* t = w hi + floor(w lo / 2^64) in two words: the carry out of the low
+     * word by hand, which compilers do not spill as they do a 128-bit sum */
+    const u128 by_hi = (u128)w * recip5[n].hi;
+    const uint64_t by_lo = (uint64_t)(((u128)w * recip5[n].lo) >> 64);
+    const uint64_t lo = (uint64_t)by_hi + by_lo;
+    const uint64_t hi = (uint64_t)(by_hi >> 64) + (lo < by_lo);
+    const int top = (int)(hi >> 63);
+    const int below = 10 + top;                       /* bits of hi under the top 53 */
     const uint64_t kept = ((hi >> (below - 1)) + 1) >> 1;   /* 2^52 <= kept <= 2^53 */
-    const int e2 = below + 64 + 64 - recip5[n].s - n - z;
-    uint64_t bits;
+    /* the exponent field of kept 2^e2, e2 = below + 64 + 64 - s - n - z,
+     * less one for kept's own top bit */
+    const int field = 52 + 10 + 128 + 1023 - 1 + top - recip5[n].s - n - z;
 
     if (lo == UINT64_MAX && ((hi + 1) & (((uint64_t)1 << below) - 1)) == (uint64_t)1 << (below - 1))
         return 0;                                     /* rest_hi = half_hi - 1 */
-    bits = ((uint64_t)(52 + e2 + 1023 - 1) << 52) + kept;
-    memcpy(v, &bits, sizeof *v);
-    return 1;
+    return ((uint64_t)field << 52) + kept;
 }
 
 /* m * 10^e10 correctly rounded (round half to even), for 1 <= m < 2^64 and
@@ -379,7 +383,7 @@ static SCAN_INLINE int decimal_by_reciprocal(uint64_t m, int n, double *v)
  * digits of a shortest round-trip double).  10^e10 = 5^e10 2^e10 and
  * 5^27 < 2^64:
  *   e10 >= 0: P = m 5^e10 < 2^127 exactly, rounded to 53 bits, times 2^e10;
- *   e10 < 0: decimal_by_reciprocal, or where it cannot tell the rounding,
+ *   e10 < 0: reciprocal_bits, or where it cannot tell the rounding,
  *            q = floor(m 2^s / 5^n) (n = -e10, s shifts m to the top of 128
  *            bits, so q has at least 64 bits) and its remainder as a sticky
  *            bit, q rounded to 53 bits, times 2^(-s-n).
@@ -394,8 +398,13 @@ static int long_decimal(uint64_t m, int e10, double *v)
 
     if (e10 < -27 || e10 > 27)
         return 0;
-    if (e10 < 0 && decimal_by_reciprocal(m, -e10, v))
-        return 1;
+    if (e10 < 0) {
+        const uint64_t bits = reciprocal_bits(m, -e10);
+        if (bits != 0) {
+            memcpy(v, &bits, sizeof *v);
+            return 1;
+        }
+    }
     p5 = pow5[e10 < 0 ? -e10 : e10];
     if (e10 >= 0) {
         q = (u128)m * p5;
@@ -428,12 +437,12 @@ static int long_decimal(uint64_t m, int e10, double *v)
     return 1;
 }
 #else
-/* Without 128-bit integers both decline: strtod reads those values. */
-static int decimal_by_reciprocal(uint64_t m, int n, double *v)
+/* Without 128-bit integers both decline (reciprocal_bits returns 0 as
+ * where it cannot tell): strtod reads those values. */
+static uint64_t reciprocal_bits(uint64_t m, int n)
 {
     (void)m;
     (void)n;
-    (void)v;
     return 0;
 }
 
@@ -489,11 +498,11 @@ static uint64_t eight_digits(uint64_t w)
     return eight_digit_values(w - 0x3030303030303030u);
 }
 
-/* ceil(2^32 / 10^(8-k)) for k = 1..7: multiplying a multiple of 10^(8-k)
+/* ceil(2^32 / 10^(8-k)) for k = 1..8: multiplying a multiple of 10^(8-k)
  * below 10^8 by it and dropping 32 bits divides exactly (the excess is
  * under 10^8 / 2^32 < 1). */
-static const uint64_t div10_8_minus[8] = {
-    0u, 430u, 4295u, 42950u, 429497u, 4294968u, 42949673u, 429496730u
+static const uint64_t div10_8_minus[9] = {
+    0u, 430u, 4295u, 42950u, 429497u, 4294968u, 42949673u, 429496730u, 4294967296u
 };
 
 /* The number the k (0..7) digits that lead w spell, where flags =
@@ -624,11 +633,123 @@ static SCAN_INLINE const char *scan_decimal(const char *p, const char *end, doub
 #endif
 }
 
+/* The first sixteen digits after the point are read with SSE2 where the
+ * compiler targets x86-64 (which always has it): one 16-byte check and one
+ * conversion for what takes two words and three conversions otherwise.
+ * JUNO_TERRAIN_NO_SSE2 keeps the word-at-a-time reading (the other
+ * processors' path), so that it is built and tested here too. */
+#if DIGIT_RUN_SWAR && defined(__SSE2__) && (defined(__x86_64__) || defined(_M_X64)) && \
+    !defined(JUNO_TERRAIN_NO_SSE2)
+#define DIGIT_RUN_SSE2 1
+#include <emmintrin.h>
+#else
+#define DIGIT_RUN_SSE2 0
+#endif
+
 /* The bytes plain_decimal may read beyond p: its caller keeps more than
  * this many before the buffer's end. */
+#if DIGIT_RUN_SSE2
+#define PLAIN_DECIMAL_REACH 40
+#else
 #define PLAIN_DECIMAL_REACH 32
+#endif
 
-#if DIGIT_RUN_SWAR
+#if DIGIT_RUN_SSE2
+/* The sixteen bytes at p minus '0': digits become 0..9, any other byte
+ * 10 or more (wrapping below '0'). */
+static SCAN_INLINE __m128i digit_values16(const char *p)
+{
+    return _mm_sub_epi8(_mm_loadu_si128((const __m128i *)(const void *)p), _mm_set1_epi8('0'));
+}
+
+/* A bit for each of the sixteen bytes of d (digit_values16) that is not a
+ * digit: adding 118 with saturation sets the top bit of exactly those. */
+static SCAN_INLINE unsigned nondigit_mask16(__m128i d)
+{
+    return (unsigned)_mm_movemask_epi8(_mm_adds_epu8(d, _mm_set1_epi8(118)));
+}
+
+/* 0xFF in the first k (0..16) bytes, 0 in the others: a window on
+ * sixteen ones and sixteen zeros. */
+static const unsigned char first_bytes_window[32] = {
+    0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF
+};
+
+static SCAN_INLINE __m128i first_bytes(__m128i d, int k)
+{
+    return _mm_and_si128(d, _mm_loadu_si128((const __m128i *)(const void *)(first_bytes_window + 16 - k)));
+}
+
+/* The sixteen digit values of d (0..9 a byte) as eight numbers of two
+ * digits (16-bit lanes): a lane holds d[2i] + 256 d[2i+1], and times
+ * 2561 = 1 + 256 * 10 (modulo 2^16, where 256 * 10 * 256 d[2i+1]
+ * vanishes) it holds d[2i] + 256 (10 d[2i] + d[2i+1]), the pair's number
+ * in the high byte. */
+static SCAN_INLINE __m128i digit_pairs(__m128i d)
+{
+    __m128i times = _mm_set1_epi16(2561);
+    /* an empty asm that may change the factor, so that the compiler
+     * multiplies (one instruction) rather than shifting and adding (four) */
+    __asm__("" : "+x"(times));
+    return _mm_srli_epi16(_mm_mullo_epi16(d, times), 8);
+}
+
+/* The numbers of eight digits that the first sixteen digit values of a
+ * and of b spell, as four 32-bit lanes: a's first eight, a's next eight,
+ * b's first eight, b's next eight.  Pairs become fours (madd: 100 x + y,
+ * below 10^4, so that packing them to 16 bits keeps them), fours
+ * become eights (10^4 x + y). */
+static SCAN_INLINE __m128i eight_digit_lanes(__m128i a, __m128i b)
+{
+    const __m128i pairs_to_fours = _mm_set1_epi32((1 << 16) | 100);
+    const __m128i fours_to_eights = _mm_set1_epi32((1 << 16) | 10000);
+    const __m128i fours = _mm_packs_epi32(_mm_madd_epi16(digit_pairs(a), pairs_to_fours),
+                                          _mm_madd_epi16(digit_pairs(b), pairs_to_fours));
+    return _mm_madd_epi16(fours, fours_to_eights);
+}
+
+/* fraction_digits below, sixteen digits a step: the first sixteen checked
+ * and converted at once, with digits 16 to 23 from the next sixteen bytes.
+ * The same results (and -1 for the same fractions); reads frac[0..31]. */
+static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
+{
+    const __m128i a = digit_values16(frac);
+    const unsigned na = nondigit_mask16(a);
+    __m128i b, eights;
+    uint64_t first16;
+    unsigned nb;
+    int k;
+
+    if (na != 0) {                      /* up to fifteen digits */
+        uint64_t ab;
+        k = __builtin_ctz(na);
+        ab = (uint64_t)_mm_cvtsi128_si64(eight_digit_lanes(first_bytes(a, k), _mm_setzero_si128()));
+        /* the digits spell their number times 10^(16-k): in the first
+         * lane for k <= 8, in the second (the first lane whole) above */
+        if (k <= 8) {
+            *m = ((ab & 0xFFFFFFFFu) * div10_8_minus[k]) >> 32;
+        } else {
+            *m = (ab & 0xFFFFFFFFu) * pow10_u64[k - 8] + (((ab >> 32) * div10_8_minus[k - 8]) >> 32);
+        }
+        return k;
+    }
+    b = digit_values16(frac + 16);
+    nb = nondigit_mask16(b);
+    k = nb != 0 ? __builtin_ctz(nb) : 16;
+    if (k > 7)                          /* more than 23 */
+        return -1;
+    eights = eight_digit_lanes(a, first_bytes(b, k));
+    {
+        const uint64_t ab = (uint64_t)_mm_cvtsi128_si64(eights);
+        const uint64_t c = (uint32_t)_mm_cvtsi128_si32(_mm_srli_si128(eights, 8));
+        first16 = (ab & 0xFFFFFFFFu) * 100000000u + (ab >> 32);
+        if (first16 >= pow10_u64[19 - k])   /* first16 10^k + the rest would reach 10^19 */
+            return -1;
+        *m = first16 * pow10_u64[k] + ((c * div10_8_minus[k]) >> 32);
+    }
+    return 16 + k;
+}
+#elif DIGIT_RUN_SWAR
 /* The digits after a decimal point at frac: their number nf (returned,
  * 0 to 23) and the number they spell (*m), or -1 where there are more
  * than 23 of them or more than 19 significant ones (m would wrap).  Read
@@ -666,6 +787,9 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
     return 16 + k;
 }
 
+#endif
+
+#if DIGIT_RUN_SWAR
 /* The grids' usual values, [-]digits.digits with one to seven digits
  * before the point and at most 19 significant digits in all: "%.6f"'s
  * "0.003880" as much as the shortest round-trip "0.0038795912416837394"
@@ -674,7 +798,7 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
  * set, or NULL for any other shape (a '+', no digit before the point, more
  * digits), which scan_decimal reads.  The digits m and the exponent
  * -(fraction digits) are scan_decimal's, converted the same way (m / 10^k
- * for m <= 2^53 and k <= 22, else decimal_by_reciprocal or long_decimal),
+ * for m <= 2^53 and k <= 22, else reciprocal_bits or long_decimal),
  * hence the same value.  Reads p[0..PLAIN_DECIMAL_REACH] at most: the
  * integer digits from p + 1 at the latest, the fraction's three words
  * from p + 9. */
@@ -684,9 +808,9 @@ static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
     const int neg = *p == '-';
     const char *const t = p + neg;
     const char *frac;
-    uint64_t m, fm;
+    uint64_t m, fm, bits;
     int ki, nf;
-    double x;
+    double x, tie;   /* tie: long_decimal's, apart so that x need not live in memory */
 
     if (t[0] == '0' && t[1] == '.') {   /* "0.25": no integer digits to add */
         m = 0;
@@ -712,8 +836,12 @@ static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
         x = (double)fm / pow10_exact[nf];
     else if (fm == 0)
         x = 0.0;
-    else if (!decimal_by_reciprocal(fm, nf, &x) && !long_decimal(fm, -nf, &x))
+    else if ((bits = reciprocal_bits(fm, nf)) != 0)
+        memcpy(&x, &bits, sizeof x);
+    else if (!long_decimal(fm, -nf, &tie))
         return NULL;
+    else
+        x = tie;
     *v = neg ? -x : x;
     return frac + nf;
 }

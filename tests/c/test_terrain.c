@@ -586,6 +586,32 @@ static void test_bad_files(void)
         snprintf(text, sizeof text, "%s1 2 3 4\n5 %s 7 8\n9 10 11 12\n", HDR, tok);
         expect_fail("long_token.asc", text, "line 8,", "...");
     }
+    /* a value whose digits after the point run into '/' or ':' (the bytes
+     * either side of '0'..'9') is not a number, wherever in the reader's
+     * words of eight and sixteen digits that byte falls; white space after
+     * the grid keeps the value far from the file's end, where the grid's
+     * values are read */
+    {
+        static const int digits_before[] = {0, 3, 7, 8, 9, 15, 16, 17, 23, 24, 31, 32, 33};
+        static const char ends[] = {'/', ':'};
+        char name[64], bad[64], quoted[96];
+        size_t i, j;
+        for (i = 0; i < sizeof digits_before / sizeof digits_before[0]; i++) {
+            for (j = 0; j < sizeof ends; j++) {
+                int n = 3, k;
+                memcpy(bad, "-0.", 3);
+                for (k = 0; k < digits_before[i]; k++)
+                    bad[n++] = (char)('1' + k % 9);
+                bad[n++] = ends[j];
+                bad[n++] = '5';
+                bad[n] = '\0';
+                snprintf(name, sizeof name, "runs_on_%d_%d.asc", digits_before[i], (int)j);
+                snprintf(quoted, sizeof quoted, "'%s' is not a number", bad);
+                snprintf(text, sizeof text, "%s1 2 3 4\n5 6 %s 8\n9 10 11 12\n%64s\n", HDR, bad, "");
+                expect_fail(name, text, "line 8, value 3 on the line (grid row 2, column 3)", quoted);
+            }
+        }
+    }
     /* a long number token is not silently cut to a shorter number */
     {
         char num[400];
@@ -753,7 +779,13 @@ static void test_numbers_match_strtod(void)
         "0.00000000000000012345678", "0.000000000000000000000001", "-0.000000000000000000000000",
         "2251799813685248.25", "2251799813685248.2500000001", "2251799813685248.2499999999",
         "1125899906842624.125", "1125899906842624.375", "562949953421312.0625", "562949953421312.0625000001",
-        "4503599627370498.5"};
+        "4503599627370498.5",
+        /* the digits after the point read sixteen at a time: runs of 31 to 40 (declined: strtod
+         * reads them), and exponents right after 7, 8, 15, 16, 17 and 23 of them */
+        "0.1234567890123456789012345678901", "-0.12345678901234567890123456789012",
+        "0.000000000000000000000000000000001", "7.0000000000000000000000000000000000000",
+        "0.1234567e3", "0.12345678e-3", "0.123456789012345e2", "-0.1234567890123456e1",
+        "0.12345678901234567E-2", "0.00000000000000000000012e22"};
     /* the reader takes the digits after the point in words of eight:
      * NSHAPE tokens with every count of them from 0 to 25 (each side of
      * one, two and three whole words), after integer parts of one to
