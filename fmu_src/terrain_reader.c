@@ -800,8 +800,8 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
  * -(fraction digits) are scan_decimal's, converted the same way (m / 10^k
  * for m <= 2^53 and k <= 22, else reciprocal_bits or long_decimal),
  * hence the same value.  Reads p[0..PLAIN_DECIMAL_REACH] at most: the
- * integer digits from p + 1 at the latest, the fraction's three words
- * from p + 9. */
+ * integer digits from p + 1 at the latest, the fraction's 24 bytes (32
+ * with SSE2) from p + 9. */
 static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
 {
     const uint64_t max_exact = (uint64_t)1 << 53;
