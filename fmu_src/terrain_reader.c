@@ -267,7 +267,7 @@ static char locale_decimal_point(void)
     return '.';
 }
 
-/* scan_decimal inlined into both its callers, and reciprocal_bits
+/* scan_decimal inlined into both its callers, and reciprocal_decimal
  * into plain_decimal: as calls, their registers are saved and restored for
  * every value (a tenth of the reading for scan_decimal). */
 #if defined(__GNUC__)
@@ -280,6 +280,16 @@ static char locale_decimal_point(void)
 static const double pow10_exact[23] = {
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22
+};
+
+/* The same and their negatives, [k][1] = -10^k: a quotient's sign from
+ * the divisor, without a test (m / -10^k = -(m / 10^k), also for m = 0). */
+static const double signed_pow10_exact[23][2] = {
+    {1e0, -1e0}, {1e1, -1e1}, {1e2, -1e2}, {1e3, -1e3}, {1e4, -1e4}, {1e5, -1e5},
+    {1e6, -1e6}, {1e7, -1e7}, {1e8, -1e8}, {1e9, -1e9}, {1e10, -1e10}, {1e11, -1e11},
+    {1e12, -1e12}, {1e13, -1e13}, {1e14, -1e14}, {1e15, -1e15}, {1e16, -1e16},
+    {1e17, -1e17}, {1e18, -1e18}, {1e19, -1e19}, {1e20, -1e20}, {1e21, -1e21},
+    {1e22, -1e22}
 };
 
 #if defined(__SIZEOF_INT128__) && defined(FLT_EVAL_METHOD) && FLT_EVAL_METHOD == 0
@@ -305,41 +315,44 @@ static double double_from_parts(uint64_t kept, int e2)
 }
 
 /* 1/5^n for n = 1..27 as 128-bit fixed point: r = floor(2^s / 5^n) with s
- * chosen so that 2^127 <= r < 2^128 (s = 127 + the bit length of 5^n). */
-static const struct { uint64_t hi, lo; int s; } recip5[28] = {
+ * chosen so that 2^127 <= r < 2^128 (s = 127 + the bit length of 5^n);
+ * scale is the exponent field of 2^(129 - s - n), the power of two that
+ * turns the top half of m r (m shifted to the top of a word) into m / 10^n. */
+static const struct { uint64_t hi, lo; int scale; } recip5[28] = {
     {0u, 0u, 0},   /* n = 0 is never used: 10^0 is exact */
-    {0xccccccccccccccccu, 0xccccccccccccccccu, 130},
-    {0xa3d70a3d70a3d70au, 0x3d70a3d70a3d70a3u, 132},
-    {0x83126e978d4fdf3bu, 0x645a1cac083126e9u, 134},
-    {0xd1b71758e219652bu, 0xd3c36113404ea4a8u, 137},
-    {0xa7c5ac471b478423u, 0x0fcf80dc33721d53u, 139},
-    {0x8637bd05af6c69b5u, 0xa63f9a49c2c1b10fu, 141},
-    {0xd6bf94d5e57a42bcu, 0x3d32907604691b4cu, 144},
-    {0xabcc77118461cefcu, 0xfdc20d2b36ba7c3du, 146},
-    {0x89705f4136b4a597u, 0x31680a88f8953030u, 148},
-    {0xdbe6fecebdedd5beu, 0xb573440e5a884d1bu, 151},
-    {0xafebff0bcb24aafeu, 0xf78f69a51539d748u, 153},
-    {0x8cbccc096f5088cbu, 0xf93f87b7442e45d3u, 155},
-    {0xe12e13424bb40e13u, 0x2865a5f206b06fb9u, 158},
-    {0xb424dc35095cd80fu, 0x538484c19ef38c94u, 160},
-    {0x901d7cf73ab0acd9u, 0x0f9d37014bf60a10u, 162},
-    {0xe69594bec44de15bu, 0x4c2ebe687989a9b3u, 165},
-    {0xb877aa3236a4b449u, 0x09befeb9fad487c2u, 167},
-    {0x9392ee8e921d5d07u, 0x3aff322e62439fcfu, 169},
-    {0xec1e4a7db69561a5u, 0x2b31e9e3d06c32e5u, 172},
-    {0xbce5086492111aeau, 0x88f4bb1ca6bcf584u, 174},
-    {0x971da05074da7beeu, 0xd3f6fc16ebca5e03u, 176},
-    {0xf1c90080baf72cb1u, 0x5324c68b12dd6338u, 179},
-    {0xc16d9a0095928a27u, 0x75b7053c0f178293u, 181},
-    {0x9abe14cd44753b52u, 0xc4926a9672793542u, 183},
-    {0xf79687aed3eec551u, 0x3a83ddbd83f52204u, 186},
-    {0xc612062576589ddau, 0x95364afe032a819du, 188},
-    {0x9e74d1b791e07e48u, 0x775ea264cf55347du, 190},
+    {0xccccccccccccccccu, 0xccccccccccccccccu, 1021},
+    {0xa3d70a3d70a3d70au, 0x3d70a3d70a3d70a3u, 1018},
+    {0x83126e978d4fdf3bu, 0x645a1cac083126e9u, 1015},
+    {0xd1b71758e219652bu, 0xd3c36113404ea4a8u, 1011},
+    {0xa7c5ac471b478423u, 0x0fcf80dc33721d53u, 1008},
+    {0x8637bd05af6c69b5u, 0xa63f9a49c2c1b10fu, 1005},
+    {0xd6bf94d5e57a42bcu, 0x3d32907604691b4cu, 1001},
+    {0xabcc77118461cefcu, 0xfdc20d2b36ba7c3du, 998},
+    {0x89705f4136b4a597u, 0x31680a88f8953030u, 995},
+    {0xdbe6fecebdedd5beu, 0xb573440e5a884d1bu, 991},
+    {0xafebff0bcb24aafeu, 0xf78f69a51539d748u, 988},
+    {0x8cbccc096f5088cbu, 0xf93f87b7442e45d3u, 985},
+    {0xe12e13424bb40e13u, 0x2865a5f206b06fb9u, 981},
+    {0xb424dc35095cd80fu, 0x538484c19ef38c94u, 978},
+    {0x901d7cf73ab0acd9u, 0x0f9d37014bf60a10u, 975},
+    {0xe69594bec44de15bu, 0x4c2ebe687989a9b3u, 971},
+    {0xb877aa3236a4b449u, 0x09befeb9fad487c2u, 968},
+    {0x9392ee8e921d5d07u, 0x3aff322e62439fcfu, 965},
+    {0xec1e4a7db69561a5u, 0x2b31e9e3d06c32e5u, 961},
+    {0xbce5086492111aeau, 0x88f4bb1ca6bcf584u, 958},
+    {0x971da05074da7beeu, 0xd3f6fc16ebca5e03u, 955},
+    {0xf1c90080baf72cb1u, 0x5324c68b12dd6338u, 951},
+    {0xc16d9a0095928a27u, 0x75b7053c0f178293u, 948},
+    {0x9abe14cd44753b52u, 0xc4926a9672793542u, 945},
+    {0xf79687aed3eec551u, 0x3a83ddbd83f52204u, 941},
+    {0xc612062576589ddau, 0x95364afe032a819du, 938},
+    {0x9e74d1b791e07e48u, 0x775ea264cf55347du, 935},
 };
 
-/* m / 10^n correctly rounded for 1 <= m < 2^64, 1 <= n <= 27, by a
- * multiplication with recip5[n] instead of long_decimal's 128-bit division,
- * which costs several times more.  With w = m 2^z (top bit at bit 63) and
+/* (sign ? -1 : 1) m / 10^n correctly rounded for 1 <= m < 2^64,
+ * 1 <= n <= 27, by a multiplication with recip5[n] instead of
+ * long_decimal's 128-bit division, which costs several times more; sign
+ * is 0 or the sign bit (2^63).  With w = m 2^z (top bit at bit 63) and
  * X = w 2^s / 5^n, m / 10^n = X 2^(-s-n-z).  P = w r falls short of X by
  * w (2^s / 5^n - r), more than 0 and less than 2^64, so t = floor(P / 2^64)
  * has X / 2^64 strictly between t and t + 2.  t's top bit is bit 126 or
@@ -347,15 +360,19 @@ static const struct { uint64_t hi, lo; int s; } recip5[28] = {
  * the bits below it (rest, all but the top 53 of t's) set against half
  * their range decide the rounding:
  *   rest <= half - 2: X / 2^64 lies below the midpoint: the candidate;
- *   rest >= half: above it (a carry out of rest also rounds up);
+ *   rest >= half: above it;
  *   rest = half - 1: too close to tell (an exact tie lands here, as P < X):
- *     returns 0 and the caller divides.
- * The rest spans t's low word and the low bits of its high word: its top
- * bit (the round bit) alone decides, but for rest = half - 1, which needs
- * lo all ones and is tested only then.  Rounding up adds one at the round
- * bit; a carry into bit 53 (kept = 2^53) goes on into the exponent field,
- * as kept's own top bit is added to the field rather than masked off. */
-static SCAN_INLINE uint64_t reciprocal_bits(uint64_t m, int n)
+ *     returns 0 and the caller divides; otherwise *v is set and it returns 1.
+ * The rest spans t's low word and the low bits of its high word hi: but
+ * for rest = half - 1, which needs the low word all ones and is tested
+ * only then, its top bit (the round bit, in hi) alone decides.  The
+ * conversion of hi to double rounds the same way, to nearest at that bit,
+ * once hi's lowest bit (nine or more places under the round bit) is set:
+ * then no tie is left to round to even.  hi is halved first, so that it
+ * converts as a signed integer, and the double times 2^(129-s-n-z)
+ * (recip5's scale less z, with the sign) is the value: a product by a
+ * power of two, exact, as the values lie far from the subnormals. */
+static SCAN_INLINE int reciprocal_decimal(uint64_t m, int n, uint64_t sign, double *v)
 {
     const int z = __builtin_clzll(m);
     const uint64_t w = m << z;
@@ -365,16 +382,17 @@ static SCAN_INLINE uint64_t reciprocal_bits(uint64_t m, int n)
     const uint64_t by_lo = (uint64_t)(((u128)w * recip5[n].lo) >> 64);
     const uint64_t lo = (uint64_t)by_hi + by_lo;
     const uint64_t hi = (uint64_t)(by_hi >> 64) + (lo < by_lo);
-    const int top = (int)(hi >> 63);
-    const int below = 10 + top;                       /* bits of hi under the top 53 */
-    const uint64_t kept = ((hi >> (below - 1)) + 1) >> 1;   /* 2^52 <= kept <= 2^53 */
-    /* the exponent field of kept 2^e2, e2 = below + 64 + 64 - s - n - z,
-     * less one for kept's own top bit */
-    const int field = 52 + 10 + 128 + 1023 - 1 + top - recip5[n].s - n - z;
+    const uint64_t scale_bits = sign | ((uint64_t)(recip5[n].scale - z) << 52);
+    double scale;
 
-    if (lo == UINT64_MAX && ((hi + 1) & (((uint64_t)1 << below) - 1)) == (uint64_t)1 << (below - 1))
-        return 0;                                     /* rest_hi = half_hi - 1 */
-    return ((uint64_t)field << 52) + kept;
+    if (lo == UINT64_MAX) {
+        const int below = 10 + (int)(hi >> 63);       /* bits of hi under the top 53 */
+        if (((hi + 1) & (((uint64_t)1 << below) - 1)) == (uint64_t)1 << (below - 1))
+            return 0;                                 /* rest = half - 1 */
+    }
+    memcpy(&scale, &scale_bits, sizeof scale);
+    *v = (double)(int64_t)((hi >> 1) | 1) * scale;
+    return 1;
 }
 
 /* m * 10^e10 correctly rounded (round half to even), for 1 <= m < 2^64 and
@@ -383,7 +401,7 @@ static SCAN_INLINE uint64_t reciprocal_bits(uint64_t m, int n)
  * digits of a shortest round-trip double).  10^e10 = 5^e10 2^e10 and
  * 5^27 < 2^64:
  *   e10 >= 0: P = m 5^e10 < 2^127 exactly, rounded to 53 bits, times 2^e10;
- *   e10 < 0: reciprocal_bits, or where it cannot tell the rounding,
+ *   e10 < 0: reciprocal_decimal, or where it cannot tell the rounding,
  *            q = floor(m 2^s / 5^n) (n = -e10, s shifts m to the top of 128
  *            bits, so q has at least 64 bits) and its remainder as a sticky
  *            bit, q rounded to 53 bits, times 2^(-s-n).
@@ -399,11 +417,8 @@ static int long_decimal(uint64_t m, int e10, double *v)
     if (e10 < -27 || e10 > 27)
         return 0;
     if (e10 < 0) {
-        const uint64_t bits = reciprocal_bits(m, -e10);
-        if (bits != 0) {
-            memcpy(v, &bits, sizeof *v);
+        if (reciprocal_decimal(m, -e10, 0, v))
             return 1;
-        }
     }
     p5 = pow5[e10 < 0 ? -e10 : e10];
     if (e10 >= 0) {
@@ -437,12 +452,14 @@ static int long_decimal(uint64_t m, int e10, double *v)
     return 1;
 }
 #else
-/* Without 128-bit integers both decline (reciprocal_bits returns 0 as
+/* Without 128-bit integers both decline (reciprocal_decimal returns 0 as
  * where it cannot tell): strtod reads those values. */
-static uint64_t reciprocal_bits(uint64_t m, int n)
+static int reciprocal_decimal(uint64_t m, int n, uint64_t sign, double *v)
 {
     (void)m;
     (void)n;
+    (void)sign;
+    (void)v;
     return 0;
 }
 
@@ -465,6 +482,14 @@ static uint64_t load_word(const char *p)
 {
     uint64_t w;
     memcpy(&w, p, 8);                   /* any alignment */
+    return w;
+}
+
+/* The two bytes at p, the first in the low byte. */
+static uint16_t load_pair(const char *p)
+{
+    uint16_t w;
+    memcpy(&w, p, 2);                   /* any alignment */
     return w;
 }
 
@@ -545,6 +570,14 @@ static const uint64_t pow10_u64[20] = {
     10000000000u, 100000000000u, 1000000000000u, 10000000000000u, 100000000000000u,
     1000000000000000u, 10000000000000000u, 100000000000000000u, 1000000000000000000u,
     10000000000000000000u
+};
+
+/* 10^(19-k) for k = 0..7: sixteen digits followed by k more stay below
+ * 10^19 where the sixteen spell less than this (pow10_u64[19 - k] with
+ * no subtraction to index it). */
+static const uint64_t first16_limit[8] = {
+    10000000000000000000u, 1000000000000000000u, 100000000000000000u, 10000000000000000u,
+    1000000000000000u, 100000000000000u, 10000000000000u, 1000000000000u
 };
 
 /* The common decimal token [+-]digits[.digits][(e|E)[+-]digits] (the
@@ -743,7 +776,7 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
         const uint64_t ab = (uint64_t)_mm_cvtsi128_si64(eights);
         const uint64_t c = (uint32_t)_mm_cvtsi128_si32(_mm_srli_si128(eights, 8));
         first16 = (ab & 0xFFFFFFFFu) * 100000000u + (ab >> 32);
-        if (first16 >= pow10_u64[19 - k])   /* first16 10^k + the rest would reach 10^19 */
+        if (first16 >= first16_limit[k])    /* first16 10^k + the rest would reach 10^19 */
             return -1;
         *m = first16 * pow10_u64[k] + ((c * div10_8_minus[k]) >> 32);
     }
@@ -781,7 +814,7 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
         return -1;
     k = leading_digit_count(fc);        /* 16 to 23 */
     first16 = eight_digits(a) * 100000000u + eight_digits(b);
-    if (first16 >= pow10_u64[19 - k])   /* first16 10^k + the rest would reach 10^19 */
+    if (first16 >= first16_limit[k])    /* first16 10^k + the rest would reach 10^19 */
         return -1;
     *m = first16 * pow10_u64[k] + leading_digits(c, fc, k);
     return 16 + k;
@@ -798,21 +831,24 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
  * set, or NULL for any other shape (a '+', no digit before the point, more
  * digits), which scan_decimal reads.  The digits m and the exponent
  * -(fraction digits) are scan_decimal's, converted the same way (m / 10^k
- * for m <= 2^53 and k <= 22, else reciprocal_bits or long_decimal),
+ * for m <= 2^53 and k <= 22, else reciprocal_decimal or long_decimal),
  * hence the same value.  Reads p[0..PLAIN_DECIMAL_REACH] at most: the
  * integer digits from p + 1 at the latest, the fraction's 24 bytes (32
  * with SSE2) from p + 9. */
 static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
 {
     const uint64_t max_exact = (uint64_t)1 << 53;
+    const uint16_t zero_point = '0' | ('.' << 8);      /* "0." as load_pair reads it */
     const int neg = *p == '-';
     const char *const t = p + neg;
     const char *frac;
-    uint64_t m, fm, bits;
+    uint64_t m, fm;
     int ki, nf;
     double x, tie;   /* tie: long_decimal's, apart so that x need not live in memory */
 
-    if (t[0] == '0' && t[1] == '.') {   /* "0.25": no integer digits to add */
+    /* "0.25": no integer digits to add; the usual case of terrain heights
+     * in metres, laid out as the straight path */
+    if (__builtin_expect(load_pair(t) == zero_point, 1)) {
         m = 0;
         frac = t + 2;
     } else if ((unsigned)((unsigned char)t[0] - '0') <= 9u && t[1] == '.') {   /* "1.25" */
@@ -832,20 +868,31 @@ static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
             return NULL;
         fm += m * pow10_u64[nf];
     }
+    /* the sign goes into the divisor or the scale, not tested again */
     if (fm <= max_exact && nf <= 22)
-        x = (double)fm / pow10_exact[nf];
+        *v = (double)fm / signed_pow10_exact[nf][neg];
+    else if (fm != 0 && reciprocal_decimal(fm, nf, (uint64_t)neg << 63, &x))
+        *v = x;
     else if (fm == 0)
-        x = 0.0;
-    else if ((bits = reciprocal_bits(fm, nf)) != 0)
-        memcpy(&x, &bits, sizeof x);
-    else if (!long_decimal(fm, -nf, &tie))
-        return NULL;
+        *v = neg ? -0.0 : 0.0;
+    else if (long_decimal(fm, -nf, &tie))
+        *v = neg ? -tie : tie;
     else
-        x = tie;
-    *v = neg ? -x : x;
+        return NULL;
     return frac + nf;
 }
 #endif
+
+/* scan_decimal as a call, for the values grid_decimal declines: inlined
+ * beside it, its registers would crowd the read loop's (more of them
+ * saved to memory and loaded back for every value). */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static const char *scan_decimal_apart(const char *p, const char *end, double *v)
+{
+    return scan_decimal(p, end, v);
+}
 
 /* scan_decimal with a shortcut for the grids' usual values (grid_decimal),
  * where double arithmetic has no extended precision (as scan_decimal
@@ -857,7 +904,13 @@ static SCAN_INLINE const char *plain_decimal(const char *p, const char *end, dou
     if (q != NULL)
         return q;
 #endif
-    return scan_decimal(p, end, v);
+    {
+        double x;   /* apart from *v, so that *v need not live in memory */
+        const char *const q = scan_decimal_apart(p, end, &x);
+        if (q != NULL)
+            *v = x;
+        return q;
+    }
 }
 
 /* The token p..end as a whole, by scan_decimal. */
@@ -1162,62 +1215,66 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
     const unsigned char *p = lx->buf + lx->pos, *const e = lx->buf + lx->end;   /* *e is NUL (lex_getc) */
     /* values start before last_start: PLAIN_DECIMAL_REACH bytes follow them */
     const unsigned char *const last_start = lx->end > PLAIN_DECIMAL_REACH ? e - PLAIN_DECIMAL_REACH : lx->buf;
-    long frow = c->frow, nnodata = c->nnodata, line = lx->line, ntok = lx->ntok_line;
-    long tok_line = lx->tok_line, tok_index = lx->tok_index, k;
-    double *row, *cell, *row_end;
+    long frow = c->frow, nnodata = c->nnodata, line = lx->line;
+    /* the values read before the current line's first: a line's tokens
+     * are counted at its end, as values read since, not one by one */
+    long line_first = c->k - lx->ntok_line;
+    long tok_line = lx->tok_line, tok_index = lx->tok_index, k, ntok;
+    double *row, *cell;
 
     if (lx->at_file_start || frow == nr)
         return;
     row = g->z + (size_t)(nr - 1 - frow) * (size_t)nc;
     cell = row + c->col;
-    row_end = row + nc;
-    for (;;) {
-        const unsigned char *q;
-        double v;
-        if (*p <= ' ') {                /* blanks and line ends, counted as lex_newline does */
-            while (*p <= ' ') {
-                if (*p == ' ' || *p == '\t') {
-                    p++;
-                } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
-                    p += *p == '\r' ? 2 : 1;
-                    if (ntok > 0)       /* the line's last token */
-                        tok_line = line, tok_index = ntok;
-                    if (line < 0x7fffffffL)
-                        line++;
-                    ntok = 0;
-                } else {
-                    break;
+    for (;;) {                          /* a grid row a pass */
+        double *const row_end = row + nc;
+        while (cell != row_end) {
+            const unsigned char *q;
+            double v;
+            if (*p <= ' ') {            /* blanks and line ends, counted as lex_newline does */
+                while (*p <= ' ') {
+                    if (*p == ' ' || *p == '\t') {
+                        p++;
+                    } else if (*p == '\n' || (*p == '\r' && p[1] == '\n')) {
+                        const long read = frow * nc + (long)(cell - row);
+                        p += *p == '\r' ? 2 : 1;
+                        if (read > line_first)  /* the line's last token */
+                            tok_line = line, tok_index = read - line_first;
+                        if (line < 0x7fffffffL)
+                            line++;
+                        line_first = read;
+                    } else {
+                        break;
+                    }
                 }
             }
+            if (p >= last_start)
+                goto stop;
+            q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
+            if (q == NULL)
+                goto stop;
+            if (*q == ' ')              /* the usual separator, taken at once */
+                p = q + 1;
+            else if (ends_token(*q))    /* not at e: its NUL does not end a token */
+                p = q;
+            else
+                goto stop;
+            if (v == nodata) {
+                v = NAN;
+                nnodata++;
+            }
+            *cell++ = v;
         }
-        if (p >= last_start)
+        if (++frow == nr)
             break;
-        q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
-        if (q == NULL)
-            break;
-        if (*q == ' ')                  /* the usual separator, taken at once */
-            p = q + 1;
-        else if (ends_token(*q))        /* not at e: its NUL does not end a token */
-            p = q;
-        else
-            break;
-        ntok++;
-        if (v == nodata) {
-            v = NAN;
-            nnodata++;
-        }
-        *cell++ = v;
-        if (cell == row_end) {
-            if (++frow == nr)
-                break;
-            row -= nc;
-            cell = row;
-            row_end = row + nc;
-        }
+        row -= nc;
+        cell = row;
     }
+stop:
+    k = frow * nc + (frow == nr ? 0 : (long)(cell - row));
+    ntok = k - line_first;
     if (ntok > 0)
         tok_line = line, tok_index = ntok;
-    k = frow * nc + (frow == nr ? 0 : (long)(cell - row));
     lx->pos = (size_t)(p - lx->buf);
     if (k > c->k)
         c->last_line = tok_line;
