@@ -267,9 +267,9 @@ static char locale_decimal_point(void)
     return '.';
 }
 
-/* scan_decimal inlined into both its callers, and reciprocal_decimal
- * into plain_decimal: as calls, their registers are saved and restored for
- * every value (a tenth of the reading for scan_decimal). */
+/* scan_decimal inlined into its callers, and reciprocal_decimal into
+ * grid_decimal: as calls, their registers are saved and restored for
+ * every value they read (a tenth of the reading for scan_decimal). */
 #if defined(__GNUC__)
 #define SCAN_INLINE inline __attribute__((always_inline))
 #else
