@@ -41,8 +41,8 @@ Why the positions alone: their timing follows the spins' through kinematics (the
 the wheels' spin times their radius, less the slip), which a right model reproduces to within
 the replay's half-step delay.  The pitch follows the chassis' settling under a changing load and
 the drive torques the replay's speed controller following the measured spins: on right models
-these leave offsets of their own, resolved at up to about 0.1 s (MATERIAL_OFFSET's calibration),
-as large as the smallest offset reported.  Their offsets are estimated and reported in the JSON
+these leave offsets of their own, resolved at up to 0.17 s in the pitch (MATERIAL_OFFSET's
+calibration), larger than the smallest offset reported.  Their offsets are estimated and reported in the JSON
 (``timed`` false), not tested; a clock offset of the IMU alone is not found (a known limit).
 
 Assumptions: one constant offset per signal over the campaign's drawbar runs; the rover's speed
