@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from blind_draws import candidates_summary, draws_for, hide_and_diagnose
+from blind_draws import candidates_summary, draw_and_diagnose, draws_for, hide_and_diagnose
 
 
 def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
@@ -41,16 +41,10 @@ def test_a_clock_offset_between_instruments_is_reported_unexplained_with_its_siz
     station's clock, follow it offset by the hidden amount (the sample stamped t was taken at
     motor time t - clock.offset, so it holds the model at t + offset with offset = -clock.offset).
     The drive torques share the motor's clock: no offset is reported in them."""
-    effect = "clock_offset"
-    draws = draws_for(effect)
-    strength = round(draws.uniform(0.7, 1.0), 3)
-    seed = draws.randrange(10_000)
-    replay = f"juno synthesize OUT --effect {effect} --strength {strength} --seed {seed}"
-    print(f"\n[diagnose] {replay}")
-    diagnosis, truth = hide_and_diagnose(tmp_path, effect, strength, seed)
+    diagnosis, truth, replay, candidates = draw_and_diagnose(tmp_path, "clock_offset")
     hidden = -truth["hidden"]["distortion"]["clock.offset"]
     assert diagnosis["cause"] == "unexplained" and diagnosis["causes"] == [], \
-        f"[{replay}] named {diagnosis['cause']}: {diagnosis['explanation']}; {candidates_summary(diagnosis)}"
+        f"[{replay}] named {diagnosis['cause']}: {diagnosis['explanation']}; {candidates}"
     offsets = {o["signal"]: o["offset"] for o in diagnosis["unexplained"]["offsets"]}
     assert "pos_x" in offsets, f"[{replay}] {diagnosis['unexplained']['summary']}"
     assert not {"torque_left", "torque_right"} & set(offsets), f"[{replay}] {offsets}"
