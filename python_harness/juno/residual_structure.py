@@ -41,6 +41,10 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    wheel's traction pulsing at N per revolution), so the held-out torque samples themselves are
    tested for a component periodic in each side's measured wheel angle
    (juno.periodic_structure; at most FALSE_ALARM false reports per campaign of its own).
+7. **A clock offset.**  Block means also average away a residual that follows the signal's own
+   rate of change, as an instrument's clock offset from the replay's inputs leaves it: the
+   held-out samples of the positions are tested for it against the same replicas
+   (juno.timing_structure; at most FALSE_ALARM false reports per campaign of its own).
 
 Only drawbar runs are tested: over the 3-D terrain the replay drifts from the measured path
 even at the true parameters (the terrain run's block means at the truth are many times the
