@@ -1,5 +1,6 @@
 /*
- * Standalone tests for the terrain reader and grid (fmu_src/terrain_reader.c,
+ * Standalone tests for the terrain reader and grid (fmu_src/terrain_reader.c
+ * with the number conversion it includes, fmu_src/grid_decimal.h;
  * fmu_src/terrain_grid.c).
  *
  *   gcc -std=c11 -O2 -Wall -Wextra -Werror -pedantic -D_POSIX_C_SOURCE=200809L \
