@@ -101,9 +101,12 @@ class SignalOffset:
                 "explained_rms": self.explained, "timed": self.timed}
 
     def sentence(self) -> str:
-        """The offset in words: which way the signal's clock runs from the replay inputs' clock."""
-        return (f"{self.signal}'s clock runs {abs(self.offset):.2g} s {self.direction()} the clock of the replay's "
-                f"inputs (its sample stamped t follows the model at t {self.offset:+.2g} s; p {self.p_value:.1g})")
+        """The offset in words: what the residual follows, and the clock offset that would leave it
+        (a model error can correlate with the rate of change too, so the clock is not asserted)."""
+        lag = "lags" if self.offset > 0 else "leads"
+        return (f"{self.signal} {lag} the replay by {abs(self.offset):.2g} s: its residual follows its rate of "
+                f"change as a clock {abs(self.offset):.2g} s {self.direction()} the inputs' clock leaves it "
+                f"(p {self.p_value:.1g})")
 
     def direction(self) -> str:
         """'behind' when the signal's sample stamped t was taken later than t on the inputs' clock

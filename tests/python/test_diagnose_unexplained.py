@@ -51,4 +51,4 @@ def test_a_clock_offset_between_instruments_is_reported_unexplained_with_its_siz
     # The measured rate of change's noise and the half-step delay of the replay bias the
     # estimate a little; its sign and size are the hidden offset's.
     assert offsets["pos_x"] == pytest.approx(hidden, rel=0.3), f"[{replay}] {offsets}, hidden {hidden}"
-    assert "clock runs" in diagnosis["explanation"]
+    assert "pos_x lags the replay" in diagnosis["explanation"] and "as a clock" in diagnosis["explanation"]

@@ -180,7 +180,7 @@ def test_a_clock_offset_with_no_cause_named_is_unexplained_with_the_offset():
     assert v.cause == "unexplained" and v.causes == [] and v.unexplained.signals == []
     assert [o.signal for o in v.unexplained.offsets] == ["pos_x"]
     words = explanation(v, "")
-    assert "pos_x's clock runs 0.2 s behind the clock of the replay's inputs" in words
+    assert "pos_x lags the replay by 0.2 s" in words and "as a clock 0.2 s behind the inputs' clock" in words
     assert v.unexplained.to_json()["offsets"][0]["offset"] == 0.2
     assert "clock offset?" in "\n".join(_structure_table(v.unexplained))
 
@@ -192,7 +192,7 @@ def test_an_offset_the_named_cause_leaves_is_reported_beside_it():
     after = _with_offset(_structure(torque_left=0.0), -0.2)
     v = verdict(["drivetrain_loss"], base, after)
     assert v.cause == "drivetrain_loss" and v.unexplained is not None and v.unexplained.absorbed_by == []
-    assert "runs 0.2 s ahead of" in explanation(v, "the drivetrain loses torque")
+    assert "as a clock 0.2 s ahead of the inputs' clock" in explanation(v, "the drivetrain loses torque")
 
 
 def test_an_offset_the_test_does_not_report_leaves_a_right_model_none():

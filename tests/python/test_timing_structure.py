@@ -44,12 +44,14 @@ def test_an_offset_clock_is_found_with_its_size_and_direction():
     assert found.signal == "pos_x" and found.significant and result.significant
     assert found.offset == pytest.approx(0.2, abs=4 * found.spread)
     assert found.p_value < FALSE_ALARM
-    assert found.direction() == "behind" and f"runs {found.offset:.2g} s behind" in found.sentence()
+    assert found.direction() == "behind"
+    assert found.sentence().startswith(f"pos_x lags the replay by {found.offset:.2g} s")
+    assert f"as a clock {found.offset:.2g} s behind the inputs' clock" in found.sentence()
 
 
 def test_a_clock_running_ahead_is_said_to_run_ahead():
     (found,) = timing_structure(*_signal(offset=-0.2, noise=1.0)).found()
-    assert found.offset < 0 and found.direction() == "ahead of"
+    assert found.offset < 0 and found.direction() == "ahead of" and "pos_x leads the replay" in found.sentence()
 
 
 def test_noise_alone_reports_no_offset():

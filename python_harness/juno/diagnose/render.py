@@ -229,8 +229,8 @@ def _structure_table(u: Unexplained) -> list[str]:
                      f"(lug passing?; p {r.p_value:.2g}) |")
     for o in u.offsets:      # the offset times the signal's rate of change, over the held-out samples
         lines.append(f"| {o.signal} | offset {o.offset:+.3g} s (null spread {o.spread:.2g} s) | "
-                     f"{o.explained:.2g} | its own rate of change: its clock runs {o.direction()} the "
-                     f"replay inputs' (clock offset?; p {o.p_value:.2g}) |")
+                     f"{o.explained:.2g} | its own rate of change, as a clock {o.direction()} the replay "
+                     f"inputs' leaves it (clock offset?; p {o.p_value:.2g}) |")
     lines.append("")
     return lines
 
