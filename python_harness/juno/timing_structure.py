@@ -26,7 +26,7 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    (the replay with fresh input noise, and fresh output noise; residual_structure step 3) gives
    tau's distribution when the model is right; the observed tau minus the replicas' mean, over
    their standard deviation, is taken as Student's t with replicas - 1 degrees of freedom (scaled
-   by sqrt(1 + 1 / replicas) for the estimated mean).
+   by sqrt(1 + 1 / replicas) for the estimated mean); the offset reported is tau less that mean.
 4. **The test.** A position (TIMED_SIGNALS) is offset when its two-sided p is below
    FALSE_ALARM / (number of positions tested) (Bonferroni) and the offset lies between
    MATERIAL_OFFSET and LINEAR_LIMIT.
@@ -71,7 +71,8 @@ RATE_HALF_WIDTH = 0.25
 #: replay by half a step.  Calibrated by simulation (scripts/structure_calibration.py,
 #: docs/results/structure-calibration.md): on campaigns with nothing hidden, of both designs, the
 #: fitted right model leaves offsets in the positions of up to about 0.04 s that the test resolves;
-#: the floor lies twice above them, and below the clock offset the decoy of juno.effects hides (0.25 s at strength 1).
+#: the floor lies twice above them, and below the clock offset the decoy of juno.effects hides
+#: (0.25 s at strength 1).
 MATERIAL_OFFSET = 0.1
 #: The largest offset (s) reported as one: where the first-order expansion stops holding.
 LINEAR_LIMIT = 1.0
@@ -93,7 +94,6 @@ class SignalOffset:
     samples: int
     explained: float = 0.0
     timed: bool = True
-
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "offset": self.offset, "null_spread": self.spread,
