@@ -29,13 +29,13 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    by sqrt(1 + 1 / replicas) for the estimated mean); the offset reported is tau less that mean.
 4. **The test.** A position (TIMED_SIGNALS) is offset when its two-sided p is below
    FALSE_ALARM / (number of positions tested) (Bonferroni) and the offset lies between
-   MATERIAL_OFFSET and LINEAR_LIMIT.
-   Below MATERIAL_OFFSET an offset is the replay's own: it applies its inputs held over each
-   communication step (juno.simulator), a delay of half a step that a right model's positions
-   show as offsets of a few hundredths of a second.  Beyond LINEAR_LIMIT the first-order expansion does not hold
-   (the rover's speed changes within about a second), so a fitted tau that large says only that
-   the residual correlates with the rate of change, not that the signal is shifted; a shift that
-   large leaves block-mean structure of its own, which residual_structure reports.
+   MATERIAL_OFFSET and LINEAR_LIMIT.  Below MATERIAL_OFFSET an offset is the replay's own: it
+   applies its inputs held over each communication step (juno.simulator), a delay of half a
+   step that a right model's positions show as offsets of a few hundredths of a second.  Beyond
+   LINEAR_LIMIT the first-order expansion does not hold (the rover's speed changes within about
+   a second), so a fitted tau that large says only that the residual correlates with the rate of
+   change, not that the signal is shifted; a shift that large leaves block-mean structure of its
+   own, which residual_structure reports.
 
 Why the positions alone: their timing follows the spins' through kinematics (the rover moves at
 the wheels' spin times their radius, less the slip), which a right model reproduces to within
