@@ -198,3 +198,21 @@ def test_an_offset_the_named_cause_leaves_is_reported_beside_it():
 def test_an_offset_the_test_does_not_report_leaves_a_right_model_none():
     assert verdict([], _with_offset(_structure(torque_left=0.0), 0.2, p_value=0.2), None).cause == "none"
     assert verdict([], _with_offset(_structure(torque_left=0.0), 0.5 * MATERIAL_OFFSET), None).cause == "none"
+
+
+def test_a_ripple_in_the_wheel_angle_favours_lugs_over_a_tied_drivetrain_loss():
+    """Lugs entering the soil make the drive torque ripple with the wheel angle; a drivetrain loss
+    does not (a gear's mesh ripples at hundreds per wheel revolution).  When the two are reported
+    equally good and the torques ripple, the diagnosis says which the ripple favours."""
+    from juno.diagnose.verdict import ripple_between_tied
+    ripples = _ripple(4.0).found()
+    note = ripple_between_tied("drivetrain_loss", ["grouser"], ripples)
+    assert note is not None and "at 18 per revolution" in note
+    assert note.endswith("which grouser makes and drivetrain_loss does not: the ripple favours grouser")
+    assert ripple_between_tied("grouser", ["drivetrain_loss"], ripples).endswith("the ripple favours grouser")
+
+
+def test_no_ripple_or_no_parting_of_the_tied_causes_says_nothing():
+    from juno.diagnose.verdict import ripple_between_tied
+    assert ripple_between_tied("drivetrain_loss", ["grouser"], []) is None
+    assert ripple_between_tied("soil_patch", ["multipass"], _ripple(4.0).found()) is None

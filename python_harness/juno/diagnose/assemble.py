@@ -16,7 +16,7 @@ from .problem import Problem
 from ..residual_structure import ResidualStructure
 from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
                       NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
-from .verdict import Verdict, explanation
+from .verdict import Verdict, explanation, ripple_between_tied
 
 if TYPE_CHECKING:
     from .search import Outcome
@@ -125,7 +125,11 @@ def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, du
                          outcome.chosen[-1].residuals if outcome.chosen else None)
     structure = {"base": structures[0].to_json(),
                  "extended": structures[1].to_json() if structures[1] is not None else None}
-    return DiagnosisResult(judged.cause, judged.causes, explanation(judged, catalog), outcome.equally_good,
+    words = explanation(judged, catalog)
+    if judged.causes and outcome.equally_good:
+        note = ripple_between_tied(judged.causes[0], outcome.equally_good, structures[0].ripples())
+        words = f"{words}; {note}" if note else words
+    return DiagnosisResult(judged.cause, judged.causes, words, outcome.equally_good,
                            outcome.apart, duels + outcome.branch_duels, outcome.candidates, outcome.second_round,
                            baseline(problem, base), criteria, residual_analysis(problem, base.residuals), extended,
                            gain, time.perf_counter() - t_start, plot_data, judged.unexplained, structure)

@@ -101,6 +101,11 @@ class Candidate:
     #: there the multi-pass fit found half the true rut and stiffening, with 3.6 times the
     #: drawbar training error of the fit from the paper's start.
     soil_restart: bool = False
+    #: whether the cause makes the traction, and the drive torque, ripple with the wheel angle at a
+    #: few to a few tens per revolution (lugs entering the soil one by one): the periodic test's
+    #: ripple (juno.periodic_structure) is then evidence for it over a tied cause that makes none
+    #: (a gear's mesh ripples at hundreds per wheel revolution, beyond what the test scans)
+    ripples_with_wheel_angle: bool = False
 
     @property
     def is_registration(self) -> bool:
@@ -161,7 +166,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               active=(("slipSinkage.coefficient", 0.0, 0.02),), soil_restart=True),
     Candidate("grouser", "lugs shear the soil at a larger radius and add thrust beyond the Mohr-Coulomb limit",
               (ExtParam("grouser.thrustGain", 0.0, 0.0, 3.0), ExtParam("grouser.lugHeight", 0.0, 0.0, 0.1)),
-              active=(("grouser.thrustGain", 0.0, 0.01), ("grouser.lugHeight", 0.0, 0.001)), soil_restart=True),
+              active=(("grouser.thrustGain", 0.0, 0.01), ("grouser.lugHeight", 0.0, 0.001)), soil_restart=True,
+              ripples_with_wheel_angle=True),
     # A drivetrain's losses in their standard form: a load-dependent part, a fraction of the
     # torque (gear mesh), and a no-load part, a Coulomb drag (seals, bearings, chain), the same
     # on both sides (one tied value for drive.frictionLeft and drive.frictionRight: the two

@@ -38,6 +38,7 @@ from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
 from ..scan_consistency import ScanTests
 from ..timing_structure import SignalOffset
+from .candidates import CANDIDATES
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -124,6 +125,22 @@ def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStruct
         return Verdict(causes[0], causes, left)
     left.absorbed_by = list(causes)
     return Verdict("unexplained", [], left)
+
+
+def ripple_between_tied(named: str, tied: list[str], ripples: list[PeriodicSignal]) -> str | None:
+    """A sentence on what a ripple in the wheel angle says between the named cause and the causes
+    reported equally good (``tied``), or None: when the data ripple (``ripples``, the base model's
+    periodic test) and the tied causes part into some that make such a ripple and some that make
+    none (Candidate.ripples_with_wheel_angle), the ripple is evidence the held-out gains could not
+    weigh (the candidates are judged on block means, which average it away)."""
+    both = [named] + [t for t in tied if t != named]
+    makes = [c for c in both if c in CANDIDATES and CANDIDATES[c].ripples_with_wheel_angle]
+    without = [c for c in both if c in CANDIDATES and not CANDIDATES[c].ripples_with_wheel_angle]
+    if not ripples or not makes or not without:
+        return None
+    r = ripples[0]
+    return (f"{r.signal} ripples with the wheel angle at {r.lugs} per revolution, which {' and '.join(makes)} "
+            f"makes and {' and '.join(without)} does not: the ripple favours {' and '.join(makes)}")
 
 
 def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
