@@ -418,16 +418,15 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     failure = next((f for _r, f in replays if f is not None), None)
     if failure is not None:
         raise failure
-    null_means = np.empty((replicas, len(observed)))
-    null_residuals = np.empty((replicas, len(residuals)))
+    # Each replica's residuals where the model is right: the block test takes their block means,
+    # the timing test the samples themselves.
+    null_residuals = np.zeros((replicas, len(residuals)))
     for i in range(replicas):
-        d = np.zeros(len(residuals))
         for j, p in enumerate(tested):
             k = i * len(tested) + j
             a, b = offsets[p.run_id]
-            d[a:b] = (replays[k][0] - residuals[a:b]) + draws[k][1]
-        null_means[i] = _block_means(d[units.index], units.key)
-        null_residuals[i] = d
+            null_residuals[i, a:b] = (replays[k][0] - residuals[a:b]) + draws[k][1]
+    null_means = np.array([_block_means(d[units.index], units.key) for d in null_residuals])
 
     sigma_of = {c: s for p in tested for c, (_t, _v, _o, s, _l) in p.targets.items()}
     means_by_signal = {str(sig): observed[units.unit_signal == sig] for sig in np.unique(units.unit_signal)}
