@@ -137,6 +137,10 @@ class PeriodicSignal:
         return (f"{self.signal} follows the wheel angle at {self.lugs} per revolution (lug passing?), "
                 f"amplitude {self.amplitude:.3g} {self.unit} ({self.ratio:.2g} x its sensor noise)")
 
+    def brief(self) -> str:
+        """The finding in a few words (a progress line)."""
+        return f"{self.signal} ripple at {self.lugs} per wheel revolution ({self.ratio:.2g} x noise)"
+
 
 @dataclass
 class PeriodicStructure:

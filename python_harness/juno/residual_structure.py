@@ -158,6 +158,19 @@ class SignalStructure:
                 "follows": [{"covariate": c.name, "share": c.share, "slope": c.slope, "unit": c.unit}
                             for c in self.follows]}
 
+    def sentence(self) -> str:
+        """The finding in words: its size, and the covariate it follows best with the slope."""
+        text = f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x its sensor noise)"
+        if not self.follows:
+            return text
+        c = self.follows[0]
+        slope = f" {c.slope:+.3g} {c.unit}" if c.name != "run" else ""
+        return f"{text}, following {c.name}{slope} ({c.share:.0%} of it)"
+
+    def brief(self) -> str:
+        """The finding in a few words (a progress line)."""
+        return f"{self.signal} ({self.ratio:.2g} x noise)"
+
 
 @dataclass
 class ResidualStructure:
@@ -202,6 +215,12 @@ class ResidualStructure:
     def structured(self) -> list[SignalStructure]:
         """The signals with structure, largest (relative to their noise) first."""
         return sorted((s for s in self.signals if s.significant), key=lambda s: -s.ratio)
+
+    def findings(self, brief: bool = False) -> list[str]:
+        """Every finding in words: the signals with structure, the ripples in the wheel angle and
+        the time offsets, each as its ``sentence()`` (or ``brief()``); [] when nothing is found."""
+        found = [*self.structured(), *self.ripples(), *self.offsets()]
+        return [f.brief() if brief else f.sentence() for f in found]
 
     def to_json(self) -> dict[str, Any]:
         return {"significant": self.significant, "false_alarm": FALSE_ALARM, "level": self.level,

@@ -108,6 +108,10 @@ class SignalOffset:
                 f"change as a clock {abs(self.offset):.2g} s {self.direction()} the inputs' clock leaves it "
                 f"(p {self.p_value:.1g})")
 
+    def brief(self) -> str:
+        """The finding in a few words (a progress line)."""
+        return f"{self.signal} offset {self.offset:+.2g} s from the inputs"
+
     def direction(self) -> str:
         """'behind' when the signal's sample stamped t was taken later than t on the inputs' clock
         (a positive offset), 'ahead of' otherwise."""

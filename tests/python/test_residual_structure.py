@@ -207,3 +207,34 @@ def test_a_torque_offset_of_two_thirds_of_its_noise_is_structure_but_not_in_a_po
     # Below the torques' floor, however clear statistically, it is not structure either.
     small = _signal_with_offset("torque_left", 2.0)
     assert small.p_value < 1e-10 and small.ratio < MATERIAL_FRACTION_CONTACT and not small.significant
+
+
+# ------------------------------------------------------------ the findings in words
+
+def test_the_findings_are_said_once_each_structure_then_ripples_then_offsets():
+    """What a structure test found, in the one wording the diagnosis's verdict, its progress line
+    and the joint identification's doubts share: the signals with structure (largest first), then
+    the ripples in the wheel angle, then the time offsets; what is not significant is not said."""
+    from juno.periodic_structure import PeriodicSignal, PeriodicStructure
+    from juno.residual_structure import Covariate, ResidualStructure, SignalStructure
+    from juno.timing_structure import SignalOffset, TimingStructure
+
+    def structure(signal: str, ratio: float, significant: bool) -> SignalStructure:
+        return SignalStructure(signal, "N m", 13, 3.0, 3.0 * ratio, ratio, 1e-4, significant,
+                               [Covariate("slip", 0.8, 12.0, "N m per unit slip")])
+    ripple = PeriodicSignal("torque_left", "N m", 12, 2.0, 3.0, 0.47, 1e-5, True, (3, 40), ["dbp1"])
+    test = ResidualStructure([structure("torque_left", 0.4, True), structure("pos_x", 0.2, False),
+                              structure("torque_right", 0.9, True)], 0.001, 20, ["dbp1"],
+                             PeriodicStructure([ripple], 0.01),
+                             TimingStructure([SignalOffset("pos_x", 0.2, 0.04, 1e-4, True, 400),
+                                              SignalOffset("pos_y", 0.01, 0.04, 0.6, False, 400)], 0.0033))
+    said = test.findings()
+    assert said == [test.signals[2].sentence(), test.signals[0].sentence(), ripple.sentence(),
+                    test.timing.signals[0].sentence()]
+    assert said[0].startswith("torque_right 2.7 N m RMS (0.9 x its sensor noise), following slip")
+    assert "lags the replay by 0.2 s" in said[3]
+    assert test.findings(brief=True) == ["torque_right (0.9 x noise)", "torque_left (0.4 x noise)",
+                                         "torque_left ripple at 12 per wheel revolution (0.47 x noise)",
+                                         "pos_x offset +0.2 s from the inputs"]
+    quiet = ResidualStructure([structure("pos_x", 0.2, False)], 0.001, 20, ["dbp1"])
+    assert quiet.findings() == [] and quiet.findings(brief=True) == []

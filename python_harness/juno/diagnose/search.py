@@ -235,10 +235,7 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
                                     fmu_parameters(m.params), data=data, pool=pool, periodic_bases=bases)
                  for m in models]
     for m, t in zip(models, tests):
-        found = ", ".join([f"{s.signal} ({s.ratio:.2g} x noise)" for s in t.structured()]
-                          + [f"{r.signal} ripple at {r.lugs} per wheel revolution ({r.ratio:.2g} x noise)"
-                             for r in t.ripples()]
-                          + [f"{o.signal} offset {o.offset:+.2g} s from the inputs" for o in t.offsets()]) or "none"
+        found = ", ".join(t.findings(brief=True)) or "none"
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
     return tests[0], (tests[1] if len(tests) > 1 else None)
 

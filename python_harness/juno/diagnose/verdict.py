@@ -75,20 +75,11 @@ class Unexplained:
         """One sentence: the ``most`` largest signals' structure and the covariate each follows
         best, then the ripples in the wheel angle (the JSON has every signal and covariate)."""
         more = len(self.signals) - most
-        parts = [_signal_sentence(s) for s in self.signals[:most]]
+        parts = [s.sentence() for s in self.signals[:most]]
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
         scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
         return "; ".join(parts + [r.sentence() for r in self.ripples] + [o.sentence() for o in self.offsets] + scan)
-
-
-def _signal_sentence(s: SignalStructure) -> str:
-    text = f"{s.signal} {s.structure_rms:.3g} {s.unit} RMS ({s.ratio:.2g} x its sensor noise)"
-    if not s.follows:
-        return text
-    c = s.follows[0]
-    slope = f" {c.slope:+.3g} {c.unit}" if c.name != "run" else ""
-    return f"{text}, following {c.name}{slope} ({c.share:.0%} of it)"
 
 
 @dataclass

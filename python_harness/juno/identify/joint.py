@@ -270,12 +270,9 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
         doubts.append(f"the residuals could not be tested for structure beyond sensor noise: {exc}")
         return doubts, None
     if test.significant:
-        doubts.append("the fitted model leaves structure beyond sensor noise in its residuals ("
-                      + "; ".join([f"{s.signal}: {s.ratio:.2g} x its noise" + (f", following {s.follows[0].name}"
-                                                                                  if s.follows else "")
-                                   for s in test.structured()] + [r.sentence() for r in test.ripples()]
-                                  + [o.sentence() for o in test.offsets()])
-                      + "): the model does not describe these data, and its parameters absorb what it misses")
+        doubts.append(f"the fitted model leaves structure beyond sensor noise in its residuals "
+                      f"({'; '.join(test.findings())}): the model does not describe these data, and its "
+                      "parameters absorb what it misses")
     return doubts, (test.to_json() if test.signals else None)
 
 
