@@ -54,6 +54,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import beta
 
 from juno.atomic import atomic_write_text
 from juno.bench import commit
@@ -126,11 +127,31 @@ def _evidence(candidate: dict) -> dict:
     return {k: candidate[k] for k in keep if k in candidate}
 
 
+#: The confidence of the lower bounds the tables give under a rate (one-sided).
+RATE_CONFIDENCE = 0.95
+
+
+def rate_lower_bound(right: int, cases: int, confidence: float = RATE_CONFIDENCE) -> float:
+    """The exact (Clopper-Pearson) one-sided lower confidence bound on a rate seen as ``right``
+    of ``cases``: the rate below which ``right`` or more would be seen with probability at most
+    1 - ``confidence``.  Why: a few draws per effect cannot show a 90 or 95 % rate (3 of 3 bound
+    it only above 37 %), and the table says how far its draws do."""
+    if right <= 0:
+        return 0.0
+    return float(beta.ppf(1.0 - confidence, right, cases - right + 1))
+
+
+def _rate(right: int, cases: int) -> str:
+    """``right/cases`` with its lower bound, as a table cell."""
+    return f"{right}/{cases} (>= {rate_lower_bound(right, cases):.0%})"
+
+
 def table(cases: list[dict]) -> str:
     """Markdown: per effect, how often the hidden cause was named, and what else was."""
     lines = []
     if any("effects" not in c and c["effect"] in EFFECTS for c in cases):
-        lines += ["| hidden effect | cases | named correctly | named instead | median held-out gain | "
+        lines += [f"| hidden effect | cases | named correctly (>= its {RATE_CONFIDENCE:.0%} lower bound) | "
+                  "named instead | median held-out gain | "
                   "median diagnose wall time |", "|---|---|---|---|---|---|"]
     for effect, design in [(e, d) for e in EFFECTS for d in sorted({c.get("design", "default") for c in cases})]:
         mine = [c for c in cases if c["effect"] == effect and c.get("design", "default") == design]
@@ -145,20 +166,21 @@ def table(cases: list[dict]) -> str:
         gains = [c["gain"] for c in mine if c["correct"] and effect != "none"]
         gain = f"{np.median(gains):+.1%}" if gains else "-"
         label = effect if design == "default" else f"{effect} ({design} design)"
-        lines.append(f"| {label} | {len(mine)} | {right}/{len(mine)} | {instead} | {gain} | "
+        lines.append(f"| {label} | {len(mine)} | {_rate(right, len(mine))} | {instead} | {gain} | "
                      f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
     lines += _forms_table([c for c in cases if "effects" not in c and c["effect"] not in EFFECTS], bool(lines))
     pairs = [c for c in cases if "effects" in c]
     if pairs:
         if lines:
             lines.append("")                # a blank line between the two tables
-        lines += ["| hidden together | cases | both named | the stronger named first | second step removed more | "
+        lines += ["| hidden together | cases | both named | the stronger named first (>= its "
+                  f"{RATE_CONFIDENCE:.0%} lower bound) | second step removed more | "
                   "median diagnose wall time |", "|---|---|---|---|---|---|"]
     for hidden in sorted({c["effect"] for c in pairs}):
         mine = [c for c in pairs if c["effect"] == hidden]
         reversed_steps = sum(len(r) == 2 and r[1] > r[0] for r in (c["removed_by_step"] for c in mine))
         lines.append(f"| {hidden} | {len(mine)} | {sum(c['both_named'] for c in mine)}/{len(mine)} | "
-                     f"{sum(c['correct'] for c in mine)}/{len(mine)} | {reversed_steps}/{len(mine)} | "
+                     f"{_rate(sum(c['correct'] for c in mine), len(mine))} | {reversed_steps}/{len(mine)} | "
                      f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
     return "\n".join(lines)
 
@@ -168,7 +190,8 @@ def _forms_table(cases: list[dict], after_table: bool) -> list[str]:
     if not cases:
         return []
     lines = [""] if after_table else []
-    lines += ["| hidden effect | design | cases | named right | named instead | said unexplained | "
+    lines += [f"| hidden effect | design | cases | named right (>= its {RATE_CONFIDENCE:.0%} lower bound) | "
+              "named instead | said unexplained | "
               "median diagnose wall time |", "|---|---|---|---|---|---|---|"]
     for effect in ALL_EFFECTS:
         for design in sorted({c.get("design", "default") for c in cases}):
@@ -182,7 +205,7 @@ def _forms_table(cases: list[dict], after_table: bool) -> list[str]:
                 if not c["correct"]:
                     wrong[c["cause"]] = wrong.get(c["cause"], 0) + 1
             instead = ", ".join(f"{k} {v}" for k, v in sorted(wrong.items(), key=lambda kv: -kv[1])) or "-"
-            lines.append(f"| {label} | {design} | {len(mine)} | {sum(c['correct'] for c in mine)}/{len(mine)} | "
+            lines.append(f"| {label} | {design} | {len(mine)} | {_rate(sum(c['correct'] for c in mine), len(mine))} | "
                          f"{instead} | {sum(bool(c.get('unexplained')) for c in mine)}/{len(mine)} | "
                          f"{np.median([c['wall_time'] for c in mine]):.0f} s |")
     return lines

@@ -392,6 +392,9 @@ def detection_page(data: Optional[dict[str, Any]]) -> str:
               f"- machine: {prov['machine']}", "",
               "Each case synthesizes a campaign with the effect hidden at a random strength, moves "
               "`truth.json` out, runs `juno diagnose` and compares the named cause with the hidden one. "
+              "Beside each rate is the exact one-sided 95 % lower bound its draws give (Clopper-Pearson): "
+              "the rate below which that many right answers would be a 5 % event, so that a few draws "
+              "are not read as a high rate. "
               "Wall times are per diagnose and depend on the machine's load.", "",
               data["table"], ""]
     return "\n".join(lines)
