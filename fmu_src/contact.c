@@ -44,35 +44,75 @@ static double chord_half(double R, double h)
     return sqrt(h * (2.0 * R - h));
 }
 
-/* seg(t) = t - sin t cos t = (2t - sin 2t)/2, the segment area over R^2.
- * For small t the difference cancels (seg ~ 2t^3/3), so for t < 0.1 the
- * Taylor series of (y - sin y)/2, y = 2t, is used (this function); at
- * t = 0.1 its truncation error is ~1e-16 relative, and the direct form is
- * accurate to ~3e-14 above it, so the switch is invisible. */
-static double seg_area_series(double t)
+/* seg(t) = t - sin t cos t, the segment area over R^2, of half-angle t.
+ *
+ * Shallow halves, h <= R/2 (every practical sinkage): with y = sin(t/2),
+ * w = y^2 = h / (2R), dseg/dy = 16 y^2 sqrt(1 - y^2), so seg = y^3 H(w) with
+ * H(w) = 16 sum_n (-1)^n C(1/2, n) w^n / (2n + 3), analytic for |w| < 1 and
+ * free of cancellation at small h (H(0) = 16/3, seg ~ 2t^3/3).  SEG_SHALLOW
+ * holds H on w in [0, 1/4] as a polynomial of degree 13 in s = 8w - 1 =
+ * 4h/R - 1 (Chebyshev interpolation in 60-digit arithmetic,
+ * scripts/segment_polynomial.py): truncation ~1e-19 relative, 1.3e-16 with
+ * the rounding of its evaluation in doubles.  The half volume then needs a
+ * square root beside a polynomial, no atan and no division: an atan after a
+ * square root and a division is the longest link of the chain that ends in
+ * the normal force, and with it the closed form takes a third more time
+ * (bench_contact).  The volume is also accurate to ~6e-16 at every depth,
+ * where t - sin t cos t from t loses digits to cancellation (~7e-14). */
+static const double SEG_SHALLOW[14] = {
+    5.128637043666172,
+    -0.20964079195137553,
+    -0.005210251973204928,
+    -0.00028473560060429757,
+    -2.0566890535696796e-05,
+    -1.7260233555171983e-06,
+    -1.5927493935194996e-07,
+    -1.5697276312455876e-08,
+    -1.6237896390633733e-09,
+    -1.7432952087026875e-10,
+    -1.925734658774316e-11,
+    -2.1806451119031694e-12,
+    -2.648792360064483e-13,
+    -3.1152627211769835e-14,
+};
+
+/* Half-segment volume (b R^2 / 2) seg(t) of depth h in (0, R/2]:
+ * volume_factor h sqrt(h) H(s), volume_factor = (b R^2 / 2) (2R)^-3/2,
+ * s_scale = 4 / R.  Estrin's scheme: the polynomial's chain is 5 products
+ * and sums deep instead of 13. */
+static double shallow_half_volume(double volume_factor, double s_scale, double h)
 {
-    const double y = 2.0 * t, y2 = y * y;
-    /* y^3/3! - y^5/5! + y^7/7! - y^9/9! + y^11/11!, halved */
-    const double s = y * y2 *
-        (1.0 / 6.0 - y2 * (1.0 / 120.0 - y2 * (1.0 / 5040.0 -
-         y2 * (1.0 / 362880.0 - y2 * (1.0 / 39916800.0)))));
-    return 0.5 * s;
+    const double *c = SEG_SHALLOW;
+    const double s = h * s_scale - 1.0, s2 = s * s, s4 = s2 * s2, s8 = s4 * s4;
+    const double q0 = (c[0] + c[1] * s) + (c[2] + c[3] * s) * s2;
+    const double q1 = (c[4] + c[5] * s) + (c[6] + c[7] * s) * s2;
+    const double q2 = (c[8] + c[9] * s) + (c[10] + c[11] * s) * s2;
+    const double q3 = c[12] + c[13] * s;
+    const double H = (q0 + q1 * s4) + (q2 + q3 * s4) * s8;
+    return (volume_factor * h * H) * sqrt(h);
 }
 
-/* Half-angle t0 of the segment of depth h and half chord L, by the
- * half-angle formula tan(t0/2) = sin t0 / (1 + cos t0) = L / (2R - h):
- * accurate at small h, where acos(1 - h/R) loses digits, and at h = R;
- * one atan is cheaper than atan2 (a quarter of the closed form's time
- * went to atan2, measured with perf). */
-static double segment_angle_arg(double R, double h, double L) { return L / (2.0 * R - h); }
-
-/* Half-segment volume from depth h in (0, R], half chord L, half-angle t
- * (= 2 atan(segment_angle_arg)) and inv_R2 = 1 / R^2:
- * (b R^2 / 2) (t - sin t cos t), sin t cos t = (L / R)((R - h) / R)
- * (which the series branch does not need). */
-static double half_volume_from_angle(double R, double inv_R2, double width, double h, double L, double t)
+/* Deeper halves (R/2 < h <= R, t >= pi/3, where t - sin t cos t does not
+ * cancel): t = 2 atan(L / (2R - h)) by the half-angle formula tan(t/2) =
+ * sin t / (1 + cos t), accurate up to h = R, and sin t cos t = (L / R)((R - h) / R). */
+static double deep_half_volume(double R, double inv_R2, double width, double h, double L)
 {
-    return 0.5 * width * R * R * (t < 0.1 ? seg_area_series(t) : t - L * (R - h) * inv_R2);
+    const double t = 2.0 * atan(L / (2.0 * R - h));
+    return 0.5 * width * R * R * (t - L * (R - h) * inv_R2);
+}
+
+/* Half-segment volume from depth h in (0, R] and half chord L; the
+ * factors as contact_model_prepare derives them. */
+static double half_volume(double R, double inv_R2, double width, double volume_factor, double s_scale, double h,
+                          double L)
+{
+    return h <= 0.5 * R ? shallow_half_volume(volume_factor, s_scale, h) : deep_half_volume(R, inv_R2, width, h, L);
+}
+
+/* (b R^2 / 2) (2R)^-3/2: the half volume over h^3/2 H(w) */
+static double half_volume_factor(double R, double width)
+{
+    return 0.5 * width * R * R / (2.0 * R * sqrt(2.0 * R));
 }
 
 double contact_half_volume(double radius, double width, double h)
@@ -80,8 +120,7 @@ double contact_half_volume(double radius, double width, double h)
     const double R = radius;
     h = clamp_depth(R, h);
     if (h <= 0.0) return 0.0;
-    const double L = chord_half(R, h);
-    return half_volume_from_angle(R, 1.0 / (R * R), width, h, L, 2.0 * atan(segment_angle_arg(R, h, L)));
+    return half_volume(R, 1.0 / (R * R), width, half_volume_factor(R, width), 4.0 / R, h, chord_half(R, h));
 }
 
 /* ------------------------------------------------------------------------
@@ -242,6 +281,8 @@ int contact_model_prepare(ContactModel *m, char *err, size_t errlen)
     m->tan_phi = tan(m->phi);
     m->inv_Kvx = 1.0 / m->Kvx;
     m->inv_R2 = 1.0 / (m->radius * m->radius);
+    m->half_volume_factor = half_volume_factor(R, b);
+    m->shallow_scale = 4.0 / R;
     m->inv_Kvy = 1.0 / (m->Kvy_ratio * m->Kvx);
 
     /* Centroid factors of a half patch from the shallow-sinkage (parabolic)
@@ -312,24 +353,19 @@ typedef struct {
 
 /* n halves by Eqn 3 (n <= 2 CONTACT_BATCH), for depths h[k] (each already
  * <= R; <= 0: no contact).  The halves are computed stage by stage together
- * (every atan, then every log, then every exp) rather than one after the
+ * (every volume, then every log, then every exp) rather than one after the
  * other: each half is a chain of dependent libm calls, and side by side the
  * processor overlaps the chains (the two halves of a patch, and the patches
  * of the wheels that contact_patches gets together). */
 static void halves_closed_form(const ContactModel *m, int n, const double *h, Half *hf)
 {
     const double R = m->radius, b = m->width, p = m->vh_exp;
-    double x[2 * CONTACT_BATCH], t[2 * CONTACT_BATCH];
     for (int k = 0; k < n; ++k) {
         hf[k].L = hf[k].V = hf[k].Vh = hf[k].dVh = hf[k].xbar = hf[k].dbar = 0.0;
         if (!(h[k] > 0.0)) continue;
         hf[k].L = chord_half(R, h[k]);
-        x[k] = segment_angle_arg(R, h[k], hf[k].L);
+        hf[k].V = half_volume(R, m->inv_R2, b, m->half_volume_factor, m->shallow_scale, h[k], hf[k].L);
     }
-    for (int k = 0; k < n; ++k)
-        t[k] = h[k] > 0.0 ? 2.0 * atan(x[k]) : 0.0;
-    for (int k = 0; k < n; ++k)
-        if (h[k] > 0.0) hf[k].V = half_volume_from_angle(R, m->inv_R2, b, h[k], hf[k].L, t[k]);
     /* Eqn 3 applied to each half as if it were half of a symmetric segment
      * of the same depth (V = 2 V_half): for symmetric contact the sum of
      * the halves is exactly the paper's Eqn 3.  The power as

@@ -51,6 +51,8 @@ typedef struct {
     double inv_Kvx;     /* 1 / Kvx: the shear law's slip scale, longitudinal */
     double inv_Kvy;     /* 1 / (Kvy_ratio Kvx): lateral */
     double inv_R2;      /* 1 / radius^2 */
+    double half_volume_factor; /* (width radius^2 / 2) (2 radius)^-3/2: a shallow half's volume over h^3/2 H (contact.c) */
+    double shallow_scale;      /* 4 / radius: a shallow half's depth h to the polynomial's variable 4h/R - 1 */
 } ContactModel;
 
 typedef struct {

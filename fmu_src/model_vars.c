@@ -324,16 +324,18 @@ static const char *contact_laws_invalid(const ModelState *st, char *why, size_t 
     const WongReeceModel *sw = &st->d.wong_reece;
     const double mine[] = {c.kh, c.eta, c.gamma, c.Kvx, c.Kvy_ratio, c.cohesion, c.phi, c.radius, c.width,
                            c.slip_v_eps, c.A1, c.Vint, c.cx_eta, c.cz_eta, c.tan_phi, c.vh_exp, c.log_Vint,
-                           c.inv_Kvx, c.inv_Kvy, c.inv_R2, w.n, w.kc, w.kphi, w.cohesion, w.phi, w.K, w.a0,
+                           c.inv_Kvx, c.inv_Kvy, c.inv_R2, c.half_volume_factor, c.shallow_scale, w.n, w.kc, w.kphi, w.cohesion, w.phi, w.K, w.a0,
                            w.a1, w.lambda, w.radius, w.width, w.k_sigma, w.tan_phi, w.r_over_K};
     const double theirs[] = {sc->kh, sc->eta, sc->gamma, sc->Kvx, sc->Kvy_ratio, sc->cohesion, sc->phi,
                              sc->radius, sc->width, sc->slip_v_eps, sc->A1, sc->Vint, sc->cx_eta, sc->cz_eta,
-                             sc->tan_phi, sc->vh_exp, sc->log_Vint, sc->inv_Kvx, sc->inv_Kvy, sc->inv_R2, sw->n,
+                             sc->tan_phi, sc->vh_exp, sc->log_Vint, sc->inv_Kvx, sc->inv_Kvy, sc->inv_R2, sc->half_volume_factor,
+                             sc->shallow_scale, sw->n,
                              sw->kc, sw->kphi, sw->cohesion, sw->phi, sw->K, sw->a0, sw->a1, sw->lambda,
                              sw->radius, sw->width, sw->k_sigma, sw->tan_phi, sw->r_over_K};
     static const char *const names[] = {
         "kh", "eta", "gamma", "Kvx", "Kvy_ratio", "cohesion", "phi", "radius", "width", "slip_v_eps", "A1", "Vint",
-        "cx_eta", "cz_eta", "tan_phi", "vh_exp", "log_Vint", "inv_Kvx", "inv_Kvy", "inv_R2", "Wong-Reece n",
+        "cx_eta", "cz_eta", "tan_phi", "vh_exp", "log_Vint", "inv_Kvx", "inv_Kvy", "inv_R2", "half_volume_factor",
+        "shallow_scale", "Wong-Reece n",
         "Wong-Reece kc", "Wong-Reece kphi", "Wong-Reece cohesion", "Wong-Reece phi", "Wong-Reece K", "Wong-Reece a0",
         "Wong-Reece a1", "Wong-Reece lambda", "Wong-Reece radius", "Wong-Reece width", "Wong-Reece k_sigma",
         "Wong-Reece tan_phi", "Wong-Reece r_over_K"};
