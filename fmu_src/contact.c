@@ -80,7 +80,15 @@ static const double SEG_SHALLOW[14] = {
  * volume_factor h sqrt(h) H(s), volume_factor = (b R^2 / 2) (2R)^-3/2,
  * s_scale = 4 / R.  Estrin's scheme: the polynomial's chain is 5 products
  * and sums deep instead of 13. */
-static double shallow_half_volume(double volume_factor, double s_scale, double h)
+#if defined(__GNUC__)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE inline
+#endif
+
+/* Inlined everywhere: out of line, GCC's calls from the loop over the halves
+ * keep it scalar and spill around each call. */
+static ALWAYS_INLINE double shallow_half_volume(double volume_factor, double s_scale, double h)
 {
     const double *c = SEG_SHALLOW;
     const double s = h * s_scale - 1.0, s2 = s * s, s4 = s2 * s2, s8 = s4 * s4;
@@ -359,12 +367,21 @@ typedef struct {
  * of the wheels that contact_patches gets together). */
 static void halves_closed_form(const ContactModel *m, int n, const double *h, Half *hf)
 {
-    const double R = m->radius, b = m->width, p = m->vh_exp;
+    const double R = m->radius, b = m->width, p = m->vh_exp, half_R = 0.5 * R;
+    /* Every half's shallow volume first, at its depth clamped to [0, R/2]
+     * (no square root of a negative, which would raise FE_INVALID): a loop
+     * without calls, which GCC vectorises and the processor overlaps. */
+    double shallow[2 * CONTACT_BATCH];
+    for (int k = 0; k < n; ++k) {
+        double hk = h[k] > 0.0 ? h[k] : 0.0;
+        hk = hk < half_R ? hk : half_R;
+        shallow[k] = shallow_half_volume(m->half_volume_factor, m->shallow_scale, hk);
+    }
     for (int k = 0; k < n; ++k) {
         hf[k].L = hf[k].V = hf[k].Vh = hf[k].dVh = hf[k].xbar = hf[k].dbar = 0.0;
         if (!(h[k] > 0.0)) continue;
         hf[k].L = chord_half(R, h[k]);
-        hf[k].V = half_volume(R, m->inv_R2, b, m->half_volume_factor, m->shallow_scale, h[k], hf[k].L);
+        hf[k].V = h[k] <= half_R ? shallow[k] : deep_half_volume(R, m->inv_R2, b, h[k], hf[k].L);
     }
     /* Eqn 3 applied to each half as if it were half of a symmetric segment
      * of the same depth (V = 2 V_half): for symmetric contact the sum of
