@@ -528,20 +528,22 @@ void contact_patches(const ContactModel *m, int n, const double *sinkage, const 
  * slip_v_eps, a viscous-like law that is finite, smooth and zero at rest.
  * ---------------------------------------------------------------------- */
 
-/* tanh(r) for r >= 0, g(r) = tanh(r)/r and h(r) = g'(r)/r, both even and
- * smooth; Taylor series near 0 (truncation < 1e-14 relative at r = 0.05)
- * avoid the 0/0 and the cancellation in h.  Above 0.05, tanh r =
+/* tanh(r) for r >= 0, g(r) = tanh(r)/r and, if with_h (only the Jacobian
+ * needs it), h(r) = g'(r)/r, both even and smooth; Taylor series near 0
+ * (truncation < 1e-14 relative at r = 0.05) avoid the 0/0 and the
+ * cancellation in h.  Above 0.05, tanh r =
  * (1 - e)/(1 + e) with e = exp(-2r): 1 - e >= 0.095 has no cancellation,
  * so this is tanh to a few ulp, for one exp instead of glibc's tanh
  * (expm1 inside), which with the hypot below took 15 % of the time. */
-static void tanh_ratio(double r, double *th, double *g, double *h)
+static inline void tanh_ratio(double r, int with_h, double *th, double *g, double *h)
 {
     if (r < 0.05) {
         const double r2 = r * r;
         *g = 1.0 - r2 * (1.0 / 3.0 - r2 * (2.0 / 15.0 - r2 * (17.0 / 315.0 -
              r2 * (62.0 / 2835.0 - r2 * (1382.0 / 155925.0)))));
-        *h = -2.0 / 3.0 + r2 * (8.0 / 15.0 - r2 * (34.0 / 105.0 -
-             r2 * (496.0 / 2835.0 - r2 * (13820.0 / 155925.0))));
+        if (with_h)
+            *h = -2.0 / 3.0 + r2 * (8.0 / 15.0 - r2 * (34.0 / 105.0 -
+                 r2 * (496.0 / 2835.0 - r2 * (13820.0 / 155925.0))));
         *th = tanh(r);
         return;
     }
@@ -550,7 +552,7 @@ static void tanh_ratio(double r, double *th, double *g, double *h)
     const double inv_r = 1.0 / r;
     *th = t;
     *g = t * inv_r;
-    *h = (r * (1.0 - t * t) - t) * (inv_r * inv_r * inv_r);
+    if (with_h) *h = (r * (1.0 - t * t) - t) * (inv_r * inv_r * inv_r);
 }
 
 /* contact_shears for n wheels (a constant 1 from contact_shear), stage by
@@ -592,7 +594,7 @@ static inline void shears(const ContactModel *m, int n, const ShearInput *in, Sh
         r[k] = (aql < 1e150 && aqt < 1e150) ? sqrt(ql[k] * ql[k] + qt[k] * qt[k]) : hypot(ql[k], qt[k]);
     }
     double th[CONTACT_BATCH], g[CONTACT_BATCH], h[CONTACT_BATCH];
-    for (int k = 0; k < n; ++k) tanh_ratio(r[k], &th[k], &g[k], &h[k]);
+    for (int k = 0; k < n; ++k) tanh_ratio(r[k], jacobians, &th[k], &g[k], &h[k]);
 
     for (int k = 0; k < n; ++k) {
         if (qt[k] == 0.0) {
