@@ -99,7 +99,7 @@ enum { CONTACT_BATCH = 4 };
 
 /* contact_patch for n patches, sinkage[i], cut_front[i], cut_rear[i] into
  * out[i], the same values bit for bit.  Faster than n calls: each patch is
- * a chain of dependent library calls (sqrt, atan, log, exp, divisions),
+ * a chain of dependent library calls (sqrt, log, exp, divisions),
  * and computed stage by stage together, CONTACT_BATCH at a time, the
  * chains overlap in the processor. */
 void contact_patches(const ContactModel *m, int n, const double *sinkage, const double *cut_front,

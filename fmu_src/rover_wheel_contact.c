@@ -469,7 +469,7 @@ static NOINLINE void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU]
 
 /* The four contacts in phases, each a loop over the wheels, so that the
  * wheels' independent chains of dependent library calls (the terrain
- * lookup, the patch's atan, log and exp, the shear's exp, the divisions and
+ * lookup, the patch's log and exp, the shear's exp, the divisions and
  * square roots between them) sit side by side and the processor overlaps
  * them; one wheel after another, each chain would wait for the one before.
  * The wheels in the soil go through phases 2 to 5 as n compact entries
