@@ -309,12 +309,13 @@ typedef struct {
 } ContactFrame;
 
 /* The contact frame, the sinkage (with a rear wheel's rut), the local soil
- * factors and the forward speed into cf and in (v_long also into wc), from
- * the terrain's elevation zt and normal n under the hub.
+ * factors (1 where uniform_soil) and the forward speed into cf and in
+ * (v_long also into wc), from the terrain's elevation zt and normal n under
+ * the hub.
  * Returns 1 if the wheel is in the soil, 0 if not (then the slip, forces
  * and the rest of wc stay 0). */
 static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], int sp, double zt,
-                         const double n[3], WheelContact *wc, ContactFrame *cf, WheelSoilInput *in)
+                         const double n[3], int uniform_soil, WheelContact *wc, ContactFrame *cf, WheelSoilInput *in)
 {
     const Params *p = &m->p;
     const double R = m->d.contact.radius;
@@ -327,7 +328,8 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
     if (cf->in_plane < 1e-6) return 0;                 /* wheel lying on its side */
     v3_scale(cf->np, cf->np, 1.0 / cf->in_plane);
     double sinkage = R - hub_height / cf->in_plane;
-    soil_factors(p, H[0], H[1], &in->kh_factor, &in->strength_factor);
+    if (uniform_soil) in->kh_factor = in->strength_factor = 1.0;
+    else soil_factors(p, H[0], H[1], &in->kh_factor, &in->strength_factor);
     if (w % 2 == 1 && p->multipass_rutFraction > 0) {
         /* A rear wheel rolls in its front wheel's rut, on compacted soil. */
         const double rut = p->multipass_rutFraction *
@@ -490,6 +492,11 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
      * the sinkage, the spin and the slip. */
     double zt[NUM_WHEELS], (*normal)[3] = ev->ground_normal;   /* kept: the upright check reads them */
     rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, zt, normal);
+    /* Whether the soil is the same everywhere (no strip, no patch: the
+     * defaults), once for the four wheels rather than in each one's frame. */
+    const Params *p = &m->p;
+    const int uniform_soil = p->strip_khFactor == 1.0 && p->strip_strengthFactor == 1.0 && p->patch_khFactor == 1.0 &&
+                             p->patch_strengthFactor == 1.0;
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
         const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
@@ -500,7 +507,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
         wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
         wc->cos_alpha = 1.0;
         wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
-        if (!contact_frame(m, ev, w, Jh, sp, zt[w], normal[w], wc, &cf[n], &in[n])) continue;
+        if (!contact_frame(m, ev, w, Jh, sp, zt[w], normal[w], uniform_soil, wc, &cf[n], &in[n])) continue;
         wc->in_contact = 1;
         mem[n] = m->s.memory[w];
         wheel[n++] = w;
