@@ -56,11 +56,16 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import beta
 
-from juno.atomic import atomic_write_text
-from juno.bench import commit
-from juno.diagnose import diagnose
-from juno.effects import ALL_EFFECTS, ALTERNATIVE_FORMS, DECOYS, EFFECT_INFO, EFFECTS
-from juno.synthesize import synthesize
+# The study measures this checkout's code (and its build's FMU), whatever juno the environment
+# has installed, as the other scripts do: its provenance's commit is this checkout's.
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "python_harness"))
+
+from juno.atomic import atomic_write_text  # noqa: E402
+from juno.bench import commit  # noqa: E402
+from juno.diagnose import diagnose  # noqa: E402
+from juno.effects import ALL_EFFECTS, ALTERNATIVE_FORMS, DECOYS, EFFECT_INFO, EFFECTS  # noqa: E402
+from juno.synthesize import synthesize  # noqa: E402
 
 
 def one_case(effect: str | tuple[str, ...], strength: float | tuple[float, ...], seed: int, workers: int | None,
