@@ -12,6 +12,7 @@
  * memory's update, the checks that name the likely cause of a diverging
  * state, and the check that the rover has not overturned.
  */
+#include <float.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -262,8 +263,9 @@ static void print_beyond(double x, double limit, char *buf, size_t n)
     }
 }
 
-int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
-                         double beta, char *err, size_t n)
+/* rover_motion_is_sane's message for a state that fails its checks. */
+static NOINLINE int motion_failure(const Model *m, const Eval *ev, double time, const double pos[3],
+                                   const double u[NU], double beta, char *err, size_t n)
 {
     char cause[640];
     for (int i = 0; i < 3; ++i)
@@ -305,7 +307,21 @@ int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const doub
                             "(wheel.radius = %.3f m); %s",
                             time, rover_wheel_names[w], ev->wheel[w].sinkage, m->p.wheel_radius, cause), 0;
         }
-    return 1;
+    return snprintf(err, n, "state diverged at t = %.4f s", time), 0;   /* not reached: the checks agree */
+}
+
+/* The checks as one expression without branches or calls, each a
+ * comparison that a NaN fails (|x| <= DBL_MAX: x finite), so that a sane
+ * state, every internal step's, costs no more; a state that fails them
+ * goes to motion_failure for its message. */
+int rover_motion_is_sane(const Model *m, const Eval *ev, double time, const double pos[3], const double u[NU],
+                         double beta, char *err, size_t n)
+{
+    int sane = fabs(beta) <= ROCKER_ANGLE_LIMIT;
+    for (int i = 0; i < 3; ++i) sane &= fabs(pos[i]) <= DBL_MAX;
+    for (int i = 0; i < NU; ++i) sane &= fabs(u[i]) <= VELOCITY_LIMIT;
+    for (int w = 0; w < NUM_WHEELS; ++w) sane &= !(ev->wheel[w].sinkage >= m->p.wheel_radius);
+    return sane ? 1 : motion_failure(m, ev, time, pos, u, beta, err, n);
 }
 
 int rover_state_is_sane(const Model *m, const Eval *ev, char *err, size_t n)
