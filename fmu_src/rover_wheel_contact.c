@@ -61,8 +61,12 @@ static inline double angular_row_dot(double Jw[3][NU], int i, const double u[NU]
 }
 
 /* a[v]^T J for three vectors a[v] and a point Jacobian J, each a row of NU
- * (the other spin column 0) into out[v], reading the entries of J once. */
-static inline void point_vecs_times_jac(double out[3][NU], const double *const a[3], double J[3][NU], int sp)
+ * (the other spin column 0) into out[v], reading the entries of J once.
+ * at_hub (a constant where it is inlined): J is a hub's, whose spin
+ * columns are exact zeros, so the row's spin entry is 0 without its
+ * products (up to the sign of an exact zero). */
+static inline void point_vecs_times_jac(double out[3][NU], const double *const a[3], double J[3][NU], int sp,
+                                        int at_hub)
 {
     const double j13 = J[1][U_WX + 0], j23 = J[2][U_WX + 0], j04 = J[0][U_WX + 1], j24 = J[2][U_WX + 1];
     const double j05 = J[0][U_WX + 2], j15 = J[1][U_WX + 2];
@@ -79,7 +83,7 @@ static inline void point_vecs_times_jac(double out[3][NU], const double *const a
         o[U_WX + 2] = a0 * j05 + a1 * j15;
         o[U_BETA] = a0 * j0b + a1 * j1b + a2 * j2b;
         o[U_SPIN_L] = o[U_SPIN_R] = 0.0;
-        o[sp] = a0 * j0s + a1 * j1s + a2 * j2s;
+        if (!at_hub) o[sp] = a0 * j0s + a1 * j1s + a2 * j2s;
     }
 }
 
@@ -418,8 +422,8 @@ static NOINLINE void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU]
     double rim[3][NU], hub[3][NU];
     const double *const rim_dirs[3] = {wc->force, cf->l, sg->t};
     const double *const hub_dirs[3] = {cf->f, cf->n, sc->wong_reece ? cf->np : sg->nvec};
-    point_vecs_times_jac(rim, rim_dirs, sg->Jp, sp);
-    point_vecs_times_jac(hub, hub_dirs, Jh, sp);
+    point_vecs_times_jac(rim, rim_dirs, sg->Jp, sp, 0);
+    point_vecs_times_jac(hub, hub_dirs, Jh, sp, 1);
     for (int k = 0; k < NU; ++k)                    /* Q += Jp^T force */
         if (k < U_SPIN_L || k == sp) ev->Q[k] += rim[0][k];
     /* Damping: through v_long, v_lat and omega R. */
