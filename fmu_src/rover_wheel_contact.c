@@ -44,14 +44,14 @@ static void offset_point_jacobian(double J[3][NU], double Jh[3][NU], double Jw[3
     }
 }
 
-/* Row i of a point Jacobian (structure above) times u. */
-static inline double point_row_dot(double J[3][NU], int i, const double u[NU], int sp)
+/* Row i of a hub's point Jacobian (structure above, its spin columns
+ * exact zeros, so without their terms) times u. */
+static inline double hub_row_dot(double J[3][NU], int i, const double u[NU])
 {
     double s = u[U_VX + i];
     for (int j = 0; j < 3; ++j)
         if (j != i) s += J[i][U_WX + j] * u[U_WX + j];
-    s += J[i][U_BETA] * u[U_BETA];
-    return s + J[i][sp] * u[sp];
+    return s + J[i][U_BETA] * u[U_BETA];
 }
 
 /* Row i of an angular wheel Jacobian times u. */
@@ -318,7 +318,7 @@ typedef struct {
  * the hub.
  * Returns 1 if the wheel is in the soil, 0 if not (then the slip, forces
  * and the rest of wc stay 0). */
-static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], int sp, double zt,
+static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU], double zt,
                          const double n[3], int uniform_soil, WheelContact *wc, ContactFrame *cf, WheelSoilInput *in)
 {
     const Params *p = &m->p;
@@ -347,7 +347,7 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
      * to the axle e, and n = in_plane np + (n . e) e is normal to f. */
     v3_cross(cf->f, ev->e, cf->np);
     v3_cross(cf->l, cf->n, cf->f);
-    for (int i = 0; i < 3; ++i) cf->v_hub[i] = point_row_dot(Jh, i, m->s.u, sp);
+    for (int i = 0; i < 3; ++i) cf->v_hub[i] = hub_row_dot(Jh, i, m->s.u);
     wc->v_long = v3_dot(cf->f, cf->v_hub);
     in->v_long = wc->v_long;
     return !(sinkage <= 0);               /* a NaN sinkage goes on, to be caught as a diverged state */
@@ -503,7 +503,6 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
                              p->patch_strengthFactor == 1.0;
     for (int w = 0; w < NUM_WHEELS; ++w) {
         double (*Jh)[NU] = ev->Jv[BODY_WHEEL0 + w];   /* the hub's velocity Jacobian (the wheel's CG) */
-        const int sp = U_SPIN_L + side_of(w);         /* this wheel's spin column */
         WheelContact *wc = &ev->wheel[w];
         /* out of the soil: no slip, no force (field by field: GCC makes a
          * memset or a cleared struct of this size a rep stos, slow to start) */
@@ -511,7 +510,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
         wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
         wc->cos_alpha = 1.0;
         wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
-        if (!contact_frame(m, ev, w, Jh, sp, zt[w], normal[w], uniform_soil, wc, &cf[n], &in[n])) continue;
+        if (!contact_frame(m, ev, w, Jh, zt[w], normal[w], uniform_soil, wc, &cf[n], &in[n])) continue;
         wc->in_contact = 1;
         mem[n] = m->s.memory[w];
         wheel[n++] = w;
