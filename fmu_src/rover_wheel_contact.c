@@ -32,15 +32,29 @@
  * this wheel's spin), the only columns written: the others are the hub's
  * (the identity of the velocity columns, the other spin's 0), which
  * point_vecs_times_jac takes as known and does not read, so they are not
- * copied. */
+ * copied.  Jw's angular-rate columns are the identity, so their products
+ * are the entries of r (-[r]x's off-diagonal; the diagonal stays the hub's
+ * exact 0), and the hub's spin column is 0, so the spin column is the
+ * product alone: the same values (up to the sign of an exact zero) without
+ * the products with 0 and 1. */
 static void offset_point_jacobian(double J[3][NU], double Jh[3][NU], double Jw[3][NU], const double r[3], int sp)
 {
-    const int cols[5] = {U_WX + 0, U_WX + 1, U_WX + 2, U_BETA, sp};
-    for (int n = 0; n < 5; ++n) {
-        const int k = cols[n];
-        double w[3] = {Jw[0][k], Jw[1][k], Jw[2][k]}, c[3];
-        v3_cross(c, w, r);
-        for (int i = 0; i < 3; ++i) J[i][k] = Jh[i][k] + c[i];
+    J[0][U_WX + 0] = Jh[0][U_WX + 0];
+    J[1][U_WX + 0] = Jh[1][U_WX + 0] - r[2];
+    J[2][U_WX + 0] = Jh[2][U_WX + 0] + r[1];
+    J[0][U_WX + 1] = Jh[0][U_WX + 1] + r[2];
+    J[1][U_WX + 1] = Jh[1][U_WX + 1];
+    J[2][U_WX + 1] = Jh[2][U_WX + 1] - r[0];
+    J[0][U_WX + 2] = Jh[0][U_WX + 2] - r[1];
+    J[1][U_WX + 2] = Jh[1][U_WX + 2] + r[0];
+    J[2][U_WX + 2] = Jh[2][U_WX + 2];
+    double wb[3] = {Jw[0][U_BETA], Jw[1][U_BETA], Jw[2][U_BETA]}, ws[3] = {Jw[0][sp], Jw[1][sp], Jw[2][sp]};
+    double cb[3], cs[3];
+    v3_cross(cb, wb, r);
+    v3_cross(cs, ws, r);
+    for (int i = 0; i < 3; ++i) {
+        J[i][U_BETA] = Jh[i][U_BETA] + cb[i];
+        J[i][sp] = cs[i];
     }
 }
 
