@@ -101,16 +101,17 @@ static inline void point_vecs_times_jac(double out[3][NU], const double *const a
     }
 }
 
-/* a^T Jw for an angular wheel Jacobian: a row of NU. */
-static inline void angular_vec_times_jac(double out[NU], const double a[3], double Jw[3][NU], int sp)
+/* s a^T Jw for an angular wheel Jacobian and a scale s > 0: a row of NU,
+ * its structural zeros written as such (s 0 is 0). */
+static inline void angular_vec_times_jac(double out[NU], double s, const double a[3], double Jw[3][NU], int sp)
 {
     out[U_VX + 0] = out[U_VX + 1] = out[U_VX + 2] = 0.0;
-    out[U_WX + 0] = a[0];
-    out[U_WX + 1] = a[1];
-    out[U_WX + 2] = a[2];
-    out[U_BETA] = a[0] * Jw[0][U_BETA] + a[1] * Jw[1][U_BETA] + a[2] * Jw[2][U_BETA];
+    out[U_WX + 0] = s * a[0];
+    out[U_WX + 1] = s * a[1];
+    out[U_WX + 2] = s * a[2];
+    out[U_BETA] = s * (a[0] * Jw[0][U_BETA] + a[1] * Jw[1][U_BETA] + a[2] * Jw[2][U_BETA]);
     out[U_SPIN_L] = out[U_SPIN_R] = 0.0;
-    out[sp] = a[0] * Jw[0][sp] + a[1] * Jw[1][sp] + a[2] * Jw[2][sp];
+    out[sp] = s * (a[0] * Jw[0][sp] + a[1] * Jw[1][sp] + a[2] * Jw[2][sp]);
 }
 
 /* The rank-one updates of D and K below touch only the structural
@@ -442,9 +443,8 @@ static NOINLINE void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU]
         if (k < U_SPIN_L || k == sp) ev->Q[k] += rim[0][k];
     /* Damping: through v_long, v_lat and omega R. */
     const double *g_long = hub[0], *g_lat = rim[1], *a_t = rim[2];
-    double g_spin[NU], e_row[NU];
-    angular_vec_times_jac(e_row, ev->e, Jw, sp);
-    for (int k = 0; k < NU; ++k) g_spin[k] = sc->shear_radius * e_row[k];
+    double g_spin[NU];
+    angular_vec_times_jac(g_spin, sc->shear_radius, ev->e, Jw, sp);
     double dFl[NU], dFy[NU];
     for (int k = 0; k < NU; ++k) {
         dFl[k] = jac[0] * g_long[k] + jac[1] * g_lat[k] + jac[2] * g_spin[k];
