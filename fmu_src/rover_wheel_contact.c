@@ -258,8 +258,8 @@ void rover_terrain_under_wheels(const Model *m, const double (*xy)[3], double zt
     const Params *p = &m->p;
     if (p->terrain_offsetX == 0 && p->terrain_offsetY == 0 && p->terrain_offsetYaw == 0 && p->terrain_slopeX == 0 &&
         p->terrain_slopeY == 0) {
-        for (int w = 0; w < NUM_WHEELS; ++w)
-            zt[w] = terrain_height_normal(&m->terrain, xy[w][0], xy[w][1], n[w]) + p->terrain_offsetZ;
+        terrain_heights_normals(&m->terrain, NUM_WHEELS, xy, zt, n);
+        for (int w = 0; w < NUM_WHEELS; ++w) zt[w] += p->terrain_offsetZ;
         return;
     }
     const double c = cos(p->terrain_offsetYaw), sn = sin(p->terrain_offsetYaw);

@@ -57,6 +57,8 @@ double terrain_height(const Terrain *t, double x, double y);
 void terrain_normal(const Terrain *t, double x, double y, double n[3]);
 /* Both at once (one lookup of the cell): the elevation, and the normal into n. */
 double terrain_height_normal(const Terrain *t, double x, double y, double n[3]);
+/* terrain_height_normal at count points (x, y: the first two of each xy[k]) into z[k] and n[k]. */
+void terrain_heights_normals(const Terrain *t, int count, const double (*xy)[3], double *z, double (*n)[3]);
 
 /* 1 if (x, y) lies outside the grid's nodes (0 for flat ground and NaN). */
 int terrain_outside(const Terrain *t, double x, double y);

@@ -183,3 +183,17 @@ double terrain_height_normal(const Terrain *t, double x, double y, double n[3])
     }
     return height_in_cell(t, i, j, fx, fy);
 }
+
+void terrain_heights_normals(const Terrain *t, int count, const double (*xy)[3], double *z, double (*n)[3])
+{
+    /* On a grid, from a copy of its description: the normals' stores cannot
+     * change it, so its fields and the grid's extent stay in registers from
+     * one point to the next instead of being read and computed again.  Flat
+     * ground needs no fields, and its lookups cost less than the copy. */
+    if (t->ncols == 0) {
+        for (int k = 0; k < count; ++k) z[k] = terrain_height_normal(t, xy[k][0], xy[k][1], n[k]);
+        return;
+    }
+    const Terrain g = *t;
+    for (int k = 0; k < count; ++k) z[k] = terrain_height_normal(&g, xy[k][0], xy[k][1], n[k]);
+}

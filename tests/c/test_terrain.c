@@ -985,6 +985,45 @@ static void test_height_normal_at_once(void)
     }
 }
 
+/* terrain_heights_normals gives each point terrain_height_normal's values
+ * bit for bit, on a grid (inside, along its edges, outside, NaN) and on
+ * flat ground. */
+static void test_several_points_at_once(void)
+{
+    enum { POINTS = 2000 };
+    const double x0 = 1.0, y0 = -2.0, cell = 0.1, x1 = x0 + 9 * cell, y1 = y0 + 7 * cell;
+    const char *path = write_surface("several.asc", 10, 8, x0, y0, cell, quad_fn, NULL);
+    static double xy[POINTS][3], z[POINTS], n[POINTS][3];
+    char err[512];
+    Terrain t;
+    int k;
+
+    CHECK(terrain_load(&t, path, err, sizeof err) == 0, "several-points load failed: %s", err);
+    for (k = 0; k < POINTS; k++) {
+        xy[k][0] = k < 1990 ? urand(x0 - 0.3, x1 + 0.3) : k % 2 ? NAN : 1.2;
+        xy[k][1] = k < 1990 ? urand(y0 - 0.3, y1 + 0.3) : k % 2 ? -1.5 : NAN;
+        xy[k][2] = 0.0;
+    }
+    for (int flat = 0; flat < 2; flat++) {
+        int mismatches = 0;
+        if (flat) {
+            terrain_free(&t);
+            terrain_init_flat(&t);
+        }
+        for (k = 0; k < POINTS; k += 4)                 /* in fours, as the rover's hubs */
+            terrain_heights_normals(&t, 4, (const double (*)[3])&xy[k], &z[k], &n[k]);
+        for (k = 0; k < POINTS; k++) {
+            double one[3];
+            const double h = terrain_height_normal(&t, xy[k][0], xy[k][1], one);
+            if (!same_double(h, z[k]) || !same_double(one[0], n[k][0]) || !same_double(one[1], n[k][1]) ||
+                !same_double(one[2], n[k][2]))
+                mismatches++;
+        }
+        CHECK(mismatches == 0, "%s: terrain_heights_normals differs from terrain_height_normal at %d of %d points",
+              flat ? "flat ground" : "grid", mismatches, POINTS);
+    }
+}
+
 int main(int argc, char **argv)
 {
     const char *base = argc > 1 ? argv[1] : "/tmp";
@@ -1000,6 +1039,7 @@ int main(int argc, char **argv)
     test_mound();
     test_outside_and_flat();
     test_height_normal_at_once();
+    test_several_points_at_once();
     test_nodata();
     test_nodata_near_double_range();
     test_bad_files();
