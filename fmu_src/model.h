@@ -126,6 +126,7 @@ typedef struct {
 typedef struct {
     int in_contact;
     double sinkage, slip, Fn, F_long, F_lat, v_long;
+    double rut;                    /* the rut depth the sinkage is reduced by (m; 0 but for a rear wheel in a rut) */
     double sin_alpha, cos_alpha;   /* tilt of the normal force (Eqn 7) as applied */
     double force[3];               /* world force on the wheel, N */
 } WheelContact;
@@ -137,12 +138,14 @@ typedef struct {
     double heading[3];             /* horizontal unit heading */
     double pivot[2][3], hub[NUM_WHEELS][3];
     double pivot_r[2][3];          /* pivot - chassis reference point */
+    double rocker_R[2][9];         /* world from rocker frame, left and right */
     double u_beta;                 /* rocker rate, rad/s */
     double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
     double M[NU][NU], Q[NU], D[NU][NU], K[NU][NU];
     WheelContact wheel[NUM_WHEELS];
     double torque[2];
     double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
+    double ground_z[NUM_WHEELS];           /* terrain elevation under each hub (world, m) */
     double ground_normal[NUM_WHEELS][3];   /* unit terrain normal under each hub (world) */
 } Eval;
 

@@ -64,8 +64,11 @@
  * the wheel sinks deeper than its memory (the memory is then the end's
  * sinkage), the mean of the start's and the end's where the memory relaxes
  * towards a shallower sinkage.  With the start's the memory would lag one
- * step behind, an O(h) error.  The end's sinkage is predicted from the
- * step's displacements (sinkage_at_end).
+ * step behind, an O(h) error.  The end's sinkage is the end state's own:
+ * the end-of-step evaluation computes its geometry (the kinematics and the
+ * terrain under the hubs, which do not depend on the memory) first, the
+ * memory moves on with the sinkage on it (sinkages_at_end), and the
+ * evaluation's forces follow, so the terrain is looked up once a step.
  *
  * The step is accepted when the largest component of the difference of
  * the two solutions' velocities, plus the correction's change from the
@@ -227,62 +230,37 @@ static double error_ratio(const Model *m, const StepIncrement *inc, double h)
     return worst / m->p.solver_tolerance;
 }
 
-/* The wheels' sinkages at the end of the step inc, for the soil memory:
- * each contact's sinkage (rover_wheel_contact.c: R less the hub's height
- * above the terrain's tangent plane under it, along the plane's normal,
- * over the length of that normal within the wheel's mid-plane, less a rear
- * wheel's rut) where the step's displacements carry the hub (by its
- * velocity Jacobian) and the axle (by the rotation): exact in the
- * terrain's shape, to O(h^2) in the motion.  The rut is the start's (ev),
- * as is the sinkage of a wheel lying on its side.  The wheels side by
- * side, as the contacts: the four hubs, then the four terrain lookups,
- * then the four sinkages, so that their chains overlap. */
-static void sinkages_at_end(const Model *m, const Eval *ev, const StepIncrement *inc, double sinkage[NUM_WHEELS])
+/* The wheels' sinkages at the end of the step, for the soil memory, from
+ * the end's geometry in ev (rover_evaluate_geometry; ev->wheel still the
+ * start's contacts): each the sinkage the end's evaluation computes
+ * (rover_wheel_contact.c: R less the hub's height above the terrain's
+ * tangent plane under it, along the plane's normal, over the length of
+ * that normal within the wheel's mid-plane, less a rear wheel's rut), with
+ * the start's rut, which the memory's update moves on, and the start's
+ * sinkage for a wheel lying on its side. */
+static void sinkages_at_end(const Model *m, const Eval *ev, double sinkage[NUM_WHEELS])
 {
-    double e[3], hub[NUM_WHEELS][3], n[NUM_WHEELS][3], zt[NUM_WHEELS];
-    v3_cross(e, &inc->dq[U_WX], ev->e);                /* the axle, the same for every wheel */
-    v3_add(e, e, ev->e);
-    v3_normalize(e);
-    for (int w = 0; w < NUM_WHEELS; ++w) {
-        const double (*Jv)[NU] = (const double (*)[NU])ev->Jv[BODY_WHEEL0 + w];
-        /* hub + Jv dq over Jv's structural non-zeros (a hub's rows: [1 | -[r]x | c | 0 0], the
-         * diagonal of -[r]x exactly 0), in the order of the dense sum: its other terms add exact
-         * zeros */
-        for (int i = 0; i < 3; ++i) {
-            double x = ev->hub[w][i] + inc->dq[U_VX + i];
-            for (int j = 0; j < 3; ++j)
-                if (j != i) x += Jv[i][U_WX + j] * inc->dq[U_WX + j];
-            hub[w][i] = x + Jv[i][U_BETA] * inc->dq[U_BETA];
-        }
-    }
-    rover_terrain_under_wheels(m, (const double (*)[3])hub, zt, n);
     const double R = m->d.contact.radius;
-    int on_side[NUM_WHEELS];
     for (int w = 0; w < NUM_WHEELS; ++w) {
-        const double ne = v3_dot(n[w], e);
-        const double in_plane2 = 1.0 - ne * ne, in_plane = sqrt(in_plane2 > 0.0 ? in_plane2 : 0.0);  /* no fmax call */
-        on_side[w] = in_plane < 1e-6;
-        sinkage[w] = on_side[w] ? ev->wheel[w].sinkage : R - (hub[w][2] - zt[w]) * n[w][2] / in_plane;
-    }
-    if (!(m->p.multipass_rutFraction > 0)) return;
-    for (int w = 1; w < NUM_WHEELS; w += 2) {
-        if (on_side[w]) continue;
-        /* a rear wheel in its rut: the start's rut depth, the start's sinkage without it */
-        double n0[3];
-        const double zt0 = rover_terrain_at(m, ev->hub[w][0], ev->hub[w][1], n0), ne0 = v3_dot(n0, ev->e);
-        const double in_plane0 = sqrt(fmax(0.0, 1.0 - ne0 * ne0));
-        if (in_plane0 < 1e-6) sinkage[w] = ev->wheel[w].sinkage;
-        else sinkage[w] -= R - (ev->hub[w][2] - zt0) * n0[2] / in_plane0 - ev->wheel[w].sinkage;
+        const double *n = ev->ground_normal[w];
+        const double hub_height = (ev->hub[w][2] - ev->ground_z[w]) * n[2];
+        double np[3];
+        v3_copy(np, n);
+        v3_axpy(np, -v3_dot(n, ev->e), ev->e);
+        const double in_plane = v3_norm(np);
+        sinkage[w] = in_plane < 1e-6 ? ev->wheel[w].sinkage : R - hub_height / in_plane - ev->wheel[w].rut;
     }
 }
 
 /* Moves the state on by inc over h (ev: the step's start's evaluation, for
- * the soil memory and the checks); -1 with a message, the state left as it
- * was, if the new state would fail the checks of a diverging state (they
- * read its time, position, velocities, rocker angle and attitude, the last
- * over the ground under the start's wheels, checked before anything is
- * written: so a rejected step needs no copy of the state). */
-static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
+ * the soil memory and the checks); -1 with a message, the state and ev
+ * left as they were, if the new state would fail the checks of a diverging
+ * state (they read its time, position, velocities, rocker angle and
+ * attitude, the last over the ground under the start's wheels, checked
+ * before anything is written: so a rejected step needs no copy of the
+ * state).  On success ev holds the end's geometry (rover_evaluate_geometry)
+ * beside the start's contacts, for rover_evaluate_forces to complete. */
+static int apply_increment(Model *m, Eval *ev, const StepIncrement *inc, double h, char *err, size_t errlen)
 {
     State *s = &m->s;
     double u[NU], pos[3];
@@ -310,7 +288,8 @@ static int apply_increment(Model *m, const Eval *ev, const StepIncrement *inc, d
      * the end's sinkage; where it stays shallower, the memory relaxes towards the sinkage, and
      * the mean of the start's and the end's is its mean over the step (trapezoidal rule). */
     double sinkage[NUM_WHEELS], end[NUM_WHEELS];
-    sinkages_at_end(m, ev, inc, end);
+    rover_evaluate_geometry(m, ev);
+    sinkages_at_end(m, ev, end);
     for (int w = 0; w < NUM_WHEELS; ++w) {
         const double z0 = ev->wheel[w].sinkage, z1 = end[w], zmax = s->memory[w].zmax;
         const double mean = 0.5 * (z0 + z1);
@@ -366,7 +345,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                     s->step_next = h;
                     m->steps_taken++;
                     remaining = last ? 0.0 : remaining - hs;
-                    rover_evaluate_passive(m, ev, 1);       /* the next step's start */
+                    rover_evaluate_forces(m, ev, 1);        /* the next step's start, on its geometry */
                     if (!last) rover_evaluate_inputs(m, ev, 1);
                     continue;
                 }

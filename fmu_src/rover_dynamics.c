@@ -165,14 +165,9 @@ void rover_side_body(const Params *p, const Derived *d, double *mass, double cg[
     }
 }
 
-/* The rocker frames, which the body assembly needs beside what Eval keeps. */
-typedef struct {
-    double Rr[2][9];               /* world from rocker frame, left and right */
-} Frames;
-
 /* Kinematics: the chassis frame, the rocker frames, pivots, hubs and the
  * wheels' velocity Jacobians. */
-static void kinematics(const Model *m, Eval *ev, Frames *fr)
+static void kinematics(const Model *m, Eval *ev)
 {
     const Derived *d = &m->d;
     const State *s = &m->s;
@@ -190,7 +185,7 @@ static void kinematics(const Model *m, Eval *ev, Frames *fr)
     for (int k = 0; k < 2; ++k) {
         const double sb = sigma_of(k) * sbeta;
         const double *R = ev->R;
-        double *A = fr->Rr[k];
+        double *A = ev->rocker_R[k];
         for (int i = 0; i < 3; ++i) {
             A[3 * i + 0] = R[3 * i] * cb - R[3 * i + 2] * sb;
             A[3 * i + 1] = R[3 * i + 1];
@@ -202,7 +197,7 @@ static void kinematics(const Model *m, Eval *ev, Frames *fr)
     for (int wh = 0; wh < NUM_WHEELS; ++wh) {
         const int side = side_of(wh);
         double tmp[3];
-        m3_mul_v(tmp, fr->Rr[side], d->hub[wh % 2]);
+        m3_mul_v(tmp, ev->rocker_R[side], d->hub[wh % 2]);
         v3_add(ev->hub[wh], ev->pivot[side], tmp);
         /* The hub Jacobians the contacts work with (dense rows). */
         double (*Jv)[NU] = ev->Jv[BODY_WHEEL0 + wh];
@@ -229,7 +224,7 @@ static void zero_matrix(double A[NU][NU])
 
 /* M and Q of the bodies (ev->M, ev->Q cleared first; ev->D and ev->K
  * cleared for the contacts and inputs to add to). */
-static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
+static void assemble_bodies(const Model *m, Eval *ev)
 {
     const Params *p = &m->p;
     const Derived *d = &m->d;
@@ -267,12 +262,12 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
     for (int side = 0; side < 2; ++side) {
         double tmp[3], sv[3];
         b.mass = side_mass;
-        m3_mul_v(tmp, fr->Rr[side], side_cg);
+        m3_mul_v(tmp, ev->rocker_R[side], side_cg);
         v3_add(b.r, ev->pivot_r[side], tmp);
         if (side_diagonal)
-            m3_rotate_diag(b.I, fr->Rr[side], side_I_diag);
+            m3_rotate_diag(b.I, ev->rocker_R[side], side_I_diag);
         else
-            m3_rotate(b.I, fr->Rr[side], side_I);
+            m3_rotate(b.I, ev->rocker_R[side], side_I);
         b.sb = sigma_of(side);
         b.side = side;
         v3_cross(sv, ev->e, tmp);                 /* e x (CG - pivot) */
@@ -301,15 +296,25 @@ static void assemble_bodies(const Model *m, Eval *ev, const Frames *fr)
         for (int j = 0; j < i; ++j) ev->M[i][j] = ev->M[j][i];
 }
 
+void rover_evaluate_geometry(const Model *m, Eval *ev)
+{
+    kinematics(m, ev);
+    rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, ev->ground_z, ev->ground_normal);
+}
+
+void rover_evaluate_forces(const Model *m, Eval *ev, int matrices)
+{
+    if (matrices) assemble_bodies(m, ev);
+    rover_wheel_contacts_on_ground(m, ev, matrices);
+}
+
 /* From s.pos, quat, beta, u, spin_angle, memory, path, rut, the parameters,
  * derived data and terrain only (what a write outside model_do_step must
  * call model_changed for, rover_step.c). */
 void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
 {
-    Frames fr;
-    kinematics(m, ev, &fr);
-    if (matrices) assemble_bodies(m, ev, &fr);
-    rover_wheel_contacts(m, ev, matrices);
+    rover_evaluate_geometry(m, ev);
+    rover_evaluate_forces(m, ev, matrices);
 }
 
 /* ---------------------------------------------------------- drive, drawbar */

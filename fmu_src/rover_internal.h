@@ -111,11 +111,16 @@ double rover_terrain_at(const Model *m, double x, double y, double n[3]);
  * Eval): the elevations into zt, the normals into n. */
 void rover_terrain_under_wheels(const Model *m, const double (*xy)[3], double zt[NUM_WHEELS], double n[NUM_WHEELS][3]);
 
-/* The four wheels' contacts: fills ev->wheel; with matrices
- * (EVAL_MATRICES), adds their generalised forces to ev->Q, their damping
- * to ev->D and their stiffness to ev->K, wheel by wheel in order.  Needs
- * the kinematics of ev (rover_evaluate_passive). */
+/* The four wheels' contacts: the terrain under the hubs into
+ * ev->ground_z and ev->ground_normal, then rover_wheel_contacts_on_ground.
+ * Needs the kinematics of ev (rover_evaluate_passive). */
 void rover_wheel_contacts(const Model *m, Eval *ev, int matrices);
+
+/* The four wheels' contacts on the terrain already in ev->ground_z and
+ * ev->ground_normal: fills ev->wheel; with matrices (EVAL_MATRICES), adds
+ * their generalised forces to ev->Q, their damping to ev->D and their
+ * stiffness to ev->K, wheel by wheel in order. */
+void rover_wheel_contacts_on_ground(const Model *m, Eval *ev, int matrices);
 
 /* rover_dynamics.c */
 
@@ -134,6 +139,16 @@ void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega
  * and Q (with matrices) and the contacts.  rover_evaluate_inputs adds the
  * drive and drawbar terms; rover_evaluate does both. */
 void rover_evaluate_passive(const Model *m, Eval *ev, int matrices);
+
+/* rover_evaluate_passive in two parts: the geometry (kinematics, and the
+ * terrain under the hubs into ev->ground_z and ev->ground_normal), from
+ * the state's position, attitude, rocker angle and velocities, the
+ * parameters and the terrain only, which leaves ev's forces and contacts
+ * (ev->wheel, Q, D, K) as they were; then the forces on that geometry,
+ * from the rest (the soil memory, the rut).  Between the two the
+ * automatic step advances the soil memory with the end's own sinkage. */
+void rover_evaluate_geometry(const Model *m, Eval *ev);
+void rover_evaluate_forces(const Model *m, Eval *ev, int matrices);
 void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices);
 void rover_evaluate(const Model *m, Eval *ev, int matrices);
 

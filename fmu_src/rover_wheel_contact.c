@@ -354,6 +354,7 @@ static int contact_frame(const Model *m, const Eval *ev, int w, double Jh[3][NU]
         const double rut = p->multipass_rutFraction *
                            rut_depth_at(&m->s, side_of(w), m->s.path[side_of(w)] - p->rover_wheelbase);
         sinkage -= rut;
+        wc->rut = rut;
         in->kh_factor *= 1.0 + (p->multipass_khFactor - 1.0) * rut / (rut + p->multipass_compactionDepth);
     }
     wc->sinkage = sinkage;
@@ -487,14 +488,20 @@ static NOINLINE void contact_matrices(const Model *m, Eval *ev, double Jh[3][NU]
     add_outer_hub(ev->K, hub[2], sc->kn, a_s);
 }
 
+void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
+{
+    rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, ev->ground_z, ev->ground_normal);
+    rover_wheel_contacts_on_ground(m, ev, matrices);
+}
+
 /* The four contacts in phases, each a loop over the wheels, so that the
  * wheels' independent chains of dependent library calls (the terrain
- * lookup, the patch's log and exp, the shear's exp, the divisions and
- * square roots between them) sit side by side and the processor overlaps
- * them; one wheel after another, each chain would wait for the one before.
- * The wheels in the soil go through phases 2 to 5 as n compact entries
- * (k: wheel[k]). */
-void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
+ * lookup before, the patch's log and exp, the shear's exp, the divisions
+ * and square roots between them) sit side by side and the processor
+ * overlaps them; one wheel after another, each chain would wait for the
+ * one before.  The wheels in the soil go through phases 2 to 5 as n
+ * compact entries (k: wheel[k]). */
+void rover_wheel_contacts_on_ground(const Model *m, Eval *ev, int matrices)
 {
     const WheelSoil ws = {&m->d.contact, &m->d.wong_reece, m->p.contact_model, m->p.slipSinkage_coefficient,
                           m->p.grouser_thrustGain, m->p.grouser_lugHeight, m->p.slipSinkage_exponent,
@@ -506,10 +513,10 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
     WheelSoilContact sc[NUM_WHEELS];
     ContactMemory mem[NUM_WHEELS];
 
-    /* 1. The terrain under each hub, then wheel by wheel the contact frame,
+    /* 1. From the terrain under each hub, wheel by wheel the contact frame,
      * the sinkage, the spin and the slip. */
-    double zt[NUM_WHEELS], (*normal)[3] = ev->ground_normal;   /* kept: the upright check reads them */
-    rover_terrain_under_wheels(m, (const double (*)[3])ev->hub, zt, normal);
+    const double *zt = ev->ground_z;
+    double (*normal)[3] = ev->ground_normal;
     /* Whether the soil is the same everywhere (no strip, no patch: the
      * defaults), once for the four wheels rather than in each one's frame. */
     const Params *p = &m->p;
@@ -521,7 +528,7 @@ void rover_wheel_contacts(const Model *m, Eval *ev, int matrices)
         /* out of the soil: no slip, no force (field by field: GCC makes a
          * memset or a cleared struct of this size a rep stos, slow to start) */
         wc->in_contact = 0;
-        wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = 0.0;
+        wc->sinkage = wc->slip = wc->Fn = wc->F_long = wc->F_lat = wc->v_long = wc->sin_alpha = wc->rut = 0.0;
         wc->cos_alpha = 1.0;
         wc->force[0] = wc->force[1] = wc->force[2] = 0.0;
         if (!contact_frame(m, ev, w, Jh, zt[w], normal[w], uniform_soil, wc, &cf[n], &in[n])) continue;
