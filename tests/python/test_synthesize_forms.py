@@ -378,5 +378,6 @@ def test_the_study_scores_a_form_by_its_mechanism_and_a_decoy_by_naming_no_catal
               "correct": study.judged_right("side_drag", {"cause": cause}), "unexplained": cause == "unexplained",
               "design": "alt"} for s, cause in ((1, "drivetrain_loss"), (2, "unexplained"))]
     text = study.table(cases)
-    assert "| side_drag (decoy) | alt | 2 | 1/2 | drivetrain_loss 1 | 1/2 |" in text
+    assert (f"| side_drag (decoy) | alt | 2 | 1/2 (>= {study.rate_lower_bound(1, 2):.0%}) | drivetrain_loss 1 | 1/2 |"
+            in text)
     assert "named correctly" not in text, "no catalog case, no catalog table"
