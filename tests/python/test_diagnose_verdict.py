@@ -12,6 +12,8 @@ from juno.diagnose.verdict import EXPLAINED_SHARE, explanation, verdict
 from juno.scan_consistency import FLOORS, ScanConsistency, ScanSignal, ScanTests
 from juno.timing_structure import LINEAR_LIMIT, MATERIAL_OFFSET
 
+pytest_plugins = ["harness_fixtures"]
+
 
 def _structure(**ratios: float) -> ResidualStructure:
     """A structure test in which each named signal has structure of that size (x its noise)."""
@@ -94,6 +96,60 @@ def test_a_cause_that_removes_less_than_half_is_not_named():
     assert v.unexplained.absorbed_by == ["soil_patch"]
     assert v.unexplained.share_removed < EXPLAINED_SHARE
     assert "soil_patch would remove only" in explanation(v, "a weaker patch")
+
+
+def test_a_named_cause_whose_model_could_not_be_tested_stands_on_its_held_out_evidence():
+    """A test that could not be made is None (a replica diverged): the cause the held-out data
+    named is still named, and nothing is claimed about what it leaves."""
+    v = verdict(["soil_patch"], _structure(torque_left=2.0), None)
+    assert (v.cause, v.causes, v.unexplained) == ("soil_patch", ["soil_patch"], None)
+
+
+def test_without_the_base_models_test_what_a_named_cause_leaves_is_reported_beside_it_never_unnaming_it():
+    """With no base-model structure to weigh them by, the named causes are not judged to have
+    absorbed only part of it: they stay named, with the structure their model leaves."""
+    v = verdict(["soil_patch"], None, _structure(torque_left=1.8, torque_right=1.8))
+    assert v.cause == "soil_patch" and v.causes == ["soil_patch"]
+    assert v.unexplained.absorbed_by == [] and v.unexplained.share_removed is None
+    assert [s.signal for s in v.unexplained.signals] == ["torque_left", "torque_right"]
+    assert verdict(["soil_patch"], None, _structure(torque_left=0.0)).unexplained is None
+
+
+def test_a_structure_test_whose_replicas_cannot_be_replayed_leaves_a_named_cause_and_says_so(
+        small_campaign, fmu_path, monkeypatch):
+    """A replica (the model replayed with fresh sensor noise on its inputs) that diverges makes
+    that model's test None, and says why; with nothing named there is no verdict to give, and the
+    simulation's error is raised."""
+    from types import SimpleNamespace
+
+    import pytest
+    from juno.diagnose import search
+    from juno.diagnose.fitting import FitResult
+    from juno.diagnose.problem import build_problem
+    from juno.identify import PAPER_INITIAL
+    from juno.simulator import SimulationError
+
+    campaign = small_campaign(101).campaign
+    problem = build_problem(campaign, fmu_path, None)
+    failure = SimulationError("simulation stopped", ["fmi2DoStep: state diverged at t = 1.3450 s"], 1.3,
+                              "dbp1", "runs/dbp1.csv")
+    why = str(failure)
+
+    def diverged(*args, **kwargs):
+        raise failure
+    monkeypatch.setattr(search, "residual_structure", diverged)
+    n = int(problem.train.size)
+    base = FitResult("base", dict(PAPER_INITIAL), 1.0, 1.0, np.zeros(n), 1, 0.0)
+    named = FitResult("drivetrain_loss", {**PAPER_INITIAL, "drive.lossFraction": 0.2}, 1.0, 1.0, np.zeros(n), 1, 0.0)
+    said: list[str] = []
+    left = search.what_the_models_leave(campaign, fmu_path, problem, base, SimpleNamespace(chosen=[named]),
+                                        said.append, workers=1)
+    assert left[:2] == (None, None)
+    assert left[2] == f"a replica of the base model could not be replayed: {why}"
+    assert any("left by the drivetrain_loss model" in m and m.endswith("not tested") for m in said), said
+    with pytest.raises(SimulationError, match="state diverged"):
+        search.what_the_models_leave(campaign, fmu_path, problem, base, SimpleNamespace(chosen=[]), said.append,
+                                     workers=1)
 
 
 def _ripple(amplitude: float, seed: int = 0) -> PeriodicStructure:

@@ -108,11 +108,13 @@ def _cause_named(name: str, outcome: Outcome) -> str:
 
 def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, duels: list[Duel], outcome: Outcome,
                      criteria: Criteria, t_start: float, judged: Verdict,
-                     structures: tuple[ResidualStructure, ResidualStructure | None]) -> DiagnosisResult:
+                     structures: tuple[ResidualStructure | None, ResidualStructure | None],
+                     untested: str | None = None) -> DiagnosisResult:
     """The whole diagnosis from the search's ``outcome`` (the first round's comparisons ``duels``,
     judged on ``problem`` against the reference ``base``) and the ``judged`` verdict on what the
-    models leave (``structures``: the base model's and the named causes' residual structure);
-    wall time since ``t_start`` (time.perf_counter, s).  The extended model and its gain are the
+    models leave (``structures``: the base model's and the named causes' residual structure, None
+    where it could not be tested, and why: ``untested``); wall time since ``t_start``
+    (time.perf_counter, s).  The extended model and its gain are the
     search's catalog model even when the verdict does not name it (``unexplained.absorbed_by``)."""
     causes = [r.name for r in outcome.chosen]
     if outcome.chosen:
@@ -123,10 +125,13 @@ def diagnosis_result(problem: Problem, run_kind: np.ndarray, base: FitResult, du
     catalog = "; then ".join(_cause_named(c, outcome) for c in causes)
     plot_data = PlotData(problem.meta, problem.train, base.residuals,
                          outcome.chosen[-1].residuals if outcome.chosen else None)
-    structure = {"base": structures[0].to_json(),
-                 "extended": structures[1].to_json() if structures[1] is not None else None}
+    structure = {"base": structures[0].to_json() if structures[0] is not None else None,
+                 "extended": structures[1].to_json() if structures[1] is not None else None,
+                 "untested": untested}
     words = explanation(judged, catalog)
-    if judged.causes and outcome.equally_good:
+    if untested:
+        words = f"{words}; whether structure beyond sensor noise remains could not be tested ({untested})"
+    if judged.causes and outcome.equally_good and structures[0] is not None:
         note = ripple_between_tied(judged.causes[0], outcome.equally_good, structures[0].ripples())
         words = f"{words}; {note}" if note else words
     return DiagnosisResult(judged.cause, judged.causes, words, outcome.equally_good,

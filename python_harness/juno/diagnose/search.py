@@ -170,14 +170,14 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                         registering[0] if registering else None)
         first = first_round(search, setting)
         outcome = further_causes(search, first)
-        structures = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
-                                           workers if scheduler is None else None)
+        *structures, untested = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
+                                                      workers if scheduler is None else None)
         scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
     judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan)
     result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
-                              judged, structures)
+                              judged, (structures[0], structures[1]), untested)
     if result.structure is not None:
         result.structure["scan"] = scan.to_json() if scan is not None else None
     return result
@@ -223,21 +223,36 @@ def fmu_snapshot(fmu_path: str, tmp: str, scheduler: str | None) -> str:
 
 def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, base: FitResult, outcome: Outcome,
                           say: Callable[[str], None], workers: int | None = None
-                          ) -> tuple[ResidualStructure, ResidualStructure | None]:
+                          ) -> tuple[ResidualStructure | None, ResidualStructure | None, str | None]:
     """The residual structure test (juno.residual_structure) of the base model and of the model
     with every named cause (None when none was named), on the held-out blocks of the drawbar
-    runs; the bootstrap's replays run in ``workers`` local processes (None: one per core)."""
+    runs, and why a test could not be made (None when both were); the bootstrap's replays run in
+    ``workers`` local processes (None: one per core).
+
+    A test whose replicas cannot be replayed (a replica, the model replayed with fresh sensor noise
+    on its inputs, diverged) is None: with a cause named, the cause stands on its held-out evidence
+    and the result says that what it leaves could not be tested; with none named, neither "none"
+    nor "unexplained" can be said, and the simulation's error is raised."""
     models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
     data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
     bases = PeriodicBases()     # the models' periodic tests scan the same samples at the same angles
+    tests: list[ResidualStructure | None] = []
+    untested = None
     with JunoFMU(fmu_path) as fmu, TaskPool(workers) as pool:
-        tests = [residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train, m.residuals,
-                                    fmu_parameters(m.params), data=data, pool=pool, periodic_bases=bases)
-                 for m in models]
+        for m in models:
+            try:
+                tests.append(residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train,
+                                                m.residuals, fmu_parameters(m.params), data=data, pool=pool,
+                                                periodic_bases=bases))
+            except SimulationError as exc:
+                if not outcome.chosen:
+                    raise
+                tests.append(None)
+                untested = untested or f"a replica of the {m.name} model could not be replayed: {exc}"
     for m, t in zip(models, tests):
-        found = ", ".join(t.findings(brief=True)) or "none"
+        found = (", ".join(t.findings(brief=True)) or "none") if t is not None else "not tested"
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
-    return tests[0], (tests[1] if len(tests) > 1 else None)
+    return tests[0], (tests[1] if len(tests) > 1 else None), untested
 
 
 def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terrain_segment: float | None,

@@ -92,23 +92,28 @@ class Verdict:
     unexplained: Unexplained | None
 
 
-def verdict(causes: list[str], base: ResidualStructure, extended: ResidualStructure | None,
+def verdict(causes: list[str], base: ResidualStructure | None, extended: ResidualStructure | None,
             scan: ScanTests | None = None) -> Verdict:
     """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
     tests of the base model and of the model with those causes (None when none was named), and
-    the terrain runs' scan tests (None: no terrain run tested; used only when no cause is named)."""
+    the terrain runs' scan tests (None: no terrain run tested; used only when no cause is named).
+    A test that could not be made is None (search.what_the_models_leave): the named causes then
+    stand on their held-out evidence, with no share of the base model's structure to weigh them
+    by; the base model's test must exist when nothing is named."""
     if not causes:
+        assert base is not None
         disagrees = scan if scan is not None and scan.significant else None
         if base.significant or disagrees is not None:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
                                                           scan=disagrees, offsets=base.offsets()))
         return Verdict("none", [], None)
-    assert extended is not None
-    if not extended.significant:
+    if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
-    if not extended.structured():       # only a ripple or an offset is left: the causes explain what they act on
-        return Verdict(causes[0], causes, Unexplained("+".join(causes), [], ripples=extended.ripples(),
-                                                      offsets=extended.offsets()))
+    if not extended.structured() or base is None:
+        # only a ripple or an offset is left (the causes explain what they act on), or the base
+        # model's structure is unknown: what is left is reported beside the causes
+        return Verdict(causes[0], causes, Unexplained("+".join(causes), extended.structured(),
+                                                      ripples=extended.ripples(), offsets=extended.offsets()))
     removed = 1.0 - extended.block_excess / base.block_excess if base.block_excess > 0 else 0.0
     left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples(),
                        offsets=extended.offsets())
