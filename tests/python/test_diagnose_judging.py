@@ -256,6 +256,80 @@ def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to
         assert order[0].name == "drivetrain_loss" and duels == []
 
 
+def _ripple_maker(name: str) -> bool:
+    return diagnose.makes_ripple(name)
+
+
+def test_where_the_torques_ripple_with_the_wheel_angle_a_cause_that_makes_the_ripple_leads_one_that_does_not():
+    """As on campaigns whose lugs pulse the thrust 18 times a wheel revolution: a drivetrain loss
+    (raw gain 15.9 %) and the grouser (10.1 %) are both significant, and the loss leads the
+    ranking.  The torques ripple with the wheel angle, which lugs make and a drivetrain loss does
+    not, and the loss's held-out residuals differ from the grouser's by noise only: the grouser
+    is put first."""
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(11)
+    lugs = _reference(run_kind, 2.0, rng)
+    loss = lugs * (1.0 + 0.05 * rng.standard_normal(len(lugs)))
+    ranking = ranked([_significant("grouser", 0.101, 2), _significant("drivetrain_loss", 0.159, 2)])
+    assert ranking[0].name == "drivetrain_loss"
+    order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking,
+                                               [_fit("drivetrain_loss", loss), _fit("grouser", lugs)], _ripple_maker)
+    assert [c.name for c in order] == ["grouser", "drivetrain_loss"]
+    assert len(duels) == 1 and duels[0].stage == "ripple" and not duels[0].challenger_better
+    assert (duels[0].leader, duels[0].challenger) == ("grouser", "drivetrain_loss")
+    assert "which grouser makes and drivetrain_loss does not" in diagnose.duel_sentence(duels[0])
+    assert "grouser is put first" in diagnose.duel_sentence(duels[0])
+
+
+def test_a_leader_that_explains_the_held_out_data_better_block_by_block_keeps_the_lead_over_the_ripple():
+    """The same ranking, but the loss's held-out residuals are smaller than the grouser's in every
+    block: the held-out data overturn the ripple's evidence, by the paired test that overturns
+    any leader."""
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(11)
+    lugs = _reference(run_kind, 2.0, rng)
+    ranking = ranked([_significant("grouser", 0.101, 2), _significant("drivetrain_loss", 0.159, 2)])
+    order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking,
+                                               [_fit("drivetrain_loss", 0.9 * lugs), _fit("grouser", lugs)],
+                                               _ripple_maker)
+    assert [c.name for c in order] == ["drivetrain_loss", "grouser"]
+    assert len(duels) == 1 and duels[0].challenger_better
+    assert "drivetrain_loss stays first" in diagnose.duel_sentence(duels[0])
+
+
+def test_the_ripple_moves_nothing_when_the_leader_makes_it_or_no_significant_runner_up_does():
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(11)
+    r = _reference(run_kind, 2.0, rng)
+    fits = [_fit("drivetrain_loss", r), _fit("grouser", r), _fit("slip_sinkage", r)]
+    for ranking in ([_significant("grouser", 0.2, 2), _significant("drivetrain_loss", 0.19, 2)],
+                    [_significant("drivetrain_loss", 0.2, 2), _significant("slip_sinkage", 0.1, 1)],
+                    [_significant("drivetrain_loss", 0.2, 2)], []):
+        order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking, fits, _ripple_maker)
+        assert order == ranking and duels == []
+    assert diagnose.makes_ripple("drivetrain_loss+grouser") and not diagnose.makes_ripple("drivetrain_loss+soil_patch")
+
+
+def test_between_final_models_the_ripple_weighs_as_in_the_first_round():
+    """Two branches, the loss's and the grouser's, each without a second cause: the loss's model
+    explains more in one held-out block and differs by noise elsewhere.  Without a ripple the loss
+    is reported; with the torques rippling with the wheel angle the grouser is."""
+    problem, run_kind = _problem()
+    rng = np.random.default_rng(5)
+    base = _fit("base", _reference(run_kind, 2.0, rng))
+    grouser = _fit("grouser", 0.7 * base.residuals)
+    one_block = (problem.meta["block"] == 1) & (run_kind == "drawbar")
+    loss = _fit("drivetrain_loss", grouser.residuals * (1.0 + 0.05 * rng.standard_normal(len(run_kind)))
+                * np.where(one_block, 0.6, 1.0))
+    assert diagnose.relative_gain(problem, grouser.residuals, loss.residuals, np.ones(len(run_kind), bool)) > 0
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[loss], [grouser]])
+    assert pick == 0 and duels == []
+    pick, duels = diagnose.choose_branch(problem, run_kind, base, [[loss], [grouser]], ripple=True)
+    assert pick == 1 and len(duels) == 1 and duels[0].stage == "final models, ripple"
+    assert not duels[0].challenger_better
+    assert diagnose.duel_sentence(duels[0]).startswith("ripple, between the final models: ")
+
+
 def test_of_two_alternative_first_causes_the_final_model_that_explains_more_is_reported():
     """As on a drivetrain loss hidden with slip-sinkage: the grouser (two parameters) beat the
     loss head to head as one-cause models, but found no second cause, while the loss with

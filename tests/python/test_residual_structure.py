@@ -238,3 +238,29 @@ def test_the_findings_are_said_once_each_structure_then_ripples_then_offsets():
                                          "pos_x offset +0.2 s from the inputs"]
     quiet = ResidualStructure([structure("pos_x", 0.2, False)], 0.001, 20, ["dbp1"])
     assert quiet.findings() == [] and quiet.findings(brief=True) == []
+
+
+def test_the_search_finds_a_lug_ripple_in_the_base_models_torques_before_it_ranks_the_causes(
+        harness_fmu, fmu_path, noisy_campaign, tmp_path):
+    """The diagnosis weighs a ripple in the wheel angle between causes (judging.ripple_maker_leads),
+    so it tests the base model's held-out drive torques for one before it ranks them
+    (search.wheel_angle_ripple): no simulation beyond the model's own residuals.  On the
+    lug_ripple campaign, replayed at the true soil with no extension (the base model), it finds
+    the 18 lugs on both sides and says so; on the campaign with nothing hidden it finds none."""
+    from juno.diagnose import FitResult, build_problem
+    from juno.diagnose.problem import all_residuals
+    from juno.diagnose.search import Search, wheel_angle_ripple
+
+    ripple = make_campaign(tmp_path / "ripple", harness_fmu, NOISY_SEED, 1.0, NOISY_TIME_SCALE, effect="lug_ripple")
+    for c, expect in ((ripple, ["torque_left", "torque_right"]), (noisy_campaign, [])):
+        problem = build_problem(c.campaign, fmu_path, None)
+        said: list[str] = []
+        search = Search(c.campaign, problem, {}, None, 1, None, said.append)
+        base = FitResult("base", dict(c.soil), 1.0, 1.0, all_residuals(harness_fmu, problem, dict(c.soil)), 1, 0.0)
+        found = wheel_angle_ripple(search, base)
+        assert found is not None
+        assert sorted(s.signal for s in found.found()) == expect
+        assert all(s.lugs == 18 for s in found.found())
+        assert bool(said) == bool(expect)
+        if expect:
+            assert "ripple at 18 per wheel revolution" in said[0]

@@ -43,7 +43,11 @@
    less GAIN_MIN per parameter (penalised_gain), unless a runner-up with more
    parameters and a larger raw gain explains the held-out data significantly
    better than it, by the same paired test with the leader as the reference
-   (head_to_head); or ``none``.  Candidates whose gain is within TIE_RATIO of
+   (head_to_head); or ``none``.  When the measured drive torques ripple with the
+   wheel angle at a lug count (juno.periodic_structure), a leader whose cause makes
+   no ripple gives the lead to a significant runner-up whose cause makes one, unless
+   it explains the held-out data significantly better than that runner-up by the
+   same paired test (ripple_maker_leads).  Candidates whose gain is within TIE_RATIO of
    the cause's are reported as equally good, each with the steady drawbar run
    at which its fit and the cause's differ most (tied_models_apart).
 5. Look for a second cause: every other candidate (even one that did not
@@ -90,7 +94,7 @@ from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FIT_LOSS_SCALE, LOS
                       training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, RESIDUAL_CAP, TIE_RATIO, Z_MIN, capped_square,
                       head_to_head, judge, leader_after_head_to_head, paired_z, passes, penalised_gain, ranked,
-                      relative_gain, z_threshold)
+                      relative_gain, ripple_maker_leads, z_threshold)
 from .problem import (BLOCK, DIAGNOSE_STEP, OUTPUT_INTERVAL, Problem, all_residuals, build_problem,
                       residuals_by_run, residuals_for, residuals_or_failure, run_kinds)
 from .references import best_reference, on_reference_soil
@@ -98,7 +102,7 @@ from .render import apart_sentence, by_kind, duel_sentence, report_section, resi
 from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, DiagnosisResult, Duel, ExtendedModel,
                       GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, PlotData, Ranked, ResidualAnalysis,
                       ScanRegistration, SignalGain, TiedPair, public_json)
-from .search import (choose_branch, diagnose, first_cause_branches, refit_from_paper_soil, second_round,
-                     tie_settled, tied_models_apart)
+from .search import (choose_branch, diagnose, first_cause_branches, makes_ripple, refit_from_paper_soil, second_round,
+                     tie_settled, tied_models_apart, wheel_angle_ripple)
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

@@ -6,7 +6,8 @@ Everything here works on residuals already computed: no simulation."""
 
 from __future__ import annotations
 
-from typing import Sequence, TypeVar
+from dataclasses import replace
+from typing import Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -298,3 +299,37 @@ def leader_after_head_to_head(problem: Problem, run_kind: np.ndarray, significan
                 order.remove(c)
                 order.insert(0, c)
     return order, duels
+
+
+def ripple_maker_leads(problem: Problem, run_kind: np.ndarray, order: Sequence[R], results: Sequence[FitResult],
+                       makes_ripple: Callable[[str], bool]) -> tuple[list[R], list[Duel]]:
+    """The significant candidates (ranked, ``order``) when the measured drive torques ripple with
+    the wheel angle at a lug count (juno.periodic_structure, on the base model's residuals): a
+    leader whose cause makes no such ripple gives the lead to the best-ranked runner-up whose
+    cause makes one (``makes_ripple``, by name; Candidate.ripples_with_wheel_angle), unless the
+    leader explains the held-out data significantly better than it (head_to_head, with the
+    runner-up's model as the reference; stage "ripple").  Returns (the reordered list, the
+    comparison made, if any).  ``results``: the fits, found by name.
+
+    Why: the ripple is evidence the held-out gains cannot weigh.  The candidates are judged on
+    4 s block means, which average a ripple of a few Hz away, and no catalog model makes one, so
+    the ripple is in every model's residuals alike.  A drivetrain loss cannot make it (a gear's
+    mesh ripples at hundreds per wheel revolution, beyond the N's the test scans); lugs entering
+    the soil one by one make it, and the periodic test reports one falsely in at most 1 % of
+    campaigns.  So between two causes that both explain the held-out data significantly, the one
+    whose mechanism also accounts for the ripple is named, and the held-out data can still
+    overturn that, by the paired test that overturns any leader: a lead in the penalised
+    ranking alone is not enough."""
+    order = list(order)
+    if not order or makes_ripple(order[0].name):
+        return order, []
+    maker = next((c for c in order[1:] if makes_ripple(c.name)), None)
+    if maker is None:
+        return order, []
+    fits = {r.name: r for r in results}
+    lead = order[0]
+    duel = replace(head_to_head(problem, run_kind, fits[maker.name], fits[lead.name]), stage="ripple")
+    if not duel.challenger_better:
+        order.remove(maker)
+        order.insert(0, maker)
+    return order, [duel]

@@ -68,6 +68,12 @@ def duel_sentence(duel: Duel) -> str:
         then = "no second round of its own" if duel.challenger_better else "a second round of its own"
         return (f"near tie: {duel.challenger} {verdict} {duel.leader}, which gets {then}: "
                 f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")
+    if duel.stage in ("ripple", "final models, ripple"):
+        then = f"{duel.challenger} stays first" if duel.challenger_better else f"{duel.leader} is put first"
+        stage = "ripple, between the final models" if duel.stage.startswith("final") else "ripple"
+        return (f"{stage}: the drive torques ripple with the wheel angle, which {duel.leader} makes and "
+                f"{duel.challenger} does not; {duel.challenger} {verdict} {duel.leader}, so {then}: "
+                f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")
     stage = "head to head of the final models" if duel.stage == "final models" else "head to head"
     return (f"{stage}: {duel.challenger} (more parameters) {verdict} {duel.leader}: "
             f"held-out mean squared residual {-duel.gain:+.1%} against it, {zs}")

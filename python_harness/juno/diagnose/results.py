@@ -164,8 +164,12 @@ class Duel:
     larger raw gain) explains the held-out data significantly better than ``leader``; the paired
     test's z per kind of run and the challenger's relative gain against the leader.  ``stage`` is
     "final models" when the compared models are branches' final models (search.choose_branch),
-    and "near tie" when the challenger is the ranking's leader and ``leader`` the runner-up
-    within NEAR_TIE of it, whose own second round the comparison decides (search.tie_settled)."""
+    "near tie" when the challenger is the ranking's leader and ``leader`` the runner-up
+    within NEAR_TIE of it, whose own second round the comparison decides (search.tie_settled),
+    and "ripple" when the drive torques ripple with the wheel angle, ``leader`` is the best
+    runner-up whose cause makes that ripple and the challenger the leader whose cause makes none,
+    which stays first only by winning (judging.ripple_maker_leads); "final models, ripple" when
+    the same is asked of branches' final models (search.choose_branch)."""
 
     leader: str
     challenger: str

@@ -26,15 +26,16 @@ from .candidates import CANDIDATES, Candidate, combined, fmu_parameters
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, head_to_head, judge,
-                      leader_after_head_to_head, penalised_gain, ranked, relative_gain, soil_at_bounds)
+                      leader_after_head_to_head, penalised_gain, ranked, relative_gain, ripple_maker_leads,
+                      soil_at_bounds)
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_candidate, registration_evidence,
                      registration_start)
 from ..parallel import BackgroundTask, TaskPool
-from ..periodic_structure import PeriodicBases
-from ..residual_structure import ResidualStructure, residual_structure
+from ..periodic_structure import PeriodicBases, PeriodicStructure, periodic_structure, series_of_residuals
+from ..residual_structure import UNITS, ResidualStructure, residual_structure
 from ..scan_consistency import ScanTests, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .verdict import verdict
@@ -63,6 +64,8 @@ class Search:
     #: the registration still being fitted (in a worker process of its own while the first fits
     #: run: it simulates nothing, and only the registration candidate's start needs it)
     registering: BackgroundTask | None = None
+    #: what the periodic tests of the models of this campaign share (the same held-out samples)
+    periodic_bases: PeriodicBases = field(default_factory=PeriodicBases)
     run_kind: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
@@ -121,6 +124,8 @@ class FirstRound:
     duels: list[Duel]
     terrain_drive: str
     settled_losses: dict[str, dict[str, Any]]
+    #: the base model's drive torques tested for a ripple in the wheel angle (wheel_angle_ripple)
+    ripple: PeriodicStructure | None = None
 
 
 @dataclass
@@ -171,7 +176,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         first = first_round(search, setting)
         outcome = further_causes(search, first)
         *structures, untested = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
-                                                      workers if scheduler is None else None)
+                                                      workers if scheduler is None else None, search.periodic_bases)
         scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
@@ -222,12 +227,14 @@ def fmu_snapshot(fmu_path: str, tmp: str, scheduler: str | None) -> str:
 
 
 def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, base: FitResult, outcome: Outcome,
-                          say: Callable[[str], None], workers: int | None = None
+                          say: Callable[[str], None], workers: int | None = None,
+                          periodic_bases: PeriodicBases | None = None
                           ) -> tuple[ResidualStructure | None, ResidualStructure | None, str | None]:
     """The residual structure test (juno.residual_structure) of the base model and of the model
     with every named cause (None when none was named), on the held-out blocks of the drawbar
     runs, and why a test could not be made (None when both were); the bootstrap's replays run in
-    ``workers`` local processes (None: one per core).
+    ``workers`` local processes (None: one per core); ``periodic_bases``: what the search's
+    periodic test of the base model kept (Search.periodic_bases).
 
     A test whose replicas cannot be replayed (a replica, the model replayed with fresh sensor noise
     on its inputs, diverged) is None: with a cause named, the cause stands on its held-out evidence
@@ -235,7 +242,8 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
     nor "unexplained" can be said, and the simulation's error is raised."""
     models = [base] + ([outcome.chosen[-1]] if outcome.chosen else [])
     data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
-    bases = PeriodicBases()     # the models' periodic tests scan the same samples at the same angles
+    # the models' periodic tests scan the same samples at the same angles
+    bases = periodic_bases if periodic_bases is not None else PeriodicBases()
     tests: list[ResidualStructure | None] = []
     untested = None
     with JunoFMU(fmu_path) as fmu, TaskPool(workers) as pool:
@@ -334,8 +342,36 @@ def first_round(search: Search, setting: Setting) -> FirstRound:
     significant = [c for c in judged if c.significant]
     ranked_first = significant[0] if significant else None
     significant, duels = leader_after_head_to_head(problem, run_kind, significant, results)
+    ripple = wheel_angle_ripple(search, base)
+    if ripple is not None and ripple.significant:
+        significant, by_ripple = ripple_maker_leads(problem, run_kind, significant, results, makes_ripple)
+        duels += by_ripple
     candidates = significant + [c for c in judged if not c.significant]
-    return FirstRound(results, base, candidates, significant, ranked_first, duels, terrain_drive, settled_losses)
+    return FirstRound(results, base, candidates, significant, ranked_first, duels, terrain_drive, settled_losses,
+                      ripple)
+
+
+def makes_ripple(name: str) -> bool:
+    """Whether a cause, or any cause of a model named "a+b", makes the drive torque ripple with the
+    wheel angle (Candidate.ripples_with_wheel_angle)."""
+    return any(n in CANDIDATES and CANDIDATES[n].ripples_with_wheel_angle for n in name.split("+"))
+
+
+def wheel_angle_ripple(search: Search, model: FitResult) -> PeriodicStructure | None:
+    """The periodic test (juno.periodic_structure) of ``model``'s held-out drive torques on the
+    drawbar runs: whether they ripple with the wheel angle at a lug count.  No simulation: the
+    residuals are the model's, the sensor noise is estimated from the data, and the ripple is in
+    every catalog model's residuals alike (none makes one).  None without a drawbar run that
+    measures a drive torque and its side's spin."""
+    data = {p.run_id: read_run(search.campaign, p.run_id) for p in search.problem.prepared if p.kind == "drawbar"}
+    series = series_of_residuals(search.problem.prepared, search.problem.meta, search.problem.train,
+                                 model.residuals, data)
+    if not series:
+        return None
+    found = periodic_structure(series, UNITS, bases=search.periodic_bases)
+    if found.significant:
+        search.say("the drive torques ripple with the wheel angle: " + ", ".join(s.brief() for s in found.found()))
+    return found
 
 
 def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list[str]]:
@@ -403,7 +439,8 @@ def further_causes(search: Search, first: FirstRound) -> Outcome:
     rounds = [second_round(search, fit_of[b.name], more) for b in branches]
     pick, branch_duels = 0, []
     if len(branches) > 1:
-        pick, branch_duels = choose_branch(search.problem, search.run_kind, first.base, [r[1] for r in rounds])
+        pick, branch_duels = choose_branch(search.problem, search.run_kind, first.base, [r[1] for r in rounds],
+                                           ripple=first.ripple is not None and first.ripple.significant)
     best, (judged_second, chosen) = branches[pick], rounds[pick]
     significant = [best] + [c for c in significant if c.name != best.name]
     candidates = significant + [c for c in first.candidates if not c.significant]
@@ -441,12 +478,15 @@ def tie_settled(problem: Problem, run_kind: np.ndarray, leader: FitResult, runne
 
 
 def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
-                  branches: Sequence[Sequence[FitResult]]) -> tuple[int, list[Duel]]:
+                  branches: Sequence[Sequence[FitResult]], ripple: bool = False) -> tuple[int, list[Duel]]:
     """Which of several alternative explanations (each the chosen fits of one first cause and
     its second round) to report: their final models are ranked by held-out gain over ``base``
     less GAIN_MIN per parameter, and a runner-up with more parameters and a larger raw gain
-    leads if it wins head_to_head, as in the first round.  Returns the index of the chosen
-    branch and the comparisons made (stage "final models").
+    leads if it wins head_to_head, as in the first round; with the drive torques rippling with
+    the wheel angle (``ripple``), a final model with a cause that makes the ripple leads one
+    without unless that one wins head to head (judging.ripple_maker_leads), as in the first
+    round.  Returns the index of the chosen branch and the comparisons made (stage "final
+    models", or "final models, ripple").
 
     Why: the first round compares one-cause models.  With two effects hidden, a grouser (lugs
     that mimic a drivetrain loss, a thrust gain that takes up part of a slip-sinkage) can beat
@@ -464,6 +504,9 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
         fits.append(final)
     order, duels = leader_after_head_to_head(problem, run_kind, ranked(summaries), fits)
     duels = [replace(d, stage="final models") for d in duels]
+    if ripple:
+        order, by_ripple = ripple_maker_leads(problem, run_kind, order, fits, makes_ripple)
+        duels += [replace(d, stage="final models, ripple") for d in by_ripple]
     return next(i for i, s in enumerate(summaries) if s.name == order[0].name), duels
 
 
