@@ -7,10 +7,12 @@
  * the old SVID error handling), hypot (GLIBC_2.35) and stat (GLIBC_2.33, before it a wrapper
  * of __xstat).  Every newer glibc still exports the old versions, so the FMU binds to those:
  * the results are the same computation for every finite argument the model passes.  exp and
- * log, called a dozen times an internal step, bind to __exp_finite and __log_finite
- * (GLIBC_2.15): the same computation as exp and log without the old versions' wrapper, which
- * checks the result for the SVID error handling (about 20 instructions a call; the model
- * builds with -fno-math-errno and reads no errno).
+ * log, called a dozen times an internal step, and atan2 and asin, three times a communication
+ * step for the outputs' attitude, bind to __exp_finite, __log_finite, __atan2_finite and
+ * __asin_finite (GLIBC_2.15): the same computation without the wrapper of the functions'
+ * default versions, which checks the arguments or the result for the SVID error handling
+ * (about 20 instructions a call; the model builds with -fno-math-errno and reads no errno, and
+ * its asin's argument is clamped to [-1, 1]).
  *
  * The build force-includes this header in every source of the FMU (CMakeLists.txt); elsewhere
  * (another C library, another processor, Windows) it does nothing.
@@ -23,6 +25,8 @@
 #if defined(__GLIBC__)
 __asm__(".symver exp,__exp_finite@GLIBC_2.15");
 __asm__(".symver log,__log_finite@GLIBC_2.15");
+__asm__(".symver atan2,__atan2_finite@GLIBC_2.15");
+__asm__(".symver asin,__asin_finite@GLIBC_2.15");
 __asm__(".symver pow,pow@GLIBC_2.2.5");
 __asm__(".symver hypot,hypot@GLIBC_2.2.5");
 
