@@ -61,6 +61,28 @@ static inline void quat_to_m3(double R[9], const double q[4])
     R[3] = 2 * (x * y + w * z);     R[4] = 1 - 2 * (x * x + z * z); R[5] = 2 * (y * z - w * x);
     R[6] = 2 * (x * z - w * y);     R[7] = 2 * (y * z + w * x);     R[8] = 1 - 2 * (x * x + y * y);
 }
+/* sin x and cos x, for |x| <= 1/2 from their Taylor series to x^15 and x^16
+ * (the first terms left out, x^17/17! and x^18/18!, are below 5e-20 of the
+ * values there), in Estrin's scheme (a shorter chain than Horner's), within
+ * an ulp: the leading x and 1 are added last to corrections of at most a
+ * twentieth and an eighth of the values.  The library's beyond. */
+static inline void sin_cos(double x, double *s, double *c)
+{
+    if (fabs(x) <= 0.5) {
+        const double x2 = x * x, x4 = x2 * x2, x8 = x4 * x4;
+        const double p = (-1.0 / 6 + (1.0 / 120) * x2) + (-1.0 / 5040 + (1.0 / 362880) * x2) * x4 +
+                         ((-1.0 / 39916800 + (1.0 / 6227020800.0) * x2) + (-1.0 / 1307674368000.0) * x4) * x8;
+        const double q = (-1.0 / 2 + (1.0 / 24) * x2) + (-1.0 / 720 + (1.0 / 40320) * x2) * x4 +
+                         ((-1.0 / 3628800 + (1.0 / 479001600) * x2) +
+                          (-1.0 / 87178291200.0 + (1.0 / 20922789888000.0) * x2) * x4) * x8;
+        *s = x + (x * x2) * p;
+        *c = 1.0 + x2 * q;
+    } else {
+        *s = sin(x);
+        *c = cos(x);
+    }
+}
+
 /* Quaternion of Z-Y-X Euler angles (yaw, pitch, roll). */
 static inline void quat_from_euler(double q[4], double roll, double pitch, double yaw)
 {
