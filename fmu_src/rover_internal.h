@@ -50,7 +50,9 @@ extern const char *const rover_wheel_names[NUM_WHEELS];
 #define NOINLINE
 #endif
 
-static inline int side_of(int w) { return w / 2; }
+/* The side of wheel w (0..3): a shift, where w / 2 of a signed w would take
+ * three more instructions for negative w's rounding. */
+static inline int side_of(int w) { return (int)((unsigned)w >> 1); }
 
 /* fmin(a, x) and fmax(a, x) without their library calls (GCC keeps the calls unless it may
  * ignore NaNs and signed zeros), for an a that is neither NaN nor zero: the same result, a NaN x
