@@ -65,7 +65,7 @@ static inline void quat_to_m3(double R[9], const double q[4])
  * (the first terms left out, x^17/17! and x^18/18!, are below 5e-20 of the
  * values there), in Estrin's scheme (a shorter chain than Horner's), within
  * an ulp: the leading x and 1 are added last to corrections of at most a
- * twentieth and an eighth of the values.  The library's beyond. */
+ * twentieth and a seventh of the values.  The library's beyond. */
 static inline void sin_cos(double x, double *s, double *c)
 {
     if (fabs(x) <= 0.5) {
