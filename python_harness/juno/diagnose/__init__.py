@@ -31,9 +31,10 @@
    held-out blocks (registration_evidence, HELD_OUT_RATIO; a scan whose evidence
    passes is moved by its own offsets, applied to its runs only: registration_candidate); on top of another cause it is judged like the others, since
    the kinematic model does not know that cause.  A gain counts as significant only when
-   a paired test over held-out units (run, block, signal; Wilcoxon on the
-   units' mean squared-residual change, so time correlation inside a block is
-   respected; changes under NEGLIGIBLE_CHANGE are ties) gives z > Z_MIN
+   a paired test over held-out units (run, block, signal; on the units' mean
+   squared-residual change, so time correlation inside a block is respected;
+   changes under NEGLIGIBLE_CHANGE are ties; the Wilcoxon signed-rank test and the
+   sign-flip test of the summed change, each at half the level: paired_z) gives z > Z_MIN
    (Bonferroni-corrected over the kinds of run) on some kind of run and
    z > -Z_MIN on every kind, the relative gain over all held-out data
    exceeds GAIN_MIN per parameter the extension adds, the fitted

@@ -1,5 +1,5 @@
-"""How a candidate is judged against its reference on the held-out blocks: the paired rank test
-over held-out units (paired_z), the gain thresholds, the ranking by penalised gain, the
+"""How a candidate is judged against its reference on the held-out blocks: the paired test over
+held-out units (paired_z: a rank test and a sign-flip test of the sum), the gain thresholds, the ranking by penalised gain, the
 head-to-head test of a runner-up with more parameters, and the judge itself (judge).
 
 Everything here works on residuals already computed: no simulation."""
@@ -30,7 +30,7 @@ TIE_RATIO = 0.75     # a candidate with >= 75 % of the best gain explains the da
 #: almost equally), unless the paired test prefers the leader unit by unit (search.tie_settled).
 NEAR_TIE = GAIN_MIN
 #: A held-out unit (run, block, signal) whose mean squared scaled residual moved by less than this
-#: is unchanged for the rank test: 1 % of the sensor noise's variance, a 16th of the scatter of a
+#: is unchanged for the paired tests: 1 % of the sensor noise's variance, a 16th of the scatter of a
 #: 4 s block's mean square (80 samples: sqrt(2/80) = 0.16).  Counted, such numerical dust (signals
 #: a candidate does not touch, moved by 1e-4 by the solver) can outvote the units that carry real
 #: evidence.  Dropping units symmetrically about zero keeps the test's null distribution.
