@@ -62,3 +62,15 @@ def test_every_place_along_the_drawbar_track_is_within_reach_of_a_patch_start(no
     gaps = np.diff(starts)
     assert np.all(gaps > 0) and np.allclose(gaps, gaps[0]) and gaps[0] <= 2 * PATCH_CONVERGES + 1e-9
     assert len(starts) == 1 + int(np.ceil((starts[-1] - starts[0]) / (2 * PATCH_CONVERGES) - 1e-9))
+
+
+def test_the_grouser_fit_also_starts_from_thrust_gains_away_from_none():
+    """The thrust gain acts where the shear nears its limit, and at a drawbar campaign's slips the
+    shear modulus takes up most of it: the grouser's coarse search tries gains of a half and one
+    besides its start at none, each inside the gain's bounds, so that the fit can reach the
+    basin where the gain, not K_vx and the lugs' height, carries the extra thrust."""
+    grouser = CANDIDATES["grouser"]
+    gain = next(p for p in grouser.params if p.name == "grouser.thrustGain")
+    tried = sorted(dict(point)["grouser.thrustGain"] for point in grouser.grid)
+    assert gain.start == 0.0 and tried == [0.5, 1.0]
+    assert all(gain.lower < g <= gain.upper for g in tried)
