@@ -1,6 +1,7 @@
 """How a candidate is judged against its reference on the held-out blocks: the paired test over
-held-out units (paired_z: a rank test and a sign-flip test of the sum), the gain thresholds, the ranking by penalised gain, the
-head-to-head test of a runner-up with more parameters, and the judge itself (judge).
+held-out units (paired_z: a rank test and a sign-flip test of the sum), the gain thresholds, the
+ranking by penalised gain, the head-to-head test of a runner-up with more parameters, the lead a
+lug ripple gives the cause that makes it (ripple_maker_leads), and the judge itself (judge).
 
 Everything here works on residuals already computed: no simulation."""
 
