@@ -291,10 +291,6 @@ def test_a_runner_up_with_a_smaller_raw_gain_or_no_more_parameters_is_not_put_to
         assert order[0].name == "drivetrain_loss" and duels == []
 
 
-def _ripple_maker(name: str) -> bool:
-    return diagnose.makes_ripple(name)
-
-
 def test_where_the_torques_ripple_with_the_wheel_angle_a_cause_that_makes_the_ripple_leads_one_that_does_not():
     """As on campaigns whose lugs pulse the thrust 18 times a wheel revolution: a drivetrain loss
     (raw gain 15.9 %) and the grouser (10.1 %) are both significant, and the loss leads the
@@ -308,7 +304,7 @@ def test_where_the_torques_ripple_with_the_wheel_angle_a_cause_that_makes_the_ri
     ranking = ranked([_significant("grouser", 0.101, 2), _significant("drivetrain_loss", 0.159, 2)])
     assert ranking[0].name == "drivetrain_loss"
     order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking,
-                                               [_fit("drivetrain_loss", loss), _fit("grouser", lugs)], _ripple_maker)
+                                               [_fit("drivetrain_loss", loss), _fit("grouser", lugs)])
     assert [c.name for c in order] == ["grouser", "drivetrain_loss"]
     assert len(duels) == 1 and duels[0].stage == "ripple" and not duels[0].challenger_better
     assert (duels[0].leader, duels[0].challenger) == ("grouser", "drivetrain_loss")
@@ -325,8 +321,7 @@ def test_a_leader_that_explains_the_held_out_data_better_block_by_block_keeps_th
     lugs = _reference(run_kind, 2.0, rng)
     ranking = ranked([_significant("grouser", 0.101, 2), _significant("drivetrain_loss", 0.159, 2)])
     order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking,
-                                               [_fit("drivetrain_loss", 0.9 * lugs), _fit("grouser", lugs)],
-                                               _ripple_maker)
+                                               [_fit("drivetrain_loss", 0.9 * lugs), _fit("grouser", lugs)])
     assert [c.name for c in order] == ["drivetrain_loss", "grouser"]
     assert len(duels) == 1 and duels[0].challenger_better
     assert "drivetrain_loss stays first" in diagnose.duel_sentence(duels[0])
@@ -340,7 +335,7 @@ def test_the_ripple_moves_nothing_when_the_leader_makes_it_or_no_significant_run
     for ranking in ([_significant("grouser", 0.2, 2), _significant("drivetrain_loss", 0.19, 2)],
                     [_significant("drivetrain_loss", 0.2, 2), _significant("slip_sinkage", 0.1, 1)],
                     [_significant("drivetrain_loss", 0.2, 2)], []):
-        order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking, fits, _ripple_maker)
+        order, duels = diagnose.ripple_maker_leads(problem, run_kind, ranking, fits)
         assert order == ranking and duels == []
     assert diagnose.makes_ripple("drivetrain_loss+grouser") and not diagnose.makes_ripple("drivetrain_loss+soil_patch")
 

@@ -89,7 +89,7 @@ from __future__ import annotations
 from ..registration import HELD_OUT_RATIO, HeldOutEvidence
 from ..simulator import SOIL_PARAMETERS
 from .assemble import per_signal_rms, residual_analysis
-from .candidates import CANDIDATES, Candidate, ExtParam, combined
+from .candidates import CANDIDATES, Candidate, ExtParam, combined, makes_ripple
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FIT_LOSS_SCALE, LOST_RATIO, SOIL_SEARCH_BOUNDS, FitResult,
                       better_of_two_fits, fit_candidate, fit_loss, fit_objective, loss_on, replayed, run_jobs,
                       training_objective)
@@ -103,7 +103,7 @@ from .render import apart_sentence, by_kind, duel_sentence, report_section, resi
 from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, DiagnosisResult, Duel, ExtendedModel,
                       GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, PlotData, Ranked, ResidualAnalysis,
                       ScanRegistration, SignalGain, TiedPair, public_json)
-from .search import (choose_branch, diagnose, first_cause_branches, makes_ripple, refit_from_paper_soil, second_round,
-                     tie_settled, tied_models_apart, wheel_angle_ripple)
+from .search import (choose_branch, diagnose, first_cause_branches, refit_from_paper_soil, second_round, tie_settled,
+                     tied_models_apart, wheel_angle_ripple)
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

@@ -227,3 +227,9 @@ def combined(first: Candidate, second: Candidate) -> Candidate:
     return Candidate(second.name, second.cause, first.params + second.params, first.fixed + second.fixed,
                      first.needs_terrain or second.needs_terrain, second.grid, second.active, second.short_fits,
                      first.refine_terrain and second.refine_terrain)
+
+
+def makes_ripple(name: str) -> bool:
+    """Whether a cause, or any cause of a model named "a+b", makes the drive torque ripple with the
+    wheel angle (Candidate.ripples_with_wheel_angle)."""
+    return any(n in CANDIDATES and CANDIDATES[n].ripples_with_wheel_angle for n in name.split("+"))

@@ -8,14 +8,14 @@ Everything here works on residuals already computed: no simulation."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Callable, Sequence, TypeVar
+from typing import Sequence, TypeVar
 
 import numpy as np
 
 from ..identify import soil_at_search_bounds
 from ..registration import HeldOutEvidence, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS
-from .candidates import CANDIDATES, Candidate
+from .candidates import CANDIDATES, Candidate, makes_ripple
 from .fitting import FitResult
 from .problem import Problem
 from .results import Ablation, Duel, JudgedCandidate, KinematicEvidence, Ranked, ScanRegistration
@@ -347,12 +347,12 @@ def leader_after_head_to_head(problem: Problem, run_kind: np.ndarray, significan
     return order, duels
 
 
-def ripple_maker_leads(problem: Problem, run_kind: np.ndarray, order: Sequence[R], results: Sequence[FitResult],
-                       makes_ripple: Callable[[str], bool]) -> tuple[list[R], list[Duel]]:
+def ripple_maker_leads(problem: Problem, run_kind: np.ndarray, order: Sequence[R], results: Sequence[FitResult]
+                       ) -> tuple[list[R], list[Duel]]:
     """The significant candidates (ranked, ``order``) when the measured drive torques ripple with
     the wheel angle at a lug count (juno.periodic_structure, on the base model's residuals): a
     leader whose cause makes no such ripple gives the lead to the best-ranked runner-up whose
-    cause makes one (``makes_ripple``, by name; Candidate.ripples_with_wheel_angle), unless the
+    cause makes one (candidates.makes_ripple, by name), unless the
     leader explains the held-out data significantly better than it (head_to_head, with the
     runner-up's model as the reference; stage "ripple").  Returns (the reordered list, the
     comparison made, if any).  ``results``: the fits, found by name.

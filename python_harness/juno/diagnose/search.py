@@ -344,17 +344,11 @@ def first_round(search: Search, setting: Setting) -> FirstRound:
     significant, duels = leader_after_head_to_head(problem, run_kind, significant, results)
     ripple = wheel_angle_ripple(search, base)
     if ripple is not None and ripple.significant:
-        significant, by_ripple = ripple_maker_leads(problem, run_kind, significant, results, makes_ripple)
+        significant, by_ripple = ripple_maker_leads(problem, run_kind, significant, results)
         duels += by_ripple
     candidates = significant + [c for c in judged if not c.significant]
     return FirstRound(results, base, candidates, significant, ranked_first, duels, terrain_drive, settled_losses,
                       ripple)
-
-
-def makes_ripple(name: str) -> bool:
-    """Whether a cause, or any cause of a model named "a+b", makes the drive torque ripple with the
-    wheel angle (Candidate.ripples_with_wheel_angle)."""
-    return any(n in CANDIDATES and CANDIDATES[n].ripples_with_wheel_angle for n in name.split("+"))
 
 
 def wheel_angle_ripple(search: Search, model: FitResult) -> PeriodicStructure | None:
@@ -505,7 +499,7 @@ def choose_branch(problem: Problem, run_kind: np.ndarray, base: FitResult,
     order, duels = leader_after_head_to_head(problem, run_kind, ranked(summaries), fits)
     duels = [replace(d, stage="final models") for d in duels]
     if ripple:
-        order, by_ripple = ripple_maker_leads(problem, run_kind, order, fits, makes_ripple)
+        order, by_ripple = ripple_maker_leads(problem, run_kind, order, fits)
         duels += [replace(d, stage="final models, ripple") for d in by_ripple]
     return next(i for i, s in enumerate(summaries) if s.name == order[0].name), duels
 

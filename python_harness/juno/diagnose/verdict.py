@@ -38,7 +38,7 @@ from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
 from ..scan_consistency import ScanTests
 from ..timing_structure import SignalOffset
-from .candidates import CANDIDATES
+from .candidates import CANDIDATES, makes_ripple
 
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
@@ -130,8 +130,8 @@ def ripple_between_tied(named: str, tied: list[str], ripples: list[PeriodicSigna
     none (Candidate.ripples_with_wheel_angle), the ripple is evidence the held-out gains could not
     weigh (the candidates are judged on block means, which average it away)."""
     both = [named] + [t for t in tied if t != named]
-    makes = [c for c in both if c in CANDIDATES and CANDIDATES[c].ripples_with_wheel_angle]
-    without = [c for c in both if c in CANDIDATES and not CANDIDATES[c].ripples_with_wheel_angle]
+    makes = [c for c in both if c in CANDIDATES and makes_ripple(c)]
+    without = [c for c in both if c in CANDIDATES and not makes_ripple(c)]
     if not ripples or not makes or not without:
         return None
     r = ripples[0]
