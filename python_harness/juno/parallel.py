@@ -149,6 +149,17 @@ def _reap(processes: list) -> None:
                 proc.join(timeout=5.0)
 
 
+def _join_manager(executor) -> None:
+    """Wait for a ProcessPoolExecutor shut down without waiting (its workers terminated) to finish
+    its own clean-up.  Why: its management thread closes the pipe that wakes it, and CPython 3.11
+    checks that the pipe is open and writes to it from the interpreter's exit hook without a lock,
+    so an exit (SIGTERM, Ctrl-C) while the thread is closing it prints an ignored OSError's
+    traceback on stderr after juno's own message."""
+    thread = getattr(executor, "_executor_manager_thread", None)
+    if thread is not None:
+        thread.join(timeout=TERMINATE_GRACE)
+
+
 def _pool_context():
     methods = multiprocessing.get_all_start_methods()
     return multiprocessing.get_context("fork" if "fork" in methods else None)
@@ -368,6 +379,7 @@ class TaskPool:
                         proc.terminate()
                 self._executor.shutdown(wait=False, cancel_futures=True)
                 _reap(processes)
+                _join_manager(self._executor)
             else:
                 self._executor.shutdown(wait=True, cancel_futures=True)
             self._executor = None
@@ -437,6 +449,7 @@ class BackgroundTask:
                     proc.terminate()
             self._executor.shutdown(wait=not terminate, cancel_futures=True)
             _reap(processes)
+            _join_manager(self._executor)
             self._executor = None
 
     def __enter__(self) -> "BackgroundTask":
