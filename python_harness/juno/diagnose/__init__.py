@@ -64,7 +64,10 @@
    penalised ranking's leader, or a runner-up trails it by less than NEAR_TIE
    after the charge and the paired test does not prefer the leader to it
    (tie_settled), both get a second round, and the final models are
-   compared by the rules of step 4 (choose_branch).
+   compared by the rules of step 4 (choose_branch).  So does a runner-up
+   within NEAR_TIE that fails significance by its soil alone (its soil at a
+   bound of the search), unsettled; its final model must bring the soil
+   back (first_cause_branches, branches_with_real_soil).
 
 Every terrain run is replayed on the grid of its own scan.  The campaign needs at least one
 drawbar run (the soil and every physical extension are fitted there); without a terrain run the
@@ -95,7 +98,7 @@ from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FIT_LOSS_SCALE, LOS
                       training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, RESIDUAL_CAP, TIE_RATIO, Z_MIN, capped_square,
                       head_to_head, judge, leader_after_head_to_head, paired_z, passes, penalised_gain, ranked,
-                      relative_gain, ripple_maker_leads, z_threshold)
+                      relative_gain, ripple_maker_leads, significant_but_for_its_soil, z_threshold)
 from .problem import (BLOCK, DIAGNOSE_STEP, OUTPUT_INTERVAL, Problem, all_residuals, build_problem,
                       residuals_by_run, residuals_for, residuals_or_failure, run_kinds)
 from .references import best_reference, on_reference_soil
@@ -103,7 +106,7 @@ from .render import apart_sentence, by_kind, duel_sentence, report_section, resi
 from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, DiagnosisResult, Duel, ExtendedModel,
                       GainStep, JudgedCandidate, KinematicEvidence, NoCauseGain, PlotData, Ranked, ResidualAnalysis,
                       ScanRegistration, SignalGain, TiedPair, public_json)
-from .search import (choose_branch, diagnose, first_cause_branches, refit_from_paper_soil, second_round, tie_settled,
-                     tied_models_apart, wheel_angle_ripple)
+from .search import (branches_with_real_soil, choose_branch, diagnose, first_cause_branches, refit_from_paper_soil,
+                     second_round, tie_settled, tied_models_apart, wheel_angle_ripple)
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

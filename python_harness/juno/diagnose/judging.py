@@ -235,6 +235,17 @@ def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, 
     return passes(n, gain, zs) and acts and (off is None or passes(n, off.gain, off.z_by_kind)) and not at_bounds
 
 
+def significant_but_for_its_soil(judged: JudgedCandidate) -> bool:
+    """Whether a judged candidate fails is_significant by its soil alone: its fit sits at a bound
+    of the search (``judged.soil_at_bounds``) and it passes every other test, its gain's and, where
+    given, its ablation's.  Such a one-cause model may lack a second cause that its soil bends to
+    absorb: search.first_cause_branches gives it a second round of its own."""
+    off = judged.ablation
+    return bool(judged.soil_at_bounds and not judged.error and judged.acts
+                and passes(judged.n_params, judged.gain, judged.z_by_kind)
+                and (off is None or passes(judged.n_params, off.gain, off.z_by_kind)))
+
+
 def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
           switched_off: FitResult | None = None, registration: HeldOutEvidence | ScanRegistrations | None = None
           ) -> JudgedCandidate:

@@ -21,7 +21,7 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
     for c in result.candidates:
         mark = "*" if c.significant else " "
         lines.append(f" {mark} {c.name:16s} held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
-        lines += at_bounds_lines(c)
+        lines += at_bounds_lines(c, named_with(result, c))
     lines += [duel_sentence(duel) for duel in result.head_to_head]
     if result.equally_good:
         lines.append("equally good: " + ", ".join(result.equally_good))
@@ -37,19 +37,34 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
     return lines
 
 
-def at_bounds_lines(c: JudgedCandidate) -> list[str]:
+def named_with(result: DiagnosisResult, c: JudgedCandidate) -> str | None:
+    """The second cause with which a first-round candidate held back by its soil was named the
+    first cause (search.first_cause_branches: its final model's soil is real), or None."""
+    if c.soil_at_bounds and len(result.causes) > 1 and result.causes[0] == c.name:
+        return result.causes[1]
+    return None
+
+
+def at_bounds_lines(c: JudgedCandidate, second: str | None = None) -> list[str]:
     """A line under a candidate whose fitted soil sits at a bound of the search (no evidence for
-    its cause: judging.is_significant), or none."""
+    its cause alone: judging.is_significant), or none; ``second``: the cause with which it was
+    named all the same (named_with)."""
     if not c.soil_at_bounds:
         return []
+    if second is not None:
+        return [f"      alone, its soil sits at a bound of the search ({', '.join(c.soil_at_bounds)}); with "
+                f"{second} on top the soil is a real one, and that model explains the held-out data best"]
     return [f"      its soil sits at a bound of the search ({', '.join(c.soil_at_bounds)}): the data push the "
             "soil beyond any real one, so its gain is no evidence for the cause"]
 
 
-def significance(c: JudgedCandidate) -> str:
-    """A report table's cell: "yes", "no", or "no: soil at a bound of the search (...)"."""
+def significance(c: JudgedCandidate, second: str | None = None) -> str:
+    """A report table's cell: "yes", "no", "no: soil at a bound of the search (...)", or, for a
+    first cause named with ``second`` (named_with), "alone no: ...; named with ..."."""
     if c.significant:
         return "yes"
+    if c.soil_at_bounds and second is not None:
+        return f"alone no: soil at a bound of the search ({', '.join(c.soil_at_bounds)}); named with {second}"
     return f"no: soil at a bound of the search ({', '.join(c.soil_at_bounds)})" if c.soil_at_bounds else "no"
 
 
@@ -261,7 +276,8 @@ def _candidates_table(result: DiagnosisResult) -> list[str]:
     lines = ["| candidate extension | physical cause | held-out gain | per kind of run | significant |",
              "|---|---|---|---|---|"]
     for c in result.candidates:
-        lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {significance(c)} |")
+        cell = significance(c, named_with(result, c))
+        lines.append(f"| {c.name} | {c.cause} | {c.gain:+.1%} | {by_kind(c)} | {cell} |")
     lines.append("")
     for c in result.candidates:
         if c.kinematic and c.kinematic.scans and len(c.kinematic.scans) > 1:
