@@ -198,8 +198,8 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     part of it."""
     u = result.unexplained
     if u is not None and not u.signals and not u.ripples and not u.offsets:
-        lines = ["**Cause: unexplained.** No extension in the catalog explains the data, and "
-                 + (u.scan.summary() if u.scan is not None else "structure remains") + ".", ""]
+        lines = ["**Cause: unexplained.** No extension in the catalog explains the data: "
+                 + (u.summary() or "structure remains") + ".", ""]
         return lines + _scan_table(u)
     lines = ["**Cause: unexplained.** The drawbar runs' held-out residuals hold structure beyond sensor noise "
              "that no extension in the catalog explains (a sensor error, or physics the model does not have)."]
@@ -209,6 +209,7 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     lines.append("")
     if u is not None:
         lines += _structure_table(u) + _scan_table(u)
+        lines += [p.sentence()[0].upper() + p.sentence()[1:] + "." for p in u.partial] + ([""] if u.partial else [])
     return lines
 
 

@@ -180,7 +180,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
-    judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan)
+    judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan, candidates=first.candidates)
     result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                               judged, (structures[0], structures[1]), untested)
     if result.structure is not None:

@@ -8,6 +8,12 @@ residual structure test (juno/residual_structure.py) what the models leave:
 - no cause named, but the base model leaves structure: ``unexplained``, with the signals and
   what they follow (a ripple in the drive torques at N per wheel revolution counts as
   structure: no catalog cause models one);
+- no cause named, but some candidate explains one kind of run's held-out data significantly
+  better than the base model, by its extension (partial_explanations), without passing as a
+  cause (its pooled gain too small, or another kind of run worse): ``unexplained``, with those
+  candidates.  Why: ``none`` says that no extension explains the held-out data significantly
+  better; such a candidate does, on part of the data, and the base model is then wrong there
+  whatever the structure test sees;
 - no cause named, and some terrain run's measured pose disagrees with its own scan
   (juno.scan_consistency, the rover posed on the scan without a replay): ``unexplained``, with
   the runs and the signals that disagree.  Why only then: the structure test sees the drawbar runs alone, so a
@@ -32,7 +38,7 @@ residual structure test (juno/residual_structure.py) what the models leave:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..periodic_structure import PeriodicSignal
 from ..residual_structure import ResidualStructure, SignalStructure
@@ -40,9 +46,67 @@ from ..scan_consistency import ScanTests
 from ..timing_structure import SignalOffset
 from .candidates import CANDIDATES, makes_ripple
 
+if TYPE_CHECKING:   # results.py holds the verdict's types, and judging.py imports results.py
+    from .results import JudgedCandidate
+
 #: The least share of the base model's residual structure a catalog model must remove to be
 #: named for it (see the module docstring).
 EXPLAINED_SHARE = 0.5
+
+
+@dataclass
+class PartialExplanation:
+    """A candidate that explains the held-out data of one kind of run (``kind``) significantly
+    better than the base model, with paired z ``z`` and ``ablation_z`` against its own fit with
+    the extension switched off, though it is no cause: its held-out gain over every run
+    (``gain``; ``gain_by_kind``) does not pass (partial_explanations)."""
+
+    name: str
+    kind: str
+    z: float
+    ablation_z: float
+    gain: float
+    gain_by_kind: dict[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.kind, "z": self.z, "ablation_z": self.ablation_z,
+                "gain": self.gain, "gain_by_kind": self.gain_by_kind}
+
+    def sentence(self) -> str:
+        """The finding in words."""
+        others = ", ".join(f"{k} runs {g:+.0%}" for k, g in self.gain_by_kind.items() if k != self.kind)
+        return (f"{self.name} explains the {self.kind} runs' held-out data better than the base model (z {self.z:.1f}; "
+                f"its extension's own share z {self.ablation_z:.1f}) but not the campaign's (held-out gain "
+                f"{self.gain:+.0%}" + (f"; {others}" if others else "") + ")")
+
+
+def partial_explanations(candidates: list[JudgedCandidate]) -> list[PartialExplanation]:
+    """The first round's candidates (``candidates``, judged against the base model) that explain
+    some kind of run's held-out data significantly better than the base model by their
+    extension: on that kind both the paired z against the base model and the ablation's z
+    (against the same fit with the extension switched off) exceed z_threshold for every test
+    made, one per physical candidate and kind of run (Bonferroni).  The registration is judged on
+    the pose (the scan test covers it), and a failed fit or one whose extension does not act is
+    no evidence.
+
+    Why the threshold: if the base model is right, the chance that any of those tests reaches it
+    is at most that of one test reaching Z_MIN (0.6 %), whatever the tests share.  Why the
+    ablation too: a gain that lives in the soil refitted beside the extension says the base fit
+    was not at its optimum, not that the model is wrong."""
+    from .judging import z_threshold      # judging imports results, which imports this module
+    physical = [c for c in candidates if c.name in CANDIDATES and not CANDIDATES[c.name].is_registration
+                and not c.error]
+    kinds = max((len(c.z_by_kind) for c in physical), default=0)
+    threshold = z_threshold(len(physical) * kinds)
+    found = []
+    for c in physical:
+        if not c.acts or c.ablation is None:
+            continue
+        for kind, z in c.z_by_kind.items():
+            off = c.ablation.z_by_kind.get(kind, 0.0)
+            if z > threshold and off > threshold:
+                found.append(PartialExplanation(c.name, kind, z, off, c.gain, dict(c.gain_by_kind)))
+    return sorted(found, key=lambda f: -f.z)
 
 
 @dataclass
@@ -62,11 +126,15 @@ class Unexplained:
     scan: ScanTests | None = None
     #: the signals time-stamped off the replay's inputs (juno.timing_structure)
     offsets: list[SignalOffset] = field(default_factory=list)
+    #: candidates that explain one kind of run's held-out data without being a cause
+    #: (partial_explanations; with no cause named)
+    partial: list[PartialExplanation] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
                 "ripples": [r.to_json() for r in self.ripples],
                 "offsets": [o.to_json() for o in self.offsets],
+                "partial": [p.to_json() for p in self.partial],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
                 "scan": self.scan.to_json() if self.scan is not None else None,
                 "summary": self.summary()}
@@ -79,7 +147,8 @@ class Unexplained:
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
         scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
-        return "; ".join(parts + [r.sentence() for r in self.ripples] + [o.sentence() for o in self.offsets] + scan)
+        return "; ".join(parts + [r.sentence() for r in self.ripples] + [o.sentence() for o in self.offsets] + scan
+                         + [p.sentence() for p in self.partial])
 
 
 @dataclass
@@ -93,19 +162,21 @@ class Verdict:
 
 
 def verdict(causes: list[str], base: ResidualStructure | None, extended: ResidualStructure | None,
-            scan: ScanTests | None = None) -> Verdict:
+            scan: ScanTests | None = None, candidates: list[JudgedCandidate] | None = None) -> Verdict:
     """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
-    tests of the base model and of the model with those causes (None when none was named), and
-    the terrain runs' scan tests (None: no terrain run tested; used only when no cause is named).
+    tests of the base model and of the model with those causes (None when none was named), the
+    terrain runs' scan tests (None: no terrain run tested) and the first round's judged
+    ``candidates`` (partial_explanations); the last two are used only when no cause is named.
     A test that could not be made is None (search.what_the_models_leave): the named causes then
     stand on their held-out evidence, with no share of the base model's structure to weigh them
     by; the base model's test must exist when nothing is named."""
     if not causes:
         assert base is not None
         disagrees = scan if scan is not None and scan.significant else None
-        if base.significant or disagrees is not None:
+        partial = partial_explanations(candidates or [])
+        if base.significant or disagrees is not None or partial:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
-                                                          scan=disagrees, offsets=base.offsets()))
+                                                          scan=disagrees, offsets=base.offsets(), partial=partial))
         return Verdict("none", [], None)
     if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
@@ -149,7 +220,7 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
         if not u.signals and not u.ripples and not u.offsets:
-            return f"no extension in the catalog explains the data, and {u.summary()}"
+            return f"no extension in the catalog explains the data: {u.summary() or 'structure remains'}"
         return ("the drawbar runs' held-out residuals hold structure beyond sensor noise that no extension in the "
                 f"catalog explains: {u.summary()}{absorbed}")
     if u is not None:
