@@ -8,6 +8,8 @@ held-out blocks.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -702,3 +704,19 @@ def test_the_reported_two_cause_model_is_one_its_causes_were_named_for():
     assert names_its_causes(loss, multipass, fit(real, 0.5))
     assert not names_its_causes(loss, multipass, fit(real, 0.014))
     assert not names_its_causes(loss, multipass, fit({**real, "soil.eta": 1.995}, 0.5))
+
+
+def test_why_a_candidate_is_no_cause_names_every_rule_it_fails():
+    """why_no_cause, in words, for the verdict's partial explanations: the pooled gain under its
+    charge, a kind of run made significantly worse, an ablation that keeps too little, the soil
+    at a bound; nothing for a candidate that passes."""
+    from juno.diagnose.judging import why_no_cause
+    assert why_no_cause(_judged("grouser", 0.40, 2, [])) == []
+    bent = why_no_cause(_judged("drivetrain_loss", 0.51, 2, _BENT))
+    assert bent == ["its soil sits at a bound of the search (soil.gamma = 0.01 (lower bound))"]
+    small = why_no_cause(_judged("grouser", -0.03, 2, [], ablation_gain=0.01))
+    assert small[0] == "its held-out gain over every run, -3.0%, is under the 6% its 2 parameters must buy"
+    assert small[-1] == "switched off on the same soil, it loses too little of its gain"
+    worse = _judged("multipass", 0.2, 2, [])
+    worse = replace(worse, z_by_kind={"drawbar": 6.0, "terrain": -3.1})
+    assert why_no_cause(worse) == ["it makes the terrain runs significantly worse (z -3.1)"]

@@ -308,6 +308,7 @@ def test_a_candidate_that_explains_one_kind_of_run_but_is_no_cause_makes_nothing
     [partial] = v.unexplained.partial
     assert (partial.name, partial.kind) == ("grouser", "drawbar") and partial.z == 5.6
     assert "grouser explains the drawbar runs' held-out data better" in explanation(v, "")
+    assert partial.why_no_cause == ["its held-out gain over every run, -3.0%, is under the 6% its 2 parameters must buy"]
     assert v.unexplained.to_json()["partial"][0]["kind"] == "drawbar"
     # the threshold is Bonferroni's over the tests made: five physical candidates, two kinds
     assert partial_explanations(_first_round(lugs)) and \

@@ -246,6 +246,26 @@ def significant_but_for_its_soil(judged: JudgedCandidate) -> bool:
                 and (off is None or passes(judged.n_params, off.gain, off.z_by_kind)))
 
 
+def why_no_cause(judged: JudgedCandidate) -> list[str]:
+    """The rules of is_significant that a judged physical candidate fails, in words (for a
+    candidate that is no cause; [] when it fails none)."""
+    n, zs, off = judged.n_params, judged.z_by_kind, judged.ablation
+    why = []
+    if judged.gain <= GAIN_MIN * n:
+        why.append(f"its held-out gain over every run, {judged.gain:+.1%}, is under the {GAIN_MIN * n:.0%} its "
+                   f"{n} parameter{'s' if n != 1 else ''} must buy")
+    why += [f"it makes the {k} runs significantly worse (z {z:.1f})" for k, z in zs.items() if z <= -Z_MIN]
+    if zs and max(zs.values()) <= z_threshold(len(zs)):
+        why.append(f"no kind of run's gain is significant (z {max(zs.values()):.1f})")
+    if off is not None and not passes(n, off.gain, off.z_by_kind):
+        why.append("switched off on the same soil, it loses too little of its gain")
+    if not judged.acts:
+        why.append("its extension stays at its neutral setting")
+    if judged.soil_at_bounds:
+        why.append(f"its soil sits at a bound of the search ({', '.join(judged.soil_at_bounds)})")
+    return why
+
+
 def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: FitResult,
           switched_off: FitResult | None = None, registration: HeldOutEvidence | ScanRegistrations | None = None
           ) -> JudgedCandidate:

@@ -58,8 +58,9 @@ EXPLAINED_SHARE = 0.5
 class PartialExplanation:
     """A candidate that explains the held-out data of one kind of run (``kind``) significantly
     better than the base model, with paired z ``z`` and ``ablation_z`` against its own fit with
-    the extension switched off, though it is no cause: its held-out gain over every run
-    (``gain``; ``gain_by_kind``) does not pass (partial_explanations)."""
+    the extension switched off, though it is no cause (partial_explanations): its held-out gain
+    over every run (``gain``; ``gain_by_kind``) and the rules it fails (``why_no_cause``,
+    judging.why_no_cause)."""
 
     name: str
     kind: str
@@ -67,17 +68,18 @@ class PartialExplanation:
     ablation_z: float
     gain: float
     gain_by_kind: dict[str, float]
+    why_no_cause: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "kind": self.kind, "z": self.z, "ablation_z": self.ablation_z,
-                "gain": self.gain, "gain_by_kind": self.gain_by_kind}
+                "gain": self.gain, "gain_by_kind": self.gain_by_kind, "why_no_cause": self.why_no_cause}
 
     def sentence(self) -> str:
         """The finding in words."""
-        others = ", ".join(f"{k} runs {g:+.0%}" for k, g in self.gain_by_kind.items() if k != self.kind)
+        gains = ", ".join(f"{k} runs {g:+.0%}" for k, g in self.gain_by_kind.items())
+        why = f": {'; '.join(self.why_no_cause)}" if self.why_no_cause else ""
         return (f"{self.name} explains the {self.kind} runs' held-out data better than the base model (z {self.z:.1f}; "
-                f"its extension's own share z {self.ablation_z:.1f}) but not the campaign's (held-out gain "
-                f"{self.gain:+.0%}" + (f"; {others}" if others else "") + ")")
+                f"its extension's own share z {self.ablation_z:.1f}; held-out gain {gains}) but is no cause{why}")
 
 
 def partial_explanations(candidates: list[JudgedCandidate]) -> list[PartialExplanation]:
@@ -93,7 +95,7 @@ def partial_explanations(candidates: list[JudgedCandidate]) -> list[PartialExpla
     is at most that of one test reaching Z_MIN (0.6 %), whatever the tests share.  Why the
     ablation too: a gain that lives in the soil refitted beside the extension says the base fit
     was not at its optimum, not that the model is wrong."""
-    from .judging import z_threshold      # judging imports results, which imports this module
+    from .judging import why_no_cause, z_threshold     # judging imports results, which imports this module
     physical = [c for c in candidates if c.name in CANDIDATES and not CANDIDATES[c.name].is_registration
                 and not c.error]
     kinds = max((len(c.z_by_kind) for c in physical), default=0)
@@ -105,7 +107,7 @@ def partial_explanations(candidates: list[JudgedCandidate]) -> list[PartialExpla
         for kind, z in c.z_by_kind.items():
             off = c.ablation.z_by_kind.get(kind, 0.0)
             if z > threshold and off > threshold:
-                found.append(PartialExplanation(c.name, kind, z, off, c.gain, dict(c.gain_by_kind)))
+                found.append(PartialExplanation(c.name, kind, z, off, c.gain, dict(c.gain_by_kind), why_no_cause(c)))
     return sorted(found, key=lambda f: -f.z)
 
 
