@@ -544,6 +544,25 @@ typedef struct {
     long k, frow, col, nnodata, last_line;
 } GridCursor;
 
+#if DIGIT_RUN_SSE2
+/* A bit for each of the 32 bytes at p that is at or below ' ' (white
+ * space, line ends, NUL): where the tokens in them end.  read_plain_values
+ * takes the next value's end from these bits rather than from the value
+ * just converted, so that finding where a value starts does not wait for
+ * the conversion of the one before it (the loop's chain of dependent
+ * loads is what bounds its speed, not its instructions). */
+static SCAN_INLINE uint64_t separator_bits32(const unsigned char *p)
+{
+    const __m128i space = _mm_set1_epi8(' ');
+    const __m128i a = _mm_loadu_si128((const __m128i *)(const void *)p);
+    const __m128i b = _mm_loadu_si128((const __m128i *)(const void *)(p + 16));
+    /* min(x, ' ') == x: x <= ' ' as unsigned bytes */
+    const unsigned ma = (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(a, space), a));
+    const unsigned mb = (unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(b, space), b));
+    return (uint64_t)ma | (uint64_t)mb << 16;
+}
+#endif
+
 /* The bulk of the values, read straight from the buffer in one loop with
  * the position, the line count and the row in registers: each value that
  * plain_decimal (or scan_decimal behind it) reads whole, followed by white
@@ -555,7 +574,12 @@ typedef struct {
  * space after the last value it stored.  The line and token counts it
  * leaves in lx are lex_next_simple_number's after the same values (the
  * last token's line and place are noted at each line end and at the end,
- * not for every value); it stores and counts NODATA as read_values does. */
+ * not for every value); it stores and counts NODATA as read_values does.
+ * With SSE2 the ends of the tokens come from separator_bits32 over a
+ * window of 32 bytes, one bit taken a value: a value followed by a space
+ * that ends where the window says moves on from there; any other (a line
+ * end, a tab, a token longer than the window's rest) as without, and the
+ * window is read again at the next value. */
 static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain *g)
 {
     const long nc = g->ncols, nr = g->nrows;
@@ -570,6 +594,12 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
     long line_first = c->k - lx->ntok_line;
     long tok_line = lx->tok_line, tok_index = lx->tok_index, k, ntok;
     double *row, *cell;
+#if DIGIT_RUN_SSE2
+    /* the window: its start, and the bits of its separators from p on
+     * (0: read it again at p) */
+    const unsigned char *window = p;
+    uint64_t seps = 0;
+#endif
 
     if (lx->at_file_start || frow == nr)
         return;
@@ -581,6 +611,9 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
             const unsigned char *q;
             double v;
             if (*p <= ' ') {            /* blanks and line ends, counted as lex_newline does */
+#if DIGIT_RUN_SSE2
+                seps = 0;
+#endif
                 while (*p <= ' ') {
                     if (*p == ' ' || *p == '\t') {
                         p++;
@@ -599,15 +632,39 @@ static void read_plain_values(Lexer *lx, GridCursor *c, const Header *h, Terrain
             }
             if (p >= last_start)
                 goto stop;
+#if DIGIT_RUN_SSE2
+            {
+                const unsigned char *sep;   /* where the window says the token ends */
+                if (seps == 0)
+                    window = p, seps = separator_bits32(p);
+                /* none (a token of 32 bytes or more at p): the window's end.  The test
+                 * below is the one after q (a space where the value ends) whatever the
+                 * window says; the window only lets p skip waiting for q */
+                sep = window + __builtin_ctzll(seps | (uint64_t)1 << 32);
+                q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
+                if (q == NULL)
+                    goto stop;
+                if (q == sep && *sep == ' ') {
+                    p = sep + 1;
+                    seps &= seps - 1;
+                    goto take;
+                }
+                seps = 0;
+            }
+#else
             q = (const unsigned char *)plain_decimal((const char *)p, (const char *)e, &v);
             if (q == NULL)
                 goto stop;
+#endif
             if (*q == ' ')              /* the usual separator, taken at once */
                 p = q + 1;
             else if (ends_token(*q))    /* not at e: its NUL does not end a token */
                 p = q;
             else
                 goto stop;
+#if DIGIT_RUN_SSE2
+        take:
+#endif
             if (v == nodata) {
                 v = NAN;
                 nnodata++;
