@@ -922,6 +922,88 @@ static void test_block_boundaries(void)
     expect_fail("nul_block.asc", NULL, frag, "is not a number");
 }
 
+/* A grid of 37 x 40 tokens for test_token_ends into text: token i is
+ * 1 + (7 i + i / 37) % 36 bytes long (so that the reader's windows of 32
+ * bytes end at every place in them, and some tokens fill one), a digit,
+ * a signed digit or [-]d.ddd, with random digits; between tokens mostly a
+ * space, else two spaces, a tab or a space and a tab; lines end in LF or
+ * CR LF in turn.  Token `bad` (unless -1) is `bad_tok` instead.  Copies
+ * the tokens into tok; returns the text's length. */
+enum { ENDS_NC = 37, ENDS_NR = 40, ENDS_N = ENDS_NC * ENDS_NR, ENDS_TOK = 40 };
+static size_t token_ends_grid(char *text, char tok[][ENDS_TOK], int bad, const char *bad_tok)
+{
+    static const char *const seps[] = {"  ", "\t", " \t"};
+    char *q = text + sprintf(text, "ncols %d\nnrows %d\nxllcorner 0\nyllcorner 0\ncellsize 1\n", ENDS_NC, ENDS_NR);
+    int i, k;
+
+    rng_state = 0x2545F4914F6CDD1DULL;
+    for (i = 0; i < ENDS_N; i++) {
+        const int len = 1 + (7 * i + i / ENDS_NC) % 36;
+        char *t = tok[i];
+        if (len == 1) {
+            t[0] = (char)('0' + (int)urand(0, 10)), t[1] = '\0';
+        } else if (len == 2) {
+            t[0] = '-', t[1] = (char)('0' + (int)urand(0, 10)), t[2] = '\0';
+        } else {
+            const int neg = len > 3 && urand(0, 1) < 0.4;
+            k = 0;
+            if (neg) t[k++] = '-';
+            t[k++] = urand(0, 1) < 0.7 ? '0' : (char)('1' + (int)urand(0, 9));
+            t[k++] = '.';
+            while (k < len) t[k++] = (char)('0' + (int)urand(0, 10));
+            t[k] = '\0';
+        }
+        q += sprintf(q, "%s", i == bad ? bad_tok : t);
+        if ((i + 1) % ENDS_NC == 0) {
+            q += sprintf(q, "%s", (i / ENDS_NC) % 2 ? "\r\n" : "\n");
+        } else {
+            const double r = urand(0, 1);
+            q += sprintf(q, "%s", r < 0.8 ? " " : seps[(int)((r - 0.8) / 0.2 * 3)]);
+        }
+    }
+    return (size_t)(q - text);
+}
+
+/* Where the values end: the reader's quick path finds the ends of the
+ * tokens before it reads their values (in windows of 32 bytes, with SSE2)
+ * and takes a value only where both agree.  Tokens of 1 to 36 bytes
+ * between spaces, tabs and line ends are read as strtod reads them; a
+ * token that runs on after a number, at each of 40 places in turn, is
+ * reported at its line and place on the line. */
+static void test_token_ends(void)
+{
+    static const char *const bad_toks[] = {"0.25x", "-0.5.5", "7:", "0.125-", "1.0000000000000000000000000000000!"};
+    static char text[ENDS_N * (ENDS_TOK + 2) + 256];
+    static char tok[ENDS_N][ENDS_TOK];
+    const char *path;
+    char frag1[128], frag2[64];
+    Terrain t;
+    int i, bad = 0;
+
+    token_ends_grid(text, tok, -1, NULL);
+    path = write_fixture("token_ends.asc", text);
+    if (expect_ok(path, &t, ENDS_NC, ENDS_NR, "token ends")) {
+        for (i = 0; i < ENDS_N; i++) {
+            /* file row 0 (north) is the grid's last row */
+            const int row = ENDS_NR - 1 - i / ENDS_NC, col = i % ENDS_NC;
+            const double got = t.z[row * ENDS_NC + col], want = strtod(tok[i], NULL);
+            if (memcmp(&got, &want, sizeof got) != 0 && bad++ < 5)
+                CHECK(0, "token ends: '%s' read as %.17g, strtod gives %.17g", tok[i], got, want);
+        }
+        CHECK(bad == 0, "token ends: %d of %d values differ from strtod's", bad, ENDS_N);
+        terrain_free(&t);
+    }
+    for (i = 0; i < 40; i++) {
+        const int b = ENDS_NC + i;
+        const char *bt = bad_toks[i % 5];
+        token_ends_grid(text, tok, b, bt);
+        snprintf(frag1, sizeof frag1, "line %d, value %d on the line (grid row %d, column %d)",
+                 6 + b / ENDS_NC, b % ENDS_NC + 1, b / ENDS_NC + 1, b % ENDS_NC + 1);
+        snprintf(frag2, sizeof frag2, "'%s' is not a number", bt);
+        expect_fail("token_ends_bad.asc", text, frag1, frag2);
+    }
+}
+
 /* ---------------------------------------------------------------- */
 /* 8. terrain_free                                                   */
 /* ---------------------------------------------------------------- */
@@ -1048,6 +1130,7 @@ int main(int argc, char **argv)
     test_odd_but_valid();
     test_numbers_match_strtod();
     test_block_boundaries();
+    test_token_ends();
     test_free();
 
     remove_fixtures();
