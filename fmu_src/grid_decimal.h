@@ -597,9 +597,10 @@ static SCAN_INLINE int fraction_digits(const char *frac, uint64_t *m)
  * too: the caller takes the value only where a token ends there) with *v
  * set, or NULL for any other shape (a '+', no digit before the point, more
  * digits), which scan_decimal reads.  The digits m and the exponent
- * -(fraction digits) are scan_decimal's, converted the same way (m / 10^k
- * for m <= 2^53 and k <= 22, else reciprocal_decimal or long_decimal),
- * hence the same value.  Reads p[0..PLAIN_DECIMAL_REACH] at most: the
+ * -(fraction digits) are scan_decimal's, each conversion correctly rounded
+ * (m / 10^k for k <= 15 and m <= 2^53, else reciprocal_decimal, and where
+ * it cannot tell the division or long_decimal), hence the same value.
+ * Reads p[0..PLAIN_DECIMAL_REACH] at most: the
  * integer digits from p + 1 at the latest, the fraction's 24 bytes (32
  * with SSE2) from p + 9. */
 static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
@@ -635,11 +636,20 @@ static SCAN_INLINE const char *grid_decimal(const char *p, double *v)
             return NULL;
         fm += m * pow10_u64[nf];
     }
-    /* the sign goes into the divisor or the scale, not tested again */
-    if (fm <= max_exact && nf <= 22)
+    /* the sign goes into the divisor or the scale, not tested again.  More
+     * than 15 digits after the point (shortest round-trip values: 16 to 19
+     * significant digits, below 2^53 or above it value by value) take the
+     * reciprocal whatever m is, so that a grid of them takes one way: a
+     * choice by m's size, unpredictable from one value to the next, costs
+     * the processor more than the reciprocal costs over the division.  The
+     * reciprocal gets nf >= 1: with no digits after the point fm is the
+     * integer part, below 10^7 */
+    if (nf <= 15 && fm <= max_exact)
         *v = (double)fm / signed_pow10_exact[nf][neg];
     else if (fm != 0 && reciprocal_decimal(fm, nf, (uint64_t)neg << 63, &x))
         *v = x;
+    else if (fm <= max_exact && nf <= 22)
+        *v = (double)fm / signed_pow10_exact[nf][neg];
     else if (fm == 0)
         *v = neg ? -0.0 : 0.0;
     else if (long_decimal(fm, -nf, &tie))
