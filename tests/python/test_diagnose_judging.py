@@ -720,3 +720,12 @@ def test_why_a_candidate_is_no_cause_names_every_rule_it_fails():
     worse = _judged("multipass", 0.2, 2, [])
     worse = replace(worse, z_by_kind={"drawbar": 6.0, "terrain": -3.1})
     assert why_no_cause(worse) == ["it makes the terrain runs significantly worse (z -3.1)"]
+    # the words follow the rule: a candidate is no cause exactly where they name a reason
+    from juno.diagnose.candidates import CANDIDATES
+    from juno.diagnose.judging import is_significant
+    for c in (_judged("grouser", 0.40, 2, []), _judged("drivetrain_loss", 0.51, 2, _BENT), worse,
+              _judged("grouser", -0.03, 2, [], ablation_gain=0.01), _judged("multipass", 0.2, 2, [], z=2.0),
+              _judged("slip_sinkage", 0.05, 1, [], acts=False)):
+        rule = is_significant(CANDIDATES[c.name], c.acts, c.gain, c.z_by_kind, c.ablation, None, c.soil_at_bounds,
+                              c.n_params)
+        assert rule == (why_no_cause(c) == []), (c.name, why_no_cause(c))
