@@ -240,10 +240,10 @@ def significant_but_for_its_soil(judged: JudgedCandidate) -> bool:
     of the search (``judged.soil_at_bounds``) and it passes every other test, its gain's and, where
     given, its ablation's.  Such a one-cause model may lack a second cause that its soil bends to
     absorb: search.first_cause_branches gives it a second round of its own."""
-    off = judged.ablation
-    return bool(judged.soil_at_bounds and not judged.error and judged.acts
-                and passes(judged.n_params, judged.gain, judged.z_by_kind)
-                and (off is None or passes(judged.n_params, off.gain, off.z_by_kind)))
+    if not judged.soil_at_bounds or judged.error:
+        return False
+    return is_significant(CANDIDATES[judged.name], judged.acts, judged.gain, judged.z_by_kind, judged.ablation, None,
+                          (), judged.n_params)
 
 
 def why_no_cause(judged: JudgedCandidate) -> list[str]:

@@ -209,7 +209,8 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     lines.append("")
     if u is not None:
         lines += _structure_table(u) + _scan_table(u)
-        lines += [p.sentence()[0].upper() + p.sentence()[1:] + "." for p in u.partial] + ([""] if u.partial else [])
+        sentences = [p.sentence() for p in u.partial]
+        lines += [s[0].upper() + s[1:] + "." for s in sentences] + ([""] if sentences else [])
     return lines
 
 
