@@ -3,6 +3,8 @@ structure its models leave (juno/diagnose/verdict.py)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from juno.periodic_structure import PeriodicSeries, PeriodicStructure, periodic_structure
@@ -345,3 +347,41 @@ def test_a_named_cause_is_not_unnamed_by_a_candidate_that_explains_one_kind_of_r
     v = verdict(["drivetrain_loss"], _structure(torque_left=2.0), _structure(torque_left=0.0),
                 candidates=_first_round(lugs))
     assert (v.cause, v.unexplained) == ("drivetrain_loss", None)
+
+
+def test_a_ripple_the_named_cause_cannot_make_reports_the_lugs_that_explain_the_drawbar_runs():
+    """As on alternative-design campaigns whose lugs' thrust pulses with the wheel angle: the grouser's
+    fit ends with its soil at a bound of the search (the catalog grouser has no ripple, and the
+    ripple's traction bends gamma), so the drivetrain loss is named; the torques still ripple at 18
+    per revolution, which a drivetrain loss cannot make.  The grouser explained the drawbar runs'
+    held-out data better than the base model (z 5.2, its lugs' own share z 5.3), so the verdict
+    keeps the loss and says beside it that the lugs make the ripple and why they are no cause."""
+    lugs = replace(_judged_first("grouser", {"drawbar": 5.21, "terrain": 2.38}, {"drawbar": 5.31, "terrain": 2.79},
+                                 gain=0.113), soil_at_bounds=["soil.gamma = 0.00995 (lower bound)"])
+    base = _with_ripple(_structure(torque_left=2.0, torque_right=2.0), 4.0)
+    after = _with_ripple(_structure(torque_left=0.0, torque_right=0.0), 4.0)
+    v = verdict(["drivetrain_loss"], base, after, candidates=_first_round(lugs))
+    assert v.cause == "drivetrain_loss" and v.unexplained.ripples
+    [maker] = v.unexplained.ripple_makers
+    assert (maker.name, maker.kind) == ("grouser", "drawbar")
+    assert maker.why_no_cause == ["its soil sits at a bound of the search (soil.gamma = 0.00995 (lower bound))"]
+    words = explanation(v, "part of the torque is lost")
+    assert "grouser makes such a ripple, and drivetrain_loss does not: grouser explains the drawbar runs'" in words
+    assert v.unexplained.to_json()["ripple_makers"][0]["name"] == "grouser"
+
+
+def test_lugs_are_not_offered_beside_a_cause_that_makes_the_ripple_or_without_a_ripple_or_evidence():
+    lugs = _judged_first("grouser", {"drawbar": 5.21, "terrain": 2.38}, {"drawbar": 5.31, "terrain": 2.79})
+    weak = _judged_first("grouser", {"drawbar": 2.9, "terrain": 2.38}, {"drawbar": 5.31, "terrain": 2.79})
+    rippling = _with_ripple(_structure(torque_left=0.0, torque_right=0.0), 4.0)
+    base = _with_ripple(_structure(torque_left=2.0, torque_right=2.0), 4.0)
+    # the named cause makes the ripple itself
+    v = verdict(["grouser", "drivetrain_loss"], base, rippling, candidates=_first_round(lugs))
+    assert v.unexplained.ripple_makers == []
+    # no ripple left: the named cause explains what there is
+    v = verdict(["drivetrain_loss"], _structure(torque_left=2.0), _structure(torque_left=0.0),
+                candidates=_first_round(lugs))
+    assert v.unexplained is None
+    # a ripple left, but the lugs' drawbar evidence is under the threshold of the tests made
+    v = verdict(["drivetrain_loss"], base, rippling, candidates=_first_round(weak))
+    assert v.cause == "drivetrain_loss" and v.unexplained.ripples and v.unexplained.ripple_makers == []

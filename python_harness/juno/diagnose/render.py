@@ -190,6 +190,8 @@ def report_section(result: DiagnosisResult, out: Path) -> list[str]:
         if result.unexplained is not None:
             lines += ["Structure beyond sensor noise remains in the model with the named causes:", ""]
             lines += _structure_table(result.unexplained)
+            makers = result.unexplained.ripple_maker_sentences()
+            lines += [s[0].upper() + s[1:] + "." for s in makers] + ([""] if makers else [])
     return lines
 
 

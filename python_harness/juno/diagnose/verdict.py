@@ -32,7 +32,10 @@ residual structure test (juno/residual_structure.py) what the models leave:
   structure the candidates are fitted and judged on; a ripple in the wheel angle, which no
   candidate models, counts neither for nor against a cause: it is reported beside whatever is
   named (lugs that add thrust and ripple are named ``grouser``, with the ripple as the
-  remainder).
+  remainder).  When the named causes make no such ripple and their model's torques still ripple,
+  a candidate whose cause makes one and that explains the drawbar runs' held-out data by the
+  partial-explanation test is reported beside them (ripple_makers_not_named): the same data read
+  another way, which the ripple favours.
 """
 
 from __future__ import annotations
@@ -122,6 +125,24 @@ def partial_explanations(candidates: list[JudgedCandidate]) -> list[PartialExpla
     return sorted(found, key=lambda f: -f.z)
 
 
+def ripple_makers_not_named(causes: list[str], ripples: list[PeriodicSignal],
+                            candidates: list[JudgedCandidate]) -> list[PartialExplanation]:
+    """When the named ``causes`` make no ripple in the wheel angle and their model's drive torques
+    still ripple (``ripples``): the first round's candidates whose cause makes one and that explain
+    the drawbar runs' held-out data better than the base model by the test of
+    partial_explanations, though they are no cause.
+
+    Why: the ripple is evidence the held-out gains cannot weigh (the candidates are judged on block
+    means, which average it away), and it says something about the named cause: a drivetrain loss
+    cannot make a ripple at a lug count, lugs entering the soil do.  A lug model that the held-out
+    data support but whose fit ends with its soil at a bound of the search (the ripple's
+    traction, which the catalog grouser lacks, bent it there) is then the other reading of the
+    same data, and the engineer is told so beside the cause named."""
+    if not ripples or any(c in CANDIDATES and makes_ripple(c) for c in causes):
+        return []
+    return [p for p in partial_explanations(candidates) if makes_ripple(p.name) and p.name not in causes]
+
+
 @dataclass
 class Unexplained:
     """Structure beyond sensor noise that the catalog does not explain: in the model ``model``
@@ -142,15 +163,23 @@ class Unexplained:
     #: candidates that explain the drawbar runs' held-out data without being a cause
     #: (partial_explanations; with no cause named)
     partial: list[PartialExplanation] = field(default_factory=list)
+    #: candidates whose cause makes the ripple the named causes leave, and that explain the drawbar
+    #: runs' held-out data without being a cause (ripple_makers_not_named; with causes named)
+    ripple_makers: list[PartialExplanation] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"model": self.model, "signals": [s.to_json() for s in self.signals],
                 "ripples": [r.to_json() for r in self.ripples],
                 "offsets": [o.to_json() for o in self.offsets],
                 "partial": [p.to_json() for p in self.partial],
+                "ripple_makers": [p.to_json() for p in self.ripple_makers],
                 "absorbed_by": self.absorbed_by, "share_removed": self.share_removed,
                 "scan": self.scan.to_json() if self.scan is not None else None,
                 "summary": self.summary()}
+
+    def ripple_maker_sentences(self) -> list[str]:
+        """Each candidate whose cause makes the ripple the named causes leave, in words."""
+        return [f"{p.name} makes such a ripple, and {self.model} does not: {p.sentence()}" for p in self.ripple_makers]
 
     def summary(self, most: int = 3) -> str:
         """One sentence: the ``most`` largest signals' structure and the covariate each follows
@@ -160,8 +189,9 @@ class Unexplained:
         if more > 0:
             parts.append(f"and {more} more signal{'s' if more > 1 else ''}")
         scan = [self.scan.summary()] if self.scan is not None and self.scan.significant else []
-        return "; ".join(parts + [r.sentence() for r in self.ripples] + [o.sentence() for o in self.offsets] + scan
-                         + [p.sentence() for p in self.partial])
+        return "; ".join(parts + [r.sentence() for r in self.ripples] + self.ripple_maker_sentences()
+                         + [o.sentence() for o in self.offsets]
+                         + scan + [p.sentence() for p in self.partial])
 
 
 @dataclass
@@ -179,7 +209,9 @@ def verdict(causes: list[str], base: ResidualStructure | None, extended: Residua
     """The verdict (module docstring) from the catalog ``causes`` the search named, the structure
     tests of the base model and of the model with those causes (None when none was named), the
     terrain runs' scan tests (None: no terrain run tested) and the first round's judged
-    ``candidates`` (partial_explanations); the last two are used only when no cause is named.
+    ``candidates`` (partial_explanations, used when no cause is named; ripple_makers_not_named,
+    when the named causes leave a ripple they cannot make); the scan is used only when no cause
+    is named.
     A test that could not be made is None (search.what_the_models_leave): the named causes then
     stand on their held-out evidence, with no share of the base model's structure to weigh them
     by; the base model's test must exist when nothing is named."""
@@ -193,14 +225,16 @@ def verdict(causes: list[str], base: ResidualStructure | None, extended: Residua
         return Verdict("none", [], None)
     if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
+    makers = ripple_makers_not_named(causes, extended.ripples(), candidates or [])
     if not extended.structured() or base is None:
         # only a ripple or an offset is left (the causes explain what they act on), or the base
         # model's structure is unknown: what is left is reported beside the causes
         return Verdict(causes[0], causes, Unexplained("+".join(causes), extended.structured(),
-                                                      ripples=extended.ripples(), offsets=extended.offsets()))
+                                                      ripples=extended.ripples(), offsets=extended.offsets(),
+                                                      ripple_makers=makers))
     removed = 1.0 - extended.block_excess / base.block_excess if base.block_excess > 0 else 0.0
     left = Unexplained("+".join(causes), extended.structured(), share_removed=removed, ripples=extended.ripples(),
-                       offsets=extended.offsets())
+                       offsets=extended.offsets(), ripple_makers=makers)
     if removed >= EXPLAINED_SHARE:
         return Verdict(causes[0], causes, left)
     left.absorbed_by = list(causes)
