@@ -492,3 +492,35 @@ def test_the_heading_check_follows_the_direction_the_wheels_drive(tmp_path, spee
     assert check_heading(straight_terrain_run(tmp_path, speed, 2.5, lambda a: a), "runs/t3d.csv", rover_limits()) == []
     refused = check_heading(straight_terrain_run(tmp_path, speed, 2.5, np.degrees), "runs/t3d.csv", rover_limits())
     assert [(f.severity, f.column) for f in refused] == [("error", "yaw")]
+
+
+def drawbar_run_on_a_unix_clock(tmp_path: Path, spike: tuple[str, int, float]) -> object:
+    """20 s of a steady drawbar run at 50 Hz whose clock reads Unix time (1.7e9 s at its start),
+    as a logger's clock does, with one sample of column ``spike[0]`` at row ``spike[1]`` set to
+    ``spike[2]``."""
+    rng = np.random.default_rng(5)
+    t = 1_700_004_321.0 + np.arange(0.0, 20.0, 0.02)
+    columns = {"time": t, "torque_left": 150 + rng.normal(0, 3, len(t)), "torque_right": 150 + rng.normal(0, 3, len(t)),
+               "omega_left": np.full(len(t), 1.5), "omega_right": np.full(len(t), 1.5),
+               "pos_x": 0.3 * (t - t[0]) + rng.normal(0, 0.002, len(t)), "pos_y": rng.normal(0, 0.002, len(t)),
+               "pos_z": 0.39 + rng.normal(0, 0.002, len(t)), "drawbar_force": 300 + rng.normal(0, 5, len(t)),
+               "pitch": -0.03 + rng.normal(0, 0.002, len(t))}
+    name, row, value = spike
+    columns[name][row] = value
+    path = tmp_path / "dbp1.csv"
+    path.write_text(format_run_csv(columns))
+    return read_run_csv(path, "drawbar")
+
+
+@pytest.mark.parametrize("spike", [("torque_left", 202, 2.742e5), ("pitch", 202, -0.2)],
+                         ids=["beyond a limit", "an outlier"])
+def test_a_message_locates_a_sample_on_a_unix_clock_to_the_millisecond(tmp_path, spike) -> None:
+    """A clock that does not start at zero still locates the sample: its time is written to the
+    millisecond the rows are logged at (1700004325.04 s), not to four digits (1.7e+09 s, the
+    time of every row of the run alike)."""
+    from juno.plausibility import check_run
+
+    run = drawbar_run_on_a_unix_clock(tmp_path, spike)
+    found = [f for f in check_run(run, "runs/dbp1.csv", rover_limits()) if f.column == spike[0]]
+    assert found, "the spike is not reported"
+    assert "line 204 (t = 1700004325.04 s)" in found[0].message

@@ -44,6 +44,13 @@ def _g(x: float) -> str:
     return f"{float(x):.4g}"
 
 
+def _time(t: float) -> str:
+    """A time for a message, to the millisecond the loggers write: a clock that reads Unix time
+    (1.7e9 s) still tells one row from another, which four significant digits would not."""
+    text = f"{float(t):.3f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
 def _own(run: RunData, name: str) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
     """(times, values, file lines) of a column's own samples."""
     v = run.columns[name]
@@ -57,11 +64,11 @@ def _largest(run: RunData, name: str) -> tuple[float, str, FloatArray, NDArray[n
     values, their file lines and its index."""
     ts, vs, lines = _own(run, name)
     i = int(np.argmax(np.abs(vs)))
-    return abs(float(vs[i])), f"line {int(lines[i])} (t = {_g(ts[i])} s)", vs, lines, i
+    return abs(float(vs[i])), f"line {int(lines[i])} (t = {_time(ts[i])} s)", vs, lines, i
 
 
 def _at(ts: FloatArray, vs: FloatArray, lines: NDArray[np.int64], i: int) -> str:
-    return f"{_g(vs[i])} at line {int(lines[i])} (t = {_g(ts[i])} s)"
+    return f"{_g(vs[i])} at line {int(lines[i])} (t = {_time(ts[i])} s)"
 
 
 def _spans(t: FloatArray, mask: NDArray[np.bool_]) -> list[tuple[float, float]]:
@@ -77,5 +84,5 @@ def _spans(t: FloatArray, mask: NDArray[np.bool_]) -> list[tuple[float, float]]:
 
 
 def _format_spans(spans: list[tuple[float, float]], limit: int = 4) -> str:
-    text = ", ".join(f"{_g(a)}-{_g(b)} s" for a, b in spans[:limit])
+    text = ", ".join(f"{_time(a)}-{_time(b)} s" for a, b in spans[:limit])
     return text + (f" and {len(spans) - limit} more" if len(spans) > limit else "")

@@ -52,7 +52,7 @@ from typing import Optional
 import numpy as np
 
 from ..campaign import RunData, aligned
-from .findings import FloatArray, Finding, _format_spans, _g, _largest, _own, _spans
+from .findings import FloatArray, Finding, _format_spans, _g, _largest, _own, _spans, _time
 from .limits import RoverLimits
 from .windows import travel_over_windows
 
@@ -113,7 +113,7 @@ def check_time(run: RunData, file: str) -> list[Finding]:
     lines = run.lines if run.lines is not None else np.arange(len(t)) + 2
     if steps[gap] > LONGEST_RUN and step < SLOW_STEP:
         return [Finding("error", file, "time", f"{_g(steps[gap])} s pass between line {int(lines[gap])} "
-                        f"(t = {_g(t[gap])} s) and line {int(lines[gap + 1])} (t = {_g(t[gap + 1])} s), where rows "
+                        f"(t = {_time(t[gap])} s) and line {int(lines[gap + 1])} (t = {_time(t[gap + 1])} s), where rows "
                         f"are typically {_g(step)} s apart: not one run")]
     if step >= ABSURD_STEP:
         return [Finding("error", file, "time", f"rows are typically {_g(step)} s apart (the rover's sensors sample "
