@@ -400,6 +400,18 @@ def test_manifest_duplicate_run_ids(campaign_dir: Path) -> None:
     assert err.line > [i for i, l in enumerate(lines, 1) if '"dbp1"' in l][0], "should point at the second one"
 
 
+def test_manifest_two_runs_with_one_data_file(campaign_dir: Path) -> None:
+    """One measured run listed under two ids would count its held-out blocks twice in the
+    diagnosis's paired tests: refused, at the second entry, however the path is written."""
+    def edit(d: dict) -> None:
+        d["runs"][1].update(file="./" + d["runs"][0]["file"])
+
+    rewrite_manifest(campaign_dir, edit)
+    err = assert_refused(campaign_dir, file="campaign.json", says="is the file of runs[0] (id 'dbp1')")
+    assert "runs[1] (id 'dbp2')" in str(err)
+    assert err.line is not None and '"dbp2"' in (campaign_dir / "campaign.json").read_text().splitlines()[err.line - 1]
+
+
 def test_manifest_bad_json_names_the_line(campaign_dir: Path) -> None:
     p = campaign_dir / "campaign.json"
     lines = p.read_text().splitlines()

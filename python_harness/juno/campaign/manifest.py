@@ -149,6 +149,21 @@ def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: 
     return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra, rig=rig)
 
 
+def _check_one_file_per_run(root: Path, manifest: Path, text: str, specs: tuple[RunSpec, ...]) -> None:
+    """Refuse two runs whose 'file' is the same file (however the paths are written): one measured
+    run listed twice would count its held-out blocks twice in every paired test and weigh its
+    soil twice in every fit, a confidence the data do not give."""
+    owner: dict[Path, int] = {}
+    for i, spec in enumerate(specs):
+        path = (root / spec.file).resolve()
+        if path in owner:
+            first = specs[owner[path]]
+            raise InputError(f"runs[{i}] (id {spec.id!r}): 'file' {spec.file!r} is the file of runs[{owner[path]}] "
+                             f"(id {first.id!r}): each run needs its own measured data", manifest,
+                             _line_of_run(text, spec.id))
+        owner[path] = i
+
+
 def _parse_rig(manifest: Path, entry: dict[str, Any], label: str, line: Optional[int]) -> RigSetup:
     """The ``wheel`` object and the optional ``carriage_speed`` of a wheel_rig run entry."""
     wheel = entry.get("wheel")
@@ -243,6 +258,7 @@ def load_campaign(path: PathLike) -> Campaign:
         raise InputError("'runs' must be a non-empty list of run objects", manifest)
     seen: dict[str, int] = {}
     specs = tuple(_parse_run(root, manifest, text, i, entry, seen) for i, entry in enumerate(runs))
+    _check_one_file_per_run(root, manifest, text, specs)
     rover = _parse_rover(manifest, doc.get("rover", {}))
     extra = {k: v for k, v in doc.items() if k not in ("name", "runs", "rover")}
     return Campaign(root=root, name=name, runs=specs, rover=rover, extra=extra)
