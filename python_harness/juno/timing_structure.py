@@ -10,7 +10,8 @@ residual against a right model is, to first order, tau times the signal's rate o
 
 The block means of residual_structure do not see it: a rate of change that comes and goes within
 a block (the rover slowing as the drawbar load rises, speeding up as it falls) averages away.
-This test fits the one parameter tau per compared signal, and reports it for the positions.
+This test fits the one parameter tau per compared signal, and one common tau for the positions,
+which one instrument time-stamps, and reports that one.
 
 Method (docs/diagnosis.md, "What no candidate explains"):
 
@@ -27,9 +28,23 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    tau's distribution when the model is right; the observed tau minus the replicas' mean, over
    their standard deviation, is taken as Student's t with replicas - 1 degrees of freedom (scaled
    by sqrt(1 + 1 / replicas) for the estimated mean); the offset reported is tau less that mean.
-4. **The test.** A position (TIMED_SIGNALS) is offset when its two-sided p is below
-   FALSE_ALARM / (number of positions tested) (Bonferroni) and the offset lies between
-   MATERIAL_OFFSET and LINEAR_LIMIT.  Below MATERIAL_OFFSET an offset is the replay's own: it
+4. **One clock, one test.** The positions (TIMED_SIGNALS) come from one instrument (a total
+   station's prism, a GNSS antenna), so they share one clock and one offset: tau is estimated
+   over the held-out samples of all of them together (steps 2 and 3 over their union; in scaled
+   units, the least squares common offset, each sample weighed by its signal's noise), and
+   tested once (POSITIONS).  Tested one by one, a position that the model gets wrong in a way
+   that correlates with its rate of change (pos_y off by 0.4-0.8 s where pos_x, from the same
+   prism, is off by 0.03) would be reported as a clock that the other position, on the same
+   clock, contradicts; and three tests would each need a third of the level.  Each position's
+   own estimate is still given (not tested), so that the user can see whether they agree.
+5. **The test.** The positions are offset when their common offset's two-sided p is below
+   FALSE_ALARM, the offset lies between MATERIAL_OFFSET and LINEAR_LIMIT, and the positions'
+   own offsets agree with it: one clock gives every position the same offset, so Cochran's Q
+   of their own estimates about the common one (each over its null spread; the common estimate
+   is their inverse-variance weighted mean under white noise) is chi-squared with one degree of
+   freedom fewer than the positions, and a Q beyond its 1 - FALSE_ALARM quantile says the
+   residual follows the rate of change in a way no clock does (a real offset is refused so in at
+   most FALSE_ALARM of campaigns).  Below MATERIAL_OFFSET an offset is the replay's own: it
    applies its inputs held over each communication step (juno.simulator), a delay of half a
    step that a right model's positions show as offsets of a few hundredths of a second.  Beyond
    LINEAR_LIMIT the first-order expansion does not hold (the rover's speed changes within about
@@ -45,7 +60,8 @@ these leave offsets of their own, resolved at up to 0.17 s in the pitch (MATERIA
 calibration), larger than the smallest offset reported.  Their offsets are estimated and reported in the JSON
 (``timed`` false), not tested; a clock offset of the IMU alone is not found (a known limit).
 
-Assumptions: one constant offset per signal over the campaign's drawbar runs; the rover's speed
+Assumptions: one constant offset per signal over the campaign's drawbar runs, and one for all
+the positions (one instrument); the rover's speed
 changes within the held-out blocks (a rising or falling drawbar load), which is where an offset
 shows; a signal whose rate of change is nearly constant has no information about an offset
 (tau's null spread is then large and nothing is reported).
@@ -58,10 +74,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-#: At most this many false offset reports per campaign (Bonferroni over the positions tested).
+#: At most this many false offset reports per campaign (one test: the positions' common offset).
 FALSE_ALARM = 0.01
-#: The signals whose offsets are tested (see the module docstring: the positions).
+#: The signals whose common offset is tested (see the module docstring: the positions, which one
+#: instrument time-stamps).
 TIMED_SIGNALS = ("pos_x", "pos_y", "pos_z")
+#: The name the positions' common offset is reported under.
+POSITIONS = "positions"
 #: Half-width (s) of the central difference that gives a compared signal's rate of change: wide
 #: enough to span two samples of the slowest instruments (5 Hz positions), narrow enough to follow
 #: the rover's speed changes, which take about a second.
@@ -72,7 +91,8 @@ RATE_HALF_WIDTH = 0.25
 #: docs/results/structure-calibration.md): on campaigns with nothing hidden, of both designs, the
 #: fitted right model leaves offsets in the positions of up to about 0.04 s that the test resolves;
 #: the floor lies twice above them, and below the clock offset the decoy of juno.effects hides
-#: (0.25 s at strength 1).
+#: (0.25 s at strength 1).  The positions' common offset (and its null's mean) is a weighted mean
+#: of theirs one by one (weights sum(g^2) per signal), so it stays within the same bound.
 MATERIAL_OFFSET = 0.1
 #: The largest offset (s) reported as one: where the first-order expansion stops holding.
 LINEAR_LIMIT = 1.0
@@ -94,17 +114,25 @@ class SignalOffset:
     samples: int
     explained: float = 0.0
     timed: bool = True
+    #: for the positions' common offset: the p-value of its signals' own offsets agreeing with it
+    #: (Cochran's Q; module docstring, step 5), None with fewer than two of them
+    agreement_p: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "offset": self.offset, "null_spread": self.spread,
                 "p_value": self.p_value, "significant": self.significant, "samples": self.samples,
-                "explained_rms": self.explained, "timed": self.timed}
+                "explained_rms": self.explained, "timed": self.timed, "agreement_p": self.agreement_p}
 
     def sentence(self) -> str:
         """The offset in words: what the residual follows, and the clock offset that would leave it
         (a model error can correlate with the rate of change too, so the clock is not asserted)."""
-        lag = "lags" if self.offset > 0 else "leads"
-        return (f"{self.signal} {lag} the replay by {abs(self.offset):.2g} s: its residual follows its rate of "
+        if self.signal == POSITIONS:
+            lag = "lag" if self.offset > 0 else "lead"
+            subject, their = f"the positions ({', '.join(TIMED_SIGNALS)})", "their residuals follow their"
+        else:
+            lag = "lags" if self.offset > 0 else "leads"
+            subject, their = self.signal, "its residual follows its"
+        return (f"{subject} {lag} the replay by {abs(self.offset):.2g} s: {their} rate of "
                 f"change as a clock {abs(self.offset):.2g} s {self.direction()} the inputs' clock leaves it "
                 f"(p {self.p_value:.1g})")
 
@@ -174,30 +202,44 @@ def timing_structure(signal_of: np.ndarray, tested: np.ndarray, g: np.ndarray, r
     """The offset test (module docstring) over the residuals where ``tested`` (held-out samples of
     the drawbar runs), labelled by their signal (``signal_of``), with regressor ``g`` (regressors)
     and ``null_residuals`` (replicas x residuals, the structure test's bootstrap): all in scaled
-    units.  Every signal's offset is estimated; only TIMED_SIGNALS' can be significant."""
-    from scipy.stats import t as student_t
+    units.  Every signal's offset is estimated (not tested), then the positions' common one
+    (POSITIONS), which alone can be significant."""
     use = tested & np.isfinite(g)
     names = [str(s) for s in np.unique(signal_of[use])]
+    out = [_offset(name, use & (signal_of == name), g, residuals, null_residuals, timed=False) for name in names]
+    positions = use & np.isin(signal_of, TIMED_SIGNALS)
+    common = _offset(POSITIONS, positions, g, residuals, null_residuals, timed=True) if np.any(positions) else None
+    if common is not None:
+        own = [o for o in out if o is not None and o.signal in TIMED_SIGNALS]
+        if len(own) >= 2:
+            from scipy.stats import chi2
+            q = sum(((o.offset - common.offset) / o.spread) ** 2 for o in own)
+            common.agreement_p = float(chi2.sf(q, len(own) - 1))
+            common.significant = common.significant and common.agreement_p >= FALSE_ALARM
+        out.append(common)
+    return TimingStructure([o for o in out if o is not None], FALSE_ALARM)
+
+
+def _offset(name: str, mine: np.ndarray, g: np.ndarray, residuals: np.ndarray, null_residuals: np.ndarray,
+            timed: bool) -> SignalOffset | None:
+    """The offset of the samples ``mine`` (one signal's, or the positions' together) against the
+    null of the replicas (module docstring, steps 2-3); significant only when ``timed`` (step 5).
+    None when the samples carry no rate of change or there are too few replicas for a spread."""
+    from scipy.stats import t as student_t
     replicas = null_residuals.shape[0]
-    level = FALSE_ALARM / max(sum(n in TIMED_SIGNALS for n in names), 1)
-    out = []
-    for name in names:
-        mine = use & (signal_of == name)
-        gm = g[mine]
-        gg = float(np.sum(gm * gm))
-        if gg <= 0 or replicas < 3:
-            continue
-        observed = float(np.sum(gm * residuals[mine])) / gg
-        null = null_residuals[:, mine] @ gm / gg
-        spread = float(np.std(null, ddof=1)) * np.sqrt(1.0 + 1.0 / replicas)
-        if not spread > 0:
-            continue
-        t_stat = (observed - float(np.mean(null))) / spread
-        p = float(2.0 * student_t.sf(abs(t_stat), replicas - 1))
-        offset = observed - float(np.mean(null))
-        explained = abs(offset) * float(np.sqrt(np.mean(gm * gm)))
-        material = MATERIAL_OFFSET <= abs(offset) <= LINEAR_LIMIT
-        timed = name in TIMED_SIGNALS
-        out.append(SignalOffset(name, offset, spread, p, bool(timed and p < level and material),
-                                int(np.sum(mine)), explained, timed))
-    return TimingStructure(out, level)
+    gm = g[mine]
+    gg = float(np.sum(gm * gm))
+    if gg <= 0 or replicas < 3:
+        return None
+    observed = float(np.sum(gm * residuals[mine])) / gg
+    null = null_residuals[:, mine] @ gm / gg
+    spread = float(np.std(null, ddof=1)) * np.sqrt(1.0 + 1.0 / replicas)
+    if not spread > 0:
+        return None
+    t_stat = (observed - float(np.mean(null))) / spread
+    p = float(2.0 * student_t.sf(abs(t_stat), replicas - 1))
+    offset = observed - float(np.mean(null))
+    explained = abs(offset) * float(np.sqrt(np.mean(gm * gm)))
+    material = MATERIAL_OFFSET <= abs(offset) <= LINEAR_LIMIT
+    return SignalOffset(name, offset, spread, p, bool(timed and p < FALSE_ALARM and material),
+                        int(np.sum(mine)), explained, timed)
