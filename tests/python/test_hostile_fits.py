@@ -71,7 +71,8 @@ def campaign(small_campaign):
 
 def _subset(campaign, out: Path, kinds: tuple[str, ...], extra_terrain: bool = False) -> Path:
     """A copy of ``campaign`` whose manifest keeps only the runs of ``kinds`` (with
-    ``extra_terrain``, a second terrain run on its own scan, 0.2 m higher)."""
+    ``extra_terrain``, a second terrain run, a copy of the first's data, on its own scan 0.2 m
+    higher)."""
     shutil.copytree(campaign.root, out)
     manifest = json.loads((out / "campaign.json").read_text())
     manifest["runs"] = [r for r in manifest["runs"] if r["kind"] in kinds]
@@ -80,7 +81,9 @@ def _subset(campaign, out: Path, kinds: tuple[str, ...], extra_terrain: bool = F
         points = np.loadtxt(out / first["terrain"])
         points[:, 2] += 0.2
         np.savetxt(out / "terrain" / "raised.xyz", points, fmt="%.17g")
-        manifest["runs"].append({**first, "id": "t3d_raised", "terrain": "terrain/raised.xyz"})
+        shutil.copyfile(out / first["file"], out / "runs" / "t3d_raised.csv")
+        manifest["runs"].append({**first, "id": "t3d_raised", "file": "runs/t3d_raised.csv",
+                                 "terrain": "terrain/raised.xyz"})
     (out / "campaign.json").write_text(json.dumps(manifest, indent=2))
     return out
 
