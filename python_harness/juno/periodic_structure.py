@@ -37,6 +37,14 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    most FALSE_ALARM false reports per campaign over the N's and signals.  A ripple must also
    be material: its amplitude (the runs' sample-weighted RMS of sqrt(a^2 + b^2)) at least
    MATERIAL_FRACTION of the signal's sensor noise sigma.
+6. **Locked to the wheel angle, not to the clock.**  Within one run at a steady spin omega, a
+   ripple at N per revolution is also an oscillation at the fixed frequency N omega / (2 pi):
+   a rover ringing at 3 Hz near a stall, at 0.49 rad/s, scans as N = 39.  Lugs make the same N
+   in every run, whatever its spin.  So the evidence at the strongest N must not rest on one
+   run: with that run left out, the other runs at the same N (no scan: one test) must give a p
+   below the same level.  The rule only removes findings, so the false-alarm rate above still
+   bounds it; with a single run a ripple is never reported (nothing tells it from an
+   oscillation), and with every run at one spin the rule cannot tell the two apart either.
 
 N_RANGE is 4..48 lugs per revolution: fewer than four is not a lugged tyre, and at the
 slowest drawbar spins (0.5 rad/s) N = 4 ripples at 0.3 Hz, one cycle per 4 s block, which the
@@ -125,12 +133,15 @@ class PeriodicSignal:
     significant: bool
     tested: tuple[int, int]   # the lowest and highest N tested in some run
     runs: list[str]
+    #: the p-value at the same N of the runs other than the strongest (module docstring, step 6);
+    #: 1 when no other run tests that N
+    other_runs_p: float = 1.0
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "unit": self.unit, "per_revolution": self.lugs,
                 "amplitude": self.amplitude, "noise": self.noise, "ratio_to_noise": self.ratio,
                 "p_value": self.p_value, "significant": self.significant,
-                "tested_per_revolution": list(self.tested), "runs": self.runs}
+                "tested_per_revolution": list(self.tested), "runs": self.runs, "other_runs_p": self.other_runs_p}
 
     def sentence(self) -> str:
         """The finding in words."""
@@ -337,9 +348,14 @@ def periodic_signal(series: Sequence[PeriodicSeries], unit: str, n_signals: int,
     noise = float(np.median([s.noise for s in series]))
     ratio = amplitude / noise if noise > 0 else float("inf")
     level = FALSE_ALARM / max(n_signals, 1)
+    at_best = [scan[best] for scan in scans if best in scan]
+    strongest = max(range(len(at_best)), key=lambda i: at_best[i][0])
+    others = [part for i, part in enumerate(at_best) if i != strongest]
+    other_runs_p = _sum_of_f_sf(sum(z for z, _d, _a in others), [d for _z, d, _a in others]) if others else 1.0
     return PeriodicSignal(series[0].signal, unit, int(best), amplitude, noise, ratio, p,
-                          bool(p < level and ratio >= MATERIAL_FRACTION), (tested[0], tested[-1]),
-                          sorted({s.run for s, scan in zip(series, scans) if scan}))
+                          bool(p < level and ratio >= MATERIAL_FRACTION and other_runs_p < level),
+                          (tested[0], tested[-1]), sorted({s.run for s, scan in zip(series, scans) if scan}),
+                          other_runs_p)
 
 
 def periodic_structure(series: Sequence[PeriodicSeries], units: dict[str, str] | None = None,

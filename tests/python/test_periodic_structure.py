@@ -19,13 +19,13 @@ SPIN_NOISE = 0.01    # rad/s, encoder spin noise
 
 
 def _run(rng: np.random.Generator, name: str, spin: float, duration: float, noise: str = "white",
-         ripple: float = 0.0, lugs: int = 18, dt: float = 0.02) -> PeriodicSeries:
+         ripple: float = 0.0, lugs: int = 18, dt: float = 0.02, wobble: float = 0.2) -> PeriodicSeries:
     """One run's held-out torque residuals: sensor noise (``noise``: white, plus a random walk or a
     slow drift as large as the noise or larger) and a ripple of amplitude ``ripple`` (N m) at
     ``lugs`` per revolution of the true wheel angle; the angle the test gets is the measured
-    spin's integral."""
+    spin's integral; the spin varies by ``wobble`` of itself over the run."""
     t = np.arange(0.0, duration, dt)
-    w = spin * (1.0 + 0.2 * np.sin(2.0 * np.pi * t / duration))
+    w = spin * (1.0 + wobble * np.sin(2.0 * np.pi * t / duration))
     true_angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
     measured = w + SPIN_NOISE * rng.standard_normal(len(t))
     e = SIGMA * rng.standard_normal(len(t))
@@ -129,8 +129,8 @@ def test_lug_counts_aliased_by_the_sampling_are_not_tested():
 
 def test_the_campaign_result_names_the_signal_and_says_what_it_follows():
     rng = np.random.default_rng(4)
-    left = [_run(rng, "dbp1", 0.7, 24.0, ripple=2.0)]
-    right = [_run(rng, "dbp1", 0.7, 24.0)]
+    left = [_run(rng, "dbp1", 0.7, 24.0, ripple=2.0), _run(rng, "dbp2", 1.0, 20.0, ripple=2.0)]
+    right = [_run(rng, "dbp1", 0.7, 24.0), _run(rng, "dbp2", 1.0, 20.0)]
     for s in right:
         s.signal = "torque_right"
     result = periodic_structure(left + right, {"torque_left": "N m", "torque_right": "N m"})
@@ -138,3 +138,41 @@ def test_the_campaign_result_names_the_signal_and_says_what_it_follows():
     assert [s.signal for s in result.found()] == ["torque_left"]
     assert "follows the wheel angle at 18 per revolution" in result.found()[0].sentence()
     assert result.to_json()["signals"][0]["per_revolution"] == 18
+
+
+def _ringing(rng: np.random.Generator, name: str, spin: float, duration: float, hz: float, amplitude: float,
+             dt: float = 0.02) -> PeriodicSeries:
+    """One run's held-out torque residuals: sensor noise and an oscillation of ``amplitude`` (N m)
+    at a fixed ``hz`` (a rover ringing near a stall), whatever the wheel's angle, at a steady spin."""
+    series = _run(rng, name, spin, duration, dt=dt, wobble=0.01)
+    series.residual = series.residual + amplitude * np.cos(2.0 * np.pi * hz * series.time)
+    return series
+
+
+def test_a_ripple_in_one_run_alone_is_no_lug_ripple():
+    """As on a campaign whose rover rang at about 3 Hz near a stall in its slowest drawbar run:
+    at that run's steady spin a fixed frequency scans as a lug count (3.07 Hz at 0.49 rad/s:
+    N = 39).  Lugs give the same N in every run; with the run that carries the evidence left
+    out, the others show nothing at that N, so no ripple is reported."""
+    rng = np.random.default_rng(11)
+    slow = _ringing(rng, "dbp2", 0.49, 24.0, hz=39 * 0.49 / (2 * np.pi), amplitude=3.0)
+    others = [_run(rng, "dbp1", 1.0, 24.0), _run(rng, "dbp3", 0.95, 24.0)]
+    found = periodic_signal([slow] + others, "N m", n_signals=1)
+    assert found.p_value < FALSE_ALARM and found.ratio >= MATERIAL_FRACTION     # the scan alone would report it
+    assert found.other_runs_p > FALSE_ALARM and not found.significant
+    assert found.to_json()["other_runs_p"] == found.other_runs_p
+
+
+def test_a_fixed_frequency_in_runs_at_different_spins_is_no_lug_ripple_but_lugs_at_any_spin_are():
+    rng = np.random.default_rng(12)
+    ringing = [_ringing(rng, "dbp1", 0.6, 24.0, hz=2.0, amplitude=2.5),
+               _ringing(rng, "dbp2", 1.0, 20.0, hz=2.0, amplitude=2.5)]
+    assert not periodic_signal(ringing, "N m", n_signals=1).significant
+    lugs = periodic_signal(_campaign(12, ripple=2.5), "N m", n_signals=1)
+    assert lugs.significant and lugs.lugs == 18 and lugs.other_runs_p < FALSE_ALARM
+
+
+def test_one_run_cannot_tell_lugs_from_a_fixed_frequency():
+    rng = np.random.default_rng(13)
+    found = periodic_signal([_run(rng, "dbp1", 0.7, 24.0, ripple=3.0)], "N m", n_signals=1)
+    assert found.p_value < 1e-6 and found.other_runs_p == 1.0 and not found.significant
