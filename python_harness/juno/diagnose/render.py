@@ -190,8 +190,7 @@ def report_section(result: DiagnosisResult, out: Path) -> list[str]:
         if result.unexplained is not None:
             lines += ["Structure beyond sensor noise remains in the model with the named causes:", ""]
             lines += _structure_table(result.unexplained)
-            makers = result.unexplained.ripple_maker_sentences()
-            lines += [s[0].upper() + s[1:] + "." for s in makers] + ([""] if makers else [])
+            lines += _paragraph(result.unexplained.ripple_maker_sentences())
     return lines
 
 
@@ -211,9 +210,14 @@ def _unexplained_lines(result: DiagnosisResult) -> list[str]:
     lines.append("")
     if u is not None:
         lines += _structure_table(u) + _scan_table(u)
-        sentences = [p.sentence() for p in u.partial]
-        lines += [s[0].upper() + s[1:] + "." for s in sentences] + ([""] if sentences else [])
+        lines += _paragraph([p.sentence() for p in u.partial])
     return lines
+
+
+def _paragraph(clauses: list[str]) -> list[str]:
+    """Markdown lines of ``clauses`` as sentences (capitalised, each with its full stop), then a
+    blank line; nothing for no clauses."""
+    return [c[0].upper() + c[1:] + "." for c in clauses] + ([""] if clauses else [])
 
 
 def _scan_table(u: Unexplained) -> list[str]:
