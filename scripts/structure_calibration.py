@@ -68,7 +68,9 @@ def one_campaign(fmu: JunoFMU, seed: int, design: str, time_scale: float) -> dic
             "offsets_reported": [s["signal"] for s in timing if s["significant"]],
             "ratios": {s["signal"]: s["ratio_to_noise"] for s in signals},
             "p_values": {s["signal"]: s["p_value"] for s in signals},
-            "significant": [s["signal"] for s in signals if s["significant"]], "doubts": fit.doubts}
+            "significant": [s["signal"] for s in signals if s["significant"]],
+            "below_floors": [s["signal"] for s in signals if s["resolved"] and not s["significant"]],
+            "doubts": fit.doubts}
 
 
 def page(cases: list[dict], started: str) -> str:
@@ -81,16 +83,20 @@ def page(cases: list[dict], started: str) -> str:
              "([diagnosis.md](../diagnosis.md#what-no-candidate-explains)) run on the fit's residuals. "
              f"The materiality floor is {MATERIAL_FRACTION:g} x the sensor noise, {MATERIAL_FRACTION_CONTACT:g} x "
              f"in {', '.join(CONTACT_SIGNALS)}; a right model must stay below it.", "",
-             "| design | time scale | seeds | " + " | ".join(signals) + " | reported structure |",
-             "|---|---|---|" + "---|" * len(signals) + "---|"]
+             "| design | time scale | seeds | " + " | ".join(signals) + " | reported structure | resolved below the floor |",
+             "|---|---|---|" + "---|" * len(signals) + "---|---|"]
     groups = sorted({(c["design"], c["time_scale"]) for c in cases})
     for design, scale in groups:
         mine = [c for c in cases if c["design"] == design and c["time_scale"] == scale]
         worst = [max(c["ratios"].get(s, 0.0) for c in mine) for s in signals]
         flagged = sum(bool(c["significant"]) for c in mine)
+        small = sum(bool(c["below_floors"]) for c in mine)
         lines.append(f"| {design} | {scale:g} | {len(mine)} | " + " | ".join(f"{w:.2f}" for w in worst)
-                     + f" | {flagged} of {len(mine)} |")
-    lines += ["", "Each cell: the largest ratio of structure to sensor noise over the seeds.", ""]
+                     + f" | {flagged} of {len(mine)} | {small} of {len(mine)} |")
+    lines += ["", "Each cell: the largest ratio of structure to sensor noise over the seeds. Resolved below the "
+              "floor: campaigns where some signal's block means are told from sensor noise (p below the "
+              "test's level) by a structure smaller than its floor; the verdict `none` lists such signals "
+              "instead of calling the residuals sensor noise.", ""]
     return "\n".join(lines + _offset_lines(cases, groups))
 
 

@@ -150,11 +150,14 @@ class SignalStructure:
     p_value: float
     significant: bool             # p below the Bonferroni level and ratio >= material_fraction(signal)
     follows: list[Covariate] = field(default_factory=list)
+    #: p below the Bonferroni level, whatever the size: the test tells the block means from noise
+    resolved: bool = False
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "unit": self.unit, "blocks": self.blocks, "noise": self.noise,
                 "structure_rms": self.structure_rms, "ratio_to_noise": self.ratio, "p_value": self.p_value,
-                "significant": self.significant,
+                "significant": self.significant, "resolved": self.resolved,
+                "floor": material_fraction(self.signal),
                 "follows": [{"covariate": c.name, "share": c.share, "slope": c.slope, "unit": c.unit}
                             for c in self.follows]}
 
@@ -170,6 +173,16 @@ class SignalStructure:
     def brief(self) -> str:
         """The finding in a few words (a progress line)."""
         return f"{self.signal} ({self.ratio:.2g} x noise)"
+
+    def below_floor_sentence(self) -> str:
+        """A structure resolved below its floor, in words: its size beside the floor."""
+        text = (f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x its sensor noise, "
+                f"floor {material_fraction(self.signal):g} x; p {self.p_value:.2g})")
+        if not self.follows:
+            return text
+        c = self.follows[0]
+        slope = f" {c.slope:+.3g} {c.unit}" if c.name != "run" else ""
+        return f"{text}, following {c.name}{slope} ({c.share:.0%} of it)"
 
 
 @dataclass
@@ -215,6 +228,13 @@ class ResidualStructure:
     def structured(self) -> list[SignalStructure]:
         """The signals with structure, largest (relative to their noise) first."""
         return sorted((s for s in self.signals if s.significant), key=lambda s: -s.ratio)
+
+    def below_floors(self) -> list[SignalStructure]:
+        """The signals whose block means the test tells from sensor noise (p below the level) but
+        whose structure is smaller than its floor, the most a right model's replay may leave
+        (material_fraction): not attributed to any cause, and not sensor noise either; largest
+        (relative to their noise) first."""
+        return sorted((s for s in self.signals if s.resolved and not s.significant), key=lambda s: -s.ratio)
 
     def findings(self, brief: bool = False) -> list[str]:
         """Every finding in words: the signals with structure, the ripples in the wheel angle and
@@ -514,14 +534,15 @@ def _test_signal(sig: str, units: _Units, observed: np.ndarray, null_means: np.n
     ratio = rms / sensor if sensor > 0 else float("inf")
     level = FALSE_ALARM / max(n_signals, 1)
     floor = material_fraction(sig)
-    significant = bool(p < level and ratio >= floor)
+    resolved = bool(p < level)
+    significant = bool(resolved and ratio >= floor)
     unit = UNITS.get(sig, "")
     follows: list[Covariate] = []
-    if significant:
+    if resolved:
         cov = {name: (x[mine], u) for name, (x, u) in covariates.items()}
         varying = float(np.var(means)) - float(np.mean(ref)) >= (floor * sensor / scale) ** 2
         follows = _what_it_follows(means, scale, unit, cov, runs, varying)
         side = _side_covariate(sig, means_by_signal, {s: sigma_of[s] for s in means_by_signal}, unit)
         if side is not None and side.share >= FOLLOWS_SHARE:
             follows = sorted(follows + [side], key=lambda c: -c.share)
-    return SignalStructure(sig, unit, k, sensor, rms, ratio, p, significant, follows)
+    return SignalStructure(sig, unit, k, sensor, rms, ratio, p, significant, follows, resolved)

@@ -32,6 +32,27 @@ def test_nothing_named_and_nothing_left_is_none():
     assert "consistent with sensor noise" in explanation(v, "")
 
 
+def test_structure_resolved_below_its_floor_leaves_none_but_is_listed_not_called_noise():
+    """A right model's replay leaves structure the test tells from noise but smaller than the
+    floor: no cause, and no claim that the residuals are sensor noise either."""
+    small = SignalStructure("pos_z", "m", 10, 0.005, 0.0029, 0.57, 1e-8, False,
+                            [Covariate("constant", 0.91, 0.0029, "m")], resolved=True)
+    unresolved = SignalStructure("pitch", "rad", 10, 0.003, 0.0003, 0.1, 0.2, False, [], resolved=False)
+    v = verdict([], ResidualStructure([unresolved, small], 0.01 / 2, 20, ["dbp1"]), None)
+    assert (v.cause, v.causes, v.unexplained) == ("none", [], None)
+    assert v.below_floors == [small]
+    words = explanation(v, "")
+    assert "consistent with sensor noise" not in words
+    assert "pos_z 0.0029 m RMS (0.57 x its sensor noise, floor 1 x; p 1e-08), following constant +0.0029 m" in words
+    assert "pitch" not in words
+
+
+def test_a_significant_structure_is_no_structure_below_its_floor():
+    s = _structure(torque_left=2.0)
+    s.signals[0].resolved = True
+    assert s.below_floors() == [] and s.structured() == s.signals
+
+
 def test_nothing_named_but_structure_left_is_unexplained_with_the_signals():
     v = verdict([], _structure(torque_left=0.0, pitch=4.0), None)
     assert v.cause == "unexplained" and v.causes == []

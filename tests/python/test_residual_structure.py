@@ -204,9 +204,13 @@ def test_a_torque_offset_of_two_thirds_of_its_noise_is_structure_but_not_in_a_po
     position = _signal_with_offset("pos_x", 3.7)
     assert position.ratio == pytest.approx(torque.ratio, rel=1e-9) and position.p_value < 1e-10
     assert not position.significant
-    # Below the torques' floor, however clear statistically, it is not structure either.
+    # Below the torques' floor, however clear statistically, it is not structure either; it is
+    # resolved (told from noise), with the constant it follows, for the verdict to list.
     small = _signal_with_offset("torque_left", 2.0)
     assert small.p_value < 1e-10 and small.ratio < MATERIAL_FRACTION_CONTACT and not small.significant
+    assert small.resolved and small.follows[0].name == "constant"
+    assert position.resolved and torque.resolved
+    assert not _signal_with_offset("torque_left", 0.0).resolved
 
 
 # ------------------------------------------------------------ the findings in words

@@ -181,8 +181,8 @@ def report_section(result: DiagnosisResult, out: Path) -> list[str]:
         lines += [f"![{f}]({f})", ""]
     lines += _candidates_table(result)
     if result.cause == "none":
-        lines += ["**Cause: none.** No extension explains the held-out data significantly better than the "
-                  "paper's model, and its residuals are consistent with sensor noise.", ""]
+        words = result.explanation
+        lines += [f"**Cause: none.** {words[:1].upper()}{words[1:]}.", ""]
     elif result.cause == "unexplained":
         lines += _unexplained_lines(result)
     else:

@@ -259,6 +259,8 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
                 untested = untested or f"a replica of the {m.name} model could not be replayed: {exc}"
     for m, t in zip(models, tests):
         found = (", ".join(t.findings(brief=True)) or "none") if t is not None else "not tested"
+        small = ", ".join(s.brief() for s in t.below_floors()) if t is not None else ""
+        found += f" (below the floors: {small})" if small else ""
         say(f"structure beyond sensor noise left by the {m.name} model on the drawbar runs: {found}")
     return tests[0], (tests[1] if len(tests) > 1 else None), untested
 

@@ -4,7 +4,11 @@ The search (search.py) names catalog causes by their held-out gain.  The verdict
 residual structure test (juno/residual_structure.py) what the models leave:
 
 - no cause named, and the base model leaves no structure: ``none``; the residuals are
-  consistent with sensor noise;
+  consistent with sensor noise, or hold structure the test resolves below its floors (the most a
+  right model's replay leaves), which the verdict lists (``below_floors``): a right model's
+  replay leaves such structure on many campaigns with nothing hidden
+  (docs/results/structure-calibration.md counts them), so it names no cause, but the words
+  "consistent with sensor noise" would be false;
 - no cause named, but the base model leaves structure: ``unexplained``, with the signals and
   what they follow (a ripple in the drive torques at N per wheel revolution counts as
   structure: no catalog cause models one);
@@ -202,6 +206,8 @@ class Verdict:
     cause: str
     causes: list[str]
     unexplained: Unexplained | None
+    #: with ``none``: the base model's signals the structure test resolves below their floors
+    below_floors: list[SignalStructure] = field(default_factory=list)
 
 
 def verdict(causes: list[str], base: ResidualStructure | None, extended: ResidualStructure | None,
@@ -222,7 +228,7 @@ def verdict(causes: list[str], base: ResidualStructure | None, extended: Residua
         if base.significant or disagrees is not None or partial:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
                                                           scan=disagrees, offsets=base.offsets(), partial=partial))
-        return Verdict("none", [], None)
+        return Verdict("none", [], None, base.below_floors())
     if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
     makers = ripple_makers_not_named(causes, extended.ripples(), candidates or [])
@@ -261,8 +267,7 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     """The verdict in words, from the named causes' physical explanation."""
     u = verdict_.unexplained
     if verdict_.cause == "none":
-        return "no extension explains the held-out data significantly better, and the residuals are consistent " \
-               "with sensor noise"
+        return "no extension explains the held-out data significantly better, and " + residuals_of_none(verdict_)
     if verdict_.cause == "unexplained":
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
@@ -273,3 +278,13 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     if u is not None:
         return f"{catalog_explanation}; structure beyond sensor noise remains: {u.summary()}"
     return catalog_explanation
+
+
+def residuals_of_none(verdict_: Verdict) -> str:
+    """What the base model's residuals hold under the verdict ``none``, in words: sensor noise, or
+    structure the test resolves below the floors, each signal with its size and floor."""
+    if not verdict_.below_floors:
+        return "the residuals are consistent with sensor noise"
+    return ("the residuals hold no structure above the floors a right model's replay stays under; below them "
+            "the test resolves " + "; ".join(s.below_floor_sentence() for s in verdict_.below_floors))
+
