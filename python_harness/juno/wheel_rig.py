@@ -411,7 +411,8 @@ class RigFitResult:
     sigma was set ("per-point std", or the estimated scale in its unit); ``noise_scale``: that
     estimated scale (its unit), None where the table gives standard deviations; ``rms``: per column, the
     root-mean-square error of the fit in its unit; ``status``: "ok", or "not identified" when a
-    parameter is not seen or the fit did not move; ``evaluations``, ``failed_evaluations``."""
+    parameter is not seen or the fit did not move; ``doubts``: why the values may be wrong even
+    with status "ok" (:data:`MISFIT_P`); ``evaluations``, ``failed_evaluations``."""
 
     law: str
     params: dict[str, float]
@@ -433,6 +434,7 @@ class RigFitResult:
     status: str = "ok"
     unsteady: float = 0.0
     singular_values: list[float] = field(default_factory=list)
+    doubts: list[str] = field(default_factory=list)
 
     def model_parameters(self) -> dict[str, object]:
         """Every FMU parameter of the fitted model (fixed and fitted), for :func:`predict`."""
@@ -487,6 +489,41 @@ class _Residuals:
         self.log.record(None)
         self.unsteady = max(self.unsteady, max(s.unsteady for s in sims))
         return r
+
+
+#: A fit is doubtful when the residuals of the values with stated standard deviations are larger
+#: than those deviations explain: their chi-square beyond the quantile 1 - MISFIT_P for their share
+#: of the degrees of freedom.  The data then hold something the law does not (a sensor's offset
+#: or gain, a soil that changed between runs, a model error); the uncertainties are scaled up for
+#: the scatter, but a bias in the values is not in them.
+MISFIT_P = 1e-3
+
+
+def _misfit_doubts(runs: Sequence[RigRun], raw: Mapping[tuple[str, str], FloatArray],
+                   sigmas: Mapping[str, Mapping[str, FloatArray]], n_values: int, n_params: int) -> list[str]:
+    """The doubt of :data:`MISFIT_P` (empty when the stated deviations explain the residuals, or
+    no column states them), with each column's rms residual over its deviation."""
+    from scipy.stats import chi2 as chi2_distribution
+
+    scaled: dict[str, list[FloatArray]] = {}
+    for (rid, c), d in raw.items():
+        if c in _run(runs, rid).std:
+            scaled.setdefault(c, []).append(d / sigmas[rid][c])
+    if not scaled:
+        return []
+    per_column = {c: np.concatenate(v) for c, v in scaled.items()}
+    n_stated = sum(v.size for v in per_column.values())
+    chi2 = float(sum(np.sum(v * v) for v in per_column.values()))
+    dof = n_stated * max(n_values - n_params, 1) / n_values
+    p = float(chi2_distribution.sf(chi2, dof))
+    if p >= MISFIT_P:
+        return []
+    ratio = ", ".join(f"{c} {float(np.sqrt(np.mean(v * v))):.3g}" for c, v in per_column.items())
+    return [f"the residuals exceed the stated standard deviations (chi-square {chi2:.4g} on {dof:.4g} degrees of "
+            f"freedom, p = {p:.2g}; rms residual over deviation: {ratio}): the law does not follow these data (a "
+            "sensor offset or gain, a soil that changed between runs, a model error; the fit spreads the misfit over "
+            "every quantity, so the largest ratio need not be the faulty one); the uncertainties are scaled up for "
+            "the scatter, not for a bias in the values"]
 
 
 def _params_text(p: Mapping[str, float]) -> str:
@@ -616,6 +653,7 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
     raw = fun.raw(sims)
     rms = {c: float(np.sqrt(np.mean(np.concatenate([v for (_rid, cc), v in raw.items() if cc == c]) ** 2)))
            for c in columns}
+    doubts = _misfit_doubts(runs, raw, _sigmas(runs, scale), n_values, len(names))
     noise, noise_scale = {}, {}
     for c in columns:
         given = all(c in rr.std for rr in runs if c in rr.measured)
@@ -626,7 +664,7 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
                         cost=float(np.mean(r * r)), chi2=chi2, dof=dof, noise=noise, noise_scale=noise_scale, rms=rms,
                         runs=[rr.run_id for rr in runs], evaluations=evaluations, failed_evaluations=failed,
                         wall_time=time.perf_counter() - start, status=_status(seen, identifiability),
-                        unsteady=fun.unsteady)
+                        unsteady=fun.unsteady, doubts=doubts)
 
 
 def _status(seen: NDArray[np.bool_], identifiability: Mapping[str, str]) -> str:

@@ -101,7 +101,7 @@ def figure_rig(results: RigResults, out: Path) -> str:
 
 def rig_section(results: RigResults, out: Path) -> list[str]:
     """The report's section: the figure, each law's parameters with uncertainty and
-    identifiability, and the fit's rms errors."""
+    identifiability, the fit's rms errors and its doubts."""
     laws = list(results.fits)
     lines = ["## Single-wheel testbed fit", "",
              f"The wheel_rig runs {', '.join(r.run_id for r in results.runs)} fitted by weighted least squares "
@@ -117,4 +117,5 @@ def rig_section(results: RigResults, out: Path) -> list[str]:
         lines += ["", "RMS error of the fit: " + ", ".join(f"{c} {v:.3g}" for c, v in fit.rms.items()) +
                   "; noise: " + ", ".join(f"{c} {n}" for c, n in fit.noise.items()) +
                   f"; chi-square {fit.chi2:.3g} on {fit.dof} degrees of freedom; status {fit.status}.", ""]
+        lines += [f"Doubtful: {doubt}.\n" for doubt in fit.doubts]
     return lines

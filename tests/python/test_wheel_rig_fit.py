@@ -88,6 +88,31 @@ def test_a_table_made_by_the_fmu_gives_back_its_soil(rig_fmu, tmp_path):
         assert abs(z) < 3.0, (name, fit.params[name], fit.std[name], true)
     low, high = chi2_distribution.ppf([0.0005, 0.9995], fit.dof)
     assert low < fit.chi2 < high
+    assert fit.doubts == []
+
+
+def test_a_sensor_error_the_stated_deviations_cannot_explain_makes_the_fit_doubtful(rig_fmu, tmp_path):
+    """The same table with the torque read 5 % high (a gain error, which no parameter of the law
+    mimics exactly): the fit still finds a soil, but the residuals lie beyond what the stated
+    deviations explain, so it reports the fit as doubtful with each quantity's residual over its
+    deviation; the CLI prints that doubt."""
+    campaign = synthetic_campaign(rig_fmu, tmp_path / "syn", TRUTH)
+    for spec in campaign.runs:
+        path = campaign.run_path(spec)
+        lines = path.read_text().splitlines()
+        header = lines[0].split(",")
+        col = header.index("torque")
+        rows = [line.split(",") for line in lines[1:]]
+        for row in rows:
+            row[col] = repr(1.05 * float(row[col]))
+        path.write_text("\n".join([lines[0]] + [",".join(row) for row in rows]) + "\n")
+    fit = fit_rig(rig_fmu, load_campaign(campaign.root), "volumetric")
+    assert fit.chi2 > chi2_distribution.ppf(0.999, fit.dof)
+    assert len(fit.doubts) == 1, fit.doubts
+    assert all(f"{c} " in fit.doubts[0] for c in ("drawbar_pull", "torque", "sinkage")), fit.doubts
+    proc = run_juno("identify", campaign.root, "--law", "volumetric", "--rig-fmu", RIG_FMU, "--quiet", timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "rig volumetric: doubtful: " in proc.stdout and "torque" in proc.stdout
 
 
 def test_a_wong_reece_table_gives_back_its_soil(rig_fmu, tmp_path):

@@ -135,4 +135,6 @@ def _rig_fits(campaign, args: argparse.Namespace, say) -> dict[str, Any]:
             print(f"rig {law}: rms error " + ", ".join(f"{c} {v:.3g}" for c, v in fit.rms.items()) +
                   f"; noise {', '.join(f'{c}: {n}' for c, n in fit.noise.items())}; {fit.evaluations} "
                   f"evaluations in {fit.wall_time:.1f} s; status {fit.status}")
+            for doubt in fit.doubts:
+                print(f"rig {law}: doubtful: {doubt}")
     return fits
