@@ -8,8 +8,8 @@ of its manifest entry and against friction:
 * **Load and forces.** The soil's shear strength limits what a wheel transmits: drawbar pull,
   lateral force and the torque over the radius are at most about (tan phi + c A / W) times the
   load, below 1 for every soil simulant (phi < 45 degrees). A ratio beyond ``RIG_FORCE_ERROR``
-  (2) is an error (a load in kg, or forces in another unit), beyond ``RIG_FORCE_WARN`` (1) a
-  warning. A load that is not > 0 is an error.
+  (2) is an error (a load in kg; beyond ``RIG_UNIT_KG_LIMIT``, a load in kN, or a torque in
+  N mm when the forces are in range), beyond ``RIG_FORCE_WARN`` (1) a warning. A load that is not > 0 is an error.
 * **Sinkage** beyond the wheel radius (the axle under the surface) is an error, "looks like
   millimetres" when a thousandth of it fits.
 * **Slip angle** beyond pi/2 is an error ("looks like degrees"), beyond ``RIG_ANGLE_WARN``
@@ -31,6 +31,9 @@ from .findings import Finding, _g
 #: beyond which a table is a warning / an error (module docstring).
 RIG_FORCE_WARN = 1.0
 RIG_FORCE_ERROR = 2.0
+#: The largest force-over-load ratio a load in kg gives (a plausible ratio below RIG_FORCE_ERROR
+#: times 9.81); beyond it a load in kN, or a torque in N mm.
+RIG_UNIT_KG_LIMIT = RIG_FORCE_ERROR * 9.81
 #: Slip angle beyond which a testbed point is a warning (rad); beyond pi/2 an error.
 RIG_ANGLE_WARN = math.pi / 4
 #: The rig wheel's dimensions the FMU accepts (m): radius, width, lug height.
@@ -80,13 +83,23 @@ def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
         forces = [(n, np.abs(table[n]) / load) for n in ("drawbar_pull", "lateral_force") if table.has(n)]
         if table.has("torque") and radius:
             forces.append(("torque", np.abs(table["torque"]) / (radius * load)))
+        force_too_large = any(np.nanmax(ratio) > RIG_FORCE_ERROR for n, ratio in forces if n != "torque")
         for name, ratio in forces:
             if not np.any(ratio > RIG_FORCE_WARN):
                 continue
             i = int(np.nanargmax(ratio))
             what = f"|{name}| / (radius x vertical_load)" if name == "torque" else f"|{name}| / vertical_load"
             severity = "error" if ratio[i] > RIG_FORCE_ERROR else "warning"
-            hint = ": is the load in kg? (1 kg weighs 9.81 N)" if severity == "error" else ""
+            hint = ""
+            if severity == "error":
+                # A load in kg multiplies every ratio by 9.81, so at most by RIG_UNIT_KG_LIMIT; a
+                # thousandfold one is a load in kN, or a torque in N mm when the forces are in range.
+                if ratio[i] <= RIG_UNIT_KG_LIMIT:
+                    hint = ": is the load in kg? (1 kg weighs 9.81 N)"
+                elif name == "torque" and not force_too_large:
+                    hint = ": looks like N mm (1 N m is 1000 N mm)"
+                else:
+                    hint = ": is the load in kN? (1 kN is 1000 N)"
             out.append(Finding(severity, file, name, f"{what} reaches {_g(ratio[i])} at {_rig_at(table, i)}; the "
                                f"soil's friction limits it to below about 1 (more than {RIG_FORCE_ERROR:g} is an "
                                f"error){hint}"))
