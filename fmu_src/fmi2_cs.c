@@ -50,6 +50,8 @@ typedef struct {
     int initialized;               /* initialised since instantiation or the last reset: what
                                     * the model loads at initialisation (outside ModelState)
                                     * and a stepping state relies on exists */
+    int initial_values_current;    /* in Initialization Mode: the model has been initialised
+                                    * from the parameters and inputs as they are now */
     Model model;
 } Instance;
 
@@ -274,6 +276,33 @@ FMI2_EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 {
     CHECK(c, "fmi2EnterInitializationMode", ST_INSTANTIATED);
     inst->state = ST_INIT_MODE;
+    inst->initial_values_current = 0;
+    return fmi2OK;
+}
+
+/* Initialises the model from the parameters and inputs set so far, unless that has been done
+ * since they last changed; a failure puts the instance in the Error state, named after fn. */
+static fmi2Status initialise_model(Instance *inst, const char *fn)
+{
+    if (inst->initial_values_current) return fmi2OK;
+    char err[768];
+    model_resolve_resources(&inst->model, inst->resource_dir);
+    if (model_initialize(&inst->model, err, sizeof err) != 0) return model_error(inst, fn, err);
+    inst->initial_values_current = 1;
+    return fmi2OK;
+}
+
+/* In Initialization Mode the outputs and calculated parameters (the InitialUnknowns) read as
+ * the values the instance starts from (standard, 4.2.4): an importer may read them to
+ * initialise what it connects them to.  Parameters and inputs read as set. */
+static fmi2Status initialise_if_unknowns_read(Instance *inst, const char *fn, const fmi2ValueReference vr[],
+                                              size_t nvr, char type)
+{
+    if (inst->state != ST_INIT_MODE) return fmi2OK;
+    for (size_t i = 0; i < nvr; ++i) {
+        const int kind = model_var_kind(vr[i], type);
+        if (kind == 'O' || kind == 'C') return initialise_model(inst, fn);
+    }
     return fmi2OK;
 }
 
@@ -282,8 +311,7 @@ FMI2_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     CHECK(c, "fmi2ExitInitializationMode", ST_INIT_MODE);
     char err[768];
     Model *m = &inst->model;
-    model_resolve_resources(m, inst->resource_dir);
-    if (model_initialize(m, err, sizeof err) != 0) return model_error(inst, "fmi2ExitInitializationMode", err);
+    if (initialise_model(inst, "fmi2ExitInitializationMode") != fmi2OK) return fmi2Error;
     model_describe(m, err, sizeof err);
     log_message(inst, fmi2OK, LOG_EVENTS, "initialised: %s", err);
     inst->state = ST_STEP_COMPLETE;
@@ -314,6 +342,7 @@ FMI2_EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
     CHECK(c, "fmi2GetReal", ST_CAN_GET);
     CHECK_ARRAY(vr, nvr, "fmi2GetReal");
     CHECK_ARRAY(value, nvr, "fmi2GetReal");
+    if (initialise_if_unknowns_read(inst, "fmi2GetReal", vr, nvr, 'r') != fmi2OK) return fmi2Error;
     for (size_t i = 0; i < nvr; ++i)
         if (model_get_real(&inst->model, vr[i], &value[i]) != 0)
             return refuse(inst, "fmi2GetReal", "unknown Real value reference %u", vr[i]);
@@ -325,6 +354,7 @@ FMI2_EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference 
     CHECK(c, "fmi2GetInteger", ST_CAN_GET);
     CHECK_ARRAY(vr, nvr, "fmi2GetInteger");
     CHECK_ARRAY(value, nvr, "fmi2GetInteger");
+    if (initialise_if_unknowns_read(inst, "fmi2GetInteger", vr, nvr, 'i') != fmi2OK) return fmi2Error;
     for (size_t i = 0; i < nvr; ++i)
         if (model_get_int(&inst->model, vr[i], &value[i]) != 0)
             return refuse(inst, "fmi2GetInteger", "unknown Integer value reference %u", vr[i]);
@@ -380,6 +410,7 @@ FMI2_EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[
             return refuse(inst, "fmi2SetReal", "'%s' = %g is outside its range [%g, %g]", name, value[i], lo, hi);
     }
     for (size_t i = 0; i < nvr; ++i) model_set_real(&inst->model, vr[i], value[i]);
+    if (nvr > 0) inst->initial_values_current = 0;
     return fmi2OK;
 }
 
@@ -400,6 +431,7 @@ FMI2_EXPORT fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference 
             return refuse(inst, "fmi2SetInteger", "'%s' = %d is outside its range [%d, %d]", name, value[i], lo, hi);
     }
     for (size_t i = 0; i < nvr; ++i) model_set_int(&inst->model, vr[i], value[i]);
+    if (nvr > 0) inst->initial_values_current = 0;
     return fmi2OK;
 }
 
@@ -428,6 +460,7 @@ FMI2_EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference v
     for (size_t i = 0; i < nvr; ++i)
         if (model_set_string(&inst->model, vr[i], value[i]) != 0)
             return model_error(inst, "fmi2SetString", "out of memory");
+    if (nvr > 0) inst->initial_values_current = 0;
     return fmi2OK;
 }
 
@@ -487,6 +520,7 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
                       "the state was taken after initialisation; this instance has not been initialised");
     model_set_state(&inst->model, &snap->model);
     inst->state = target;
+    inst->initial_values_current = 0;
     return fmi2OK;
 }
 

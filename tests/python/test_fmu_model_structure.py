@@ -5,9 +5,10 @@ algebraic loop.  Checked against the declaration and against a numerical probe."
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from fmpy import read_model_description
 
-from fmu_helpers import Rover
+from fmu_helpers import FMICallException, LogCapture, Rover
 
 
 def _outputs_and_inputs(fmu_unzipped):
@@ -57,3 +58,44 @@ def test_the_fmu_says_its_licence_version_and_authors(fmu_path, fmu_unzipped):
     assert md.license.startswith("BSD-2-Clause") and md.copyright and md.author
     text = (Path(fmu_unzipped) / "documentation" / "licenses" / "LICENSE.txt").read_text()
     assert text == (Path(__file__).resolve().parents[2] / "LICENSE").read_text()
+
+
+def _initial_unknowns(fmu_unzipped) -> list[str]:
+    return [u.variable.name for u in read_model_description(fmu_unzipped).initialUnknowns]
+
+
+def test_initial_unknowns_read_in_initialization_mode_are_the_initial_values(fmu_unzipped):
+    """In Initialization Mode an importer may read every InitialUnknown (the outputs and the
+    calculated parameters: standard, 4.2.4) to initialise what it connects them to; the values
+    are those the instance starts from, computed from the parameters and inputs set so far, and
+    a change of either is seen by the next read."""
+    names = _initial_unknowns(fmu_unzipped)
+    assert "z" in names and "soil.A1" in names and "wheelFL.Fn" in names
+    with Rover(fmu_unzipped) as rover:
+        rover.fmu.setupExperiment(startTime=0.0)
+        rover.fmu.enterInitializationMode()
+        rover.set({"soil.kh": 1.2e5, "drive.mode": 2, "throttleLeft": 0.3, "throttleRight": 0.3})
+        soft = dict(zip(names, rover.get(names)))
+        rover.set({"soil.kh": 2.4e5})
+        stiff = dict(zip(names, rover.get(names)))
+        rover.fmu.exitInitializationMode()
+        rover._initialised = True
+        after = dict(zip(names, rover.get(names)))
+    assert stiff == after
+    assert soft["wheelFL.sinkage"] > stiff["wheelFL.sinkage"] > 0.0
+    assert soft["z"] < stiff["z"]
+
+
+def test_reading_an_output_in_initialization_mode_reports_a_failing_initialisation(fmu_unzipped, tmp_path):
+    """The values cannot be computed when the parameters do not initialise: the read fails with
+    the cause, as fmi2ExitInitializationMode would."""
+    log = LogCapture()
+    missing = str(tmp_path / "no such grid.asc")
+    with Rover(fmu_unzipped, log=log) as rover:
+        rover.fmu.setupExperiment(startTime=0.0)
+        rover.fmu.enterInitializationMode()
+        rover.set({"terrain.file": missing})
+        assert rover.get(["soil.kh"]) == [158000.0]     # a parameter reads as set, no initialisation
+        with pytest.raises(FMICallException):
+            rover.get(["z"])
+    assert any("fmi2GetReal" in m and missing in m for m in log.errors()), log.text()

@@ -114,6 +114,27 @@ def test_the_fmu_outputs_are_the_soil_force_and_its_moment(rig_dir):
     assert math.hypot(drawbar, vertical) == pytest.approx(math.hypot(traction, normal), rel=1e-12)
 
 
+def test_initial_unknowns_read_in_initialization_mode_are_the_initial_values(rig_dir):
+    """As the rover's (test_fmu_model_structure.py): in Initialization Mode the outputs and the
+    calculated parameters read as the values the rig starts from, after each change of a
+    parameter or an input."""
+    names = [u.variable.name for u in read_model_description(rig_dir).initialUnknowns]
+    assert "rig.sinkage" in names and "rig.verticalForce" in names and "rig.movingMass" in names
+    with Rover(rig_dir, instance_name="rig") as r:
+        r.fmu.setupExperiment(startTime=0.0)
+        r.fmu.enterInitializationMode()
+        r.set({"rig.load": 600.0, "rig.slip": 0.2})
+        light = dict(zip(names, r.get(names)))
+        r.set({"rig.load": 900.0})
+        heavy = dict(zip(names, r.get(names)))
+        r.fmu.exitInitializationMode()
+        r._initialised = True
+        after = dict(zip(names, r.get(names)))
+    assert heavy == after
+    assert light["rig.verticalForce"] == pytest.approx(600.0) and heavy["rig.verticalForce"] == pytest.approx(900.0)
+    assert 0.0 < light["rig.sinkage"] < heavy["rig.sinkage"]
+
+
 def test_state_round_trip_is_exact(rig_dir):
     """getFMUstate/setFMUstate and serialize/deserialize (into a second instance) continue bit for bit."""
     names = output_names(rig_dir)
