@@ -477,9 +477,9 @@ typedef struct {
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
 /* Raised with every change of ModelState's layout (2: the wheels' spin angles; 3: the automatic
  * step's last step; 4: the side bodies in the derived data; 5: the terrain's tilt; 6: the
- * automatic step's last correction), so that a state saved by another version of the FMU is
- * refused as such, even at an equal size. */
-#define SNAPSHOT_VERSION 6u
+ * automatic step's last correction; 7: the terrain's fingerprint), so that a state saved by
+ * another version of the FMU is refused as such, even at an equal size. */
+#define SNAPSHOT_VERSION 7u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)
 {
@@ -518,6 +518,10 @@ FMI2_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
     if ((target == ST_STEP_COMPLETE || target == ST_TERMINATED) && !inst->initialized)
         return refuse(inst, "fmi2SetFMUstate",
                       "the state was taken after initialisation; this instance has not been initialised");
+    char why[512];
+    if ((target == ST_STEP_COMPLETE || target == ST_TERMINATED)
+        && model_state_foreign(&inst->model, &snap->model, why, sizeof why))
+        return refuse(inst, "fmi2SetFMUstate", "%s", why);
     model_set_state(&inst->model, &snap->model);
     inst->state = target;
     inst->initial_values_current = 0;

@@ -12,6 +12,7 @@
 #define JUNO_MODEL_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include "contact.h"
 #include "terrain.h"
 #include "wheel_soil.h"
@@ -74,6 +75,8 @@ typedef struct {
     double rocker_cg[3];           /* rocker CG in the rocker frame (from the pivot) */
     double hub[2][3];              /* front, rear hub in the rocker frame */
     double side_mass, side_cg[3], side_I[9];   /* a side's rocker and wheels as one body (rover_side_body) */
+    uint64_t terrain_fingerprint;  /* of the ground initialisation loaded (terrain_fingerprint): a state
+                                    * steps on only where it was taken */
 } Derived;
 
 typedef struct {
@@ -158,6 +161,7 @@ typedef struct {
     /* not part of the byte-copied FMU state (ModelState): */
     char *terrain_file;            /* owned (malloc), NULL = flat ground */
     Terrain terrain;
+    uint64_t terrain_fingerprint;  /* of terrain, as loaded by the last initialisation */
     /* The input-independent evaluation of the state at the end of the
      * last model_do_step (or model_initialize), valid while eval_valid:
      * set there, cleared by every other write of what it is computed from

@@ -85,6 +85,10 @@ void model_set_state(Model *m, const ModelState *st);
  * end-of-step evaluation) forgets it here; the rig keeps none. */
 void model_changed(Model *m);
 
+/* A stepping state set into this instance (an initialised one) must have been taken where what
+ * initialisation loads outside ModelState (the rover: its terrain grid) is the same.  Returns
+ * NULL, or what differs, written into why. */
+const char *model_state_foreign(const Model *m, const ModelState *st, char *why, size_t n);
 /* A state from elsewhere (deserialised: a tool's storage, a crafted file)
  * must hold values the model itself could have had: parameters and inputs
  * within their declared ranges, and when it is to be stepped (stepping)

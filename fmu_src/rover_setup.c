@@ -310,6 +310,7 @@ int model_initialize(Model *m, char *err, size_t errlen)
     } else {
         terrain_init_flat(&m->terrain);
     }
+    m->terrain_fingerprint = m->d.terrain_fingerprint = terrain_fingerprint(&m->terrain);
 
     const double t0 = m->s.time;
     memset(&m->s, 0, sizeof m->s);
@@ -352,6 +353,15 @@ void model_reset(Model *m)
     memset(m, 0, sizeof *m);
     model_set_defaults(m);
     terrain_init_flat(&m->terrain);
+}
+
+const char *model_state_foreign(const Model *m, const ModelState *st, char *why, size_t n)
+{
+    if (st->d.terrain_fingerprint == m->terrain_fingerprint) return NULL;
+    const char *file = m->terrain_file && m->terrain_file[0] ? m->terrain_file : NULL;
+    snprintf(why, n, "the state was taken on other ground than this instance's terrain.file%s%s%s",
+             file ? " '" : " (flat ground)", file ? file : "", file ? "'" : "");
+    return why;
 }
 
 void model_describe(const Model *m, char *buf, size_t n)

@@ -7,6 +7,7 @@
 #define JUNO_TERRAIN_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 typedef struct {
@@ -39,6 +40,11 @@ int terrain_load(Terrain *t, const char *path, char *err, size_t errlen);
 int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen);
 
 void terrain_free(Terrain *t);
+
+/* A 64-bit hash (FNV-1a) of the grid's size, placement and elevations: equal for the same ground
+ * read from any path, different (but for a hash collision) for other ground; flat ground has its
+ * own. */
+uint64_t terrain_fingerprint(const Terrain *t);
 
 /* Elevation (m) and unit upward surface normal at (x, y).  Inside the
  * grid (the rectangle of its nodes, edges included) the elevation is

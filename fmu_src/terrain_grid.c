@@ -26,6 +26,28 @@ void terrain_free(Terrain *t)
     terrain_init_flat(t);
 }
 
+static uint64_t fnv1a_more(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *bytes = (const unsigned char *)data;
+    for (size_t i = 0; i < n; ++i) {
+        h ^= bytes[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+uint64_t terrain_fingerprint(const Terrain *t)
+{
+    uint64_t h = 1469598103934665603ull;
+    h = fnv1a_more(h, &t->ncols, sizeof t->ncols);
+    h = fnv1a_more(h, &t->nrows, sizeof t->nrows);
+    h = fnv1a_more(h, &t->x0, sizeof t->x0);
+    h = fnv1a_more(h, &t->y0, sizeof t->y0);
+    h = fnv1a_more(h, &t->cell, sizeof t->cell);
+    if (t->z) h = fnv1a_more(h, t->z, (size_t)t->ncols * (size_t)t->nrows * sizeof *t->z);
+    return h;
+}
+
 /* Maps a coordinate to the grid interval [k, k+1] holding it and the
  * fraction f in [0, 1] within it, after clamping to the grid extent (so
  * edge values extend flat outside).  NaN is mapped to the first node only

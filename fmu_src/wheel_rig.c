@@ -252,6 +252,16 @@ void model_reset(Model *m)
 /* The rig keeps nothing from one step for the next. */
 void model_changed(Model *m) { (void)m; }
 
+/* The rig loads nothing at initialisation: every state is its own. */
+const char *model_state_foreign(const Model *m, const ModelState *st, char *why, size_t n)
+{
+    (void)m;
+    (void)st;
+    (void)why;
+    (void)n;
+    return NULL;
+}
+
 void model_describe(const Model *m, char *buf, size_t n)
 {
     snprintf(buf, n, "%s law, static sinkage %.4f m under rig.load = %g N, moving mass %g kg, A1 = %.4f",

@@ -74,3 +74,39 @@ def test_a_stepping_state_needs_an_initialised_instance_and_then_continues_exact
     finally:
         original.freeInstance()
         fresh.freeInstance()
+
+
+def test_a_stepping_state_is_restored_only_on_the_ground_it_was_taken_on(fmu_unzipped, tmp_path):
+    """The terrain grid is loaded at initialisation, not held in the state: a state taken on a
+    grid is refused by an instance initialised on flat ground (it would drop the rover half a
+    metre) or on another grid, naming terrain.file, and taken by one that loaded the same grid,
+    from whatever path, which then steps on exactly as the original did."""
+    import numpy as np
+    import pytest
+
+    from fmu_helpers import FMICallException, LogCapture, Rover, write_asc
+
+    raised = write_asc(tmp_path / "raised.asc", np.full((4, 4), 0.5), -60.0, -60.0, 40.0)
+    (tmp_path / "copy").mkdir()
+    same = write_asc(tmp_path / "copy" / "raised again.asc", np.full((4, 4), 0.5), -60.0, -60.0, 40.0)
+    higher = write_asc(tmp_path / "higher.asc", np.full((4, 4), 0.6), -60.0, -60.0, 40.0)
+    names = ["x", "z", "vx", "wheelFL.Fn"]
+    with Rover(fmu_unzipped, "original") as original:
+        original.setup({"terrain.file": raised})
+        original.advance(20, 0.01)
+        blob = original.fmu.serializeFMUstate(original.fmu.getFMUstate())
+        expected = original.advance(5, 0.01, names=names)
+    for ground in ("", higher):
+        log = LogCapture()
+        with Rover(fmu_unzipped, "elsewhere", log=log) as other:
+            other.setup({"terrain.file": ground})
+            state = other.fmu.deSerializeFMUstate(blob)
+            with pytest.raises(FMICallException):
+                other.fmu.setFMUstate(state)
+            assert any("fmi2SetFMUstate" in m and "terrain.file" in m for m in log.errors()), log.text()
+            other.advance(1, 0.01)                  # refused: the instance steps on its own ground
+    with Rover(fmu_unzipped, "same ground") as copy:
+        copy.setup({"terrain.file": same})
+        copy.fmu.setFMUstate(copy.fmu.deSerializeFMUstate(blob))
+        copy.time = 0.2
+        np.testing.assert_array_equal(copy.advance(5, 0.01, names=names), expected)
