@@ -524,3 +524,38 @@ def test_a_message_locates_a_sample_on_a_unix_clock_to_the_millisecond(tmp_path,
     found = [f for f in check_run(run, "runs/dbp1.csv", rover_limits()) if f.column == spike[0]]
     assert found, "the spike is not reported"
     assert "line 204 (t = 1700004325.04 s)" in found[0].message
+
+
+def pitch_at_25_hz_rocking_at_the_start(tmp_path: Path, glitch: dict[int, float]) -> object:
+    """A drawbar run's pitch logged at 25 Hz (10 s): at the start the rover rocks back and forth
+    at 2.2 Hz (0.025 rad, dying out in about a second, as a start against a load rocks it), then
+    holds -0.015 rad, with 0.4 mrad of noise; the samples at the rows in ``glitch`` are moved by
+    their values."""
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 10.0, 0.04)
+    pitch = -0.015 - 0.025 * np.exp(-1.5 * t) * np.sin(2 * np.pi * 2.2 * t) + rng.normal(0, 4e-4, len(t))
+    for row, jump in glitch.items():
+        pitch[row] += jump
+    from juno.campaign import RunData
+    return RunData(tmp_path / "dbp1.csv", "drawbar", {"time": t, "pitch": pitch}, lines=np.arange(2, len(t) + 2))
+
+
+@pytest.mark.parametrize("glitch, flagged", [({}, []), ({150: 0.012}, [150]), ({5: 0.02, 6: 0.02}, [5, 6])],
+                         ids=["the rocking alone", "a lone spike later", "a two-sample glitch in the rocking"])
+def test_a_swing_a_few_samples_wide_is_motion_and_a_glitch_on_it_is_not(tmp_path, glitch, flagged) -> None:
+    """The median of five clips the swing's extremes (its residual at the first trough exceeds
+    the limit), but a quadratic through the neighbours follows them: no outlier. A spike, or a
+    glitch two samples long on the swing itself, lies off both and is reported (at its rows)."""
+    from juno.plausibility.outliers import _median_of_five, check_outliers
+
+    run = pitch_at_25_hz_rocking_at_the_start(tmp_path, glitch)
+    found = check_outliers(run, "runs/dbp1.csv", ["pitch"], rover_limits())
+    if not flagged:
+        pitch = run.columns["pitch"]
+        clipped = np.max(np.abs(pitch - _median_of_five(pitch))[:30])
+        assert clipped > 5 * np.std(pitch[-100:]), "the swing must be one the median alone would flag"
+        assert found == []
+        return
+    assert len(found) == 1 and found[0].column == "pitch"
+    lines = [int(row) + 2 for row in flagged]     # a header line, then 1-based rows
+    assert any(f"line {line} " in found[0].message for line in lines), found[0].message

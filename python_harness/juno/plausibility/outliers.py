@@ -15,8 +15,21 @@
   ``k = Phi^-1(1 - FALSE_ALARM / (2 n))``, with Student's t in place of Phi at the MAD's
   0.37 n degrees of freedom because s is itself estimated (5.5 for 2000 samples, 9.4 for the
   28 samples of a 5 Hz column over 5.5 s). The span term keeps noise-free data (MAD = 0) from
-  flagging its own curvature. An outlier is an error when its residual exceeds ten times the
-  column's span (nothing the run measured), else a warning.
+  flagging its own curvature.
+* **Motion, not a glitch.** The median of five passes steps and monotone stretches, but clips the
+  extremum of a swing a few samples wide (a 25 Hz pitch through a start's rocking), which is
+  motion. A sample the median flags is an outlier only if it also lies beyond the same limit
+  from the quadratic fitted by least squares to its neighbours within ``NEIGHBOURS`` samples on
+  each side, leaving out itself and every other flagged sample, and then also each adjacent
+  sample in turn (so a glitch two samples long, its partner flagged or not, does not pull the
+  curve it is judged by): off any of these curves. The quadratic's prediction has its own
+  variance, ``v s^2`` (v from the fit's design), so the limit there is ``k sqrt(1 + v) s``. A
+  lone spike or pair lies off both; a swing that a quadratic through its neighbours follows is
+  not an outlier. With fewer than ``NEIGHBOURS + 1`` clean neighbours (the ends of a column, a
+  burst of glitches) the median's verdict stands.
+
+An outlier is an error when its residual exceeds ten times the column's span (nothing the run
+measured), else a warning.
 """
 
 from __future__ import annotations
@@ -41,6 +54,8 @@ RESIDUAL_TAIL = math.sqrt(1.3)
 SPAN_FRACTION = 0.25
 #: ... and is an error beyond this multiple of the span.
 ABSURD_SPAN = 10.0
+#: Neighbours on each side of a flagged sample whose quadratic must also miss it.
+NEIGHBOURS = 3
 
 
 def outlier_threshold_k(n: int, false_alarm: float = FALSE_ALARM, scale_samples: Optional[int] = None) -> float:
@@ -69,6 +84,49 @@ def _median_of_five(v: FloatArray) -> FloatArray:
     return np.median(windows, axis=1)
 
 
+def _off_the_motion(ts: FloatArray, vs: FloatArray, flagged: FloatArray, k: float, sigma: float,
+                    floor: float) -> FloatArray:
+    """Of the samples the median of five flags (indices ``flagged``), those that also lie beyond
+    ``max(k sqrt(1 + v) sigma, floor)`` from the quadratic in time fitted to their clean
+    neighbours (module docstring: "Motion, not a glitch"); ``sigma``: the noise's standard
+    deviation."""
+    out = []
+    skip = set(int(i) for i in flagged)
+    for i in flagged:
+        i = int(i)
+        window = [j for j in range(max(i - NEIGHBOURS, 0), min(i + NEIGHBOURS + 1, len(vs))) if j not in skip]
+        if len(window) < NEIGHBOURS + 1:
+            out.append(i)
+            continue
+        # The glitch's partner, when the median did not flag it, may be either adjacent sample:
+        # the sample is judged against the neighbours with each left out in turn, and is off the
+        # motion if it is off any of these curves.
+        for partner in (None, i - 1, i + 1):
+            near = [j for j in window if j != partner]
+            if len(near) < NEIGHBOURS + 1:
+                continue
+            if _off_the_quadratic(ts, vs, i, near, k, sigma, floor):
+                out.append(i)
+                break
+    return np.array(out, dtype=int)
+
+
+def _off_the_quadratic(ts: FloatArray, vs: FloatArray, i: int, near: list[int], k: float, sigma: float,
+                       floor: float) -> bool:
+    """Whether sample ``i`` lies beyond ``max(k sqrt(1 + v) sigma, floor)`` from the least-squares
+    quadratic in time through the samples ``near`` (v: the variance of its prediction at sample
+    ``i``, per sigma^2); a fit that cannot be made leaves the sample flagged."""
+    dt = ts[near] - ts[i]
+    scale = float(np.max(np.abs(dt))) or 1.0
+    x = np.column_stack([np.ones(len(near)), dt / scale, (dt / scale) ** 2])
+    with np.errstate(all="ignore"):
+        coef, *_ = np.linalg.lstsq(x, vs[near], rcond=None)
+        variance = float(np.linalg.pinv(x.T @ x)[0, 0])
+    if not (np.isfinite(coef[0]) and np.isfinite(variance)):
+        return True
+    return bool(abs(vs[i] - coef[0]) > max(k * math.sqrt(1.0 + variance) * sigma, floor))
+
+
 def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: RoverLimits) -> list[Finding]:
     """Single absurd samples, column by column (robust test of the module docstring).
 
@@ -94,10 +152,15 @@ def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: Rove
             if d2.size == 0:
                 d2 = np.zeros(1)
             scale = RESIDUAL_TAIL * 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
-        limit = max(outlier_threshold_k(len(vs), scale_samples=len(d2)) * scale, SPAN_FRACTION * span)
+        k = outlier_threshold_k(len(vs), scale_samples=len(d2))
+        floor = SPAN_FRACTION * span
         if name.startswith("pos_"):
-            limit = max(limit, 2.0 * limits.top_speed * float(np.median(np.diff(ts))))
+            floor = max(floor, 2.0 * limits.top_speed * float(np.median(np.diff(ts))))
+        limit = max(k * scale, floor)
         bad = np.flatnonzero(np.abs(r) > limit)
+        if bad.size == 0:
+            continue
+        bad = _off_the_motion(ts, vs, bad, k, scale / RESIDUAL_TAIL, floor)
         if bad.size == 0:
             continue
         worst = int(bad[np.argmax(np.abs(r[bad]))])
