@@ -162,6 +162,35 @@ def test_implausible_units_are_named_with_their_evidence(tmp_path, table, column
             enforce_plausibility(campaign, stream=lambda line: None)
 
 
+#: Ding et al.'s smooth wheel (docs/example-rig-campaign): a slip-pull curve from rolling into traction.
+DING_SMOOTH = [(80, 0.0, -6.5, 0.0), (80, 0.1, 14.0, 3.5), (80, 0.2, 20.0, 5.0), (80, 0.3, 22.0, 5.8),
+               (80, 0.4, 23.0, 6.3), (80, 0.6, 24.5, 7.2)]
+
+
+def rig_table(rows, pull_scale: float = 1.0, torque_scale: float = 1.0) -> str:
+    body = "".join(f"{w:g},{s:g},{p * pull_scale:g},{t * torque_scale:g}\n" for w, s, p, t in rows)
+    return "vertical_load,slip,drawbar_pull,torque\n" + body
+
+
+def test_a_drawbar_pull_in_kn_is_named_against_the_thrust_the_torque_gives(tmp_path):
+    """Over slips from rolling into traction the drawbar pull is a sizeable part of the thrust the
+    torque transmits (torque / radius): under 1 % of it throughout, where a thousand times it is a
+    plausible pull, is a drawbar pull in kN; an error naming the column, its largest value and "kN?"."""
+    def pull_findings(name, table):
+        campaign = load_campaign(make_campaign(tmp_path / name, table=table))
+        return [f for f in check_campaign(campaign) if f.column == "drawbar_pull"]
+
+    found = pull_findings("kn", rig_table(DING_SMOOTH, pull_scale=1e-3))
+    assert len(found) == 1 and found[0].severity == "error", found
+    assert found[0].file == "runs/rig.csv" and "kN?" in found[0].message
+    assert "0.0245" in found[0].message and "line 7" in found[0].message
+    assert pull_findings("newton", rig_table(DING_SMOOTH)) == []
+    # A torque in N mm makes the pull a tiny part of the "thrust" too: the torque is named, not the pull.
+    assert pull_findings("nmm", rig_table(DING_SMOOTH, torque_scale=1e3)) == []
+    # Slips that stay in one regime (here all beyond 0.3) do not say how large the pull must be.
+    assert pull_findings("one_regime", rig_table(DING_SMOOTH[3:], pull_scale=1e-3)) == []
+
+
 @pytest.mark.parametrize("wheel, column", [
     ({**WHEEL, "radius": 157.35}, "wheel.radius"),
     ({**WHEEL, "width": 165.0}, "wheel.width"),

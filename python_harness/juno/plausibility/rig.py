@@ -10,6 +10,15 @@ of its manifest entry and against friction:
   load, below 1 for every soil simulant (phi < 45 degrees). A ratio beyond ``RIG_FORCE_ERROR``
   (2) is an error (a load in kg; beyond ``RIG_UNIT_KG_LIMIT``, a load in kN, or a torque in
   N mm when the forces are in range), beyond ``RIG_FORCE_WARN`` (1) a warning. A load that is not > 0 is an error.
+* **Drawbar pull and thrust.** The torque over the radius is the thrust the wheel transmits; the
+  drawbar pull is that thrust less the soil's resistance. Across slips from rolling (0.1 or less)
+  into traction (0.2 or more) the pull is a sizeable part of the thrust somewhere: its largest
+  magnitude is 0.44-0.99 of the largest thrust on the published tables and on tables the
+  WheelRig FMU made (braking included), over 40 times ``RIG_PULL_THRUST_MIN`` (1 %). A largest
+  |drawbar pull| under 1 % of the largest thrust, while the torque is in range and a thousand
+  times the pull stays within ``RIG_FORCE_ERROR`` loads, is an error, "kN?" (those tables in kN
+  give 0.0004-0.001). Slips in one regime only (near the self-propelled point the pull is ~0) are
+  not judged.
 * **Sinkage** beyond the wheel radius (the axle under the surface) is an error, "looks like
   millimetres" when a thousandth of it fits.
 * **Slip angle** beyond pi/2 is an error ("looks like degrees"), beyond ``RIG_ANGLE_WARN``
@@ -24,7 +33,7 @@ import math
 
 import numpy as np
 
-from ..campaign import RigTable, RunSpec
+from ..campaign import RIG_STD_SUFFIX, RigTable, RunSpec
 from .findings import Finding, _g
 
 #: Single-wheel testbed: force (drawbar pull, lateral force, torque / radius) over the load
@@ -34,6 +43,11 @@ RIG_FORCE_ERROR = 2.0
 #: The largest force-over-load ratio a load in kg gives (a plausible ratio below RIG_FORCE_ERROR
 #: times 9.81); beyond it a load in kN, or a torque in N mm.
 RIG_UNIT_KG_LIMIT = RIG_FORCE_ERROR * 9.81
+#: The largest |drawbar pull| over the largest thrust (|torque| / radius) below which a table
+#: whose slips reach from RIG_ROLLING_SLIP to RIG_TRACTION_SLIP has its pull in kN (docstring).
+RIG_PULL_THRUST_MIN = 0.01
+RIG_ROLLING_SLIP = 0.1
+RIG_TRACTION_SLIP = 0.2
 #: Slip angle beyond which a testbed point is a warning (rad); beyond pi/2 an error.
 RIG_ANGLE_WARN = math.pi / 4
 #: The rig wheel's dimensions the FMU accepts (m): radius, width, lug height.
@@ -103,6 +117,7 @@ def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
             out.append(Finding(severity, file, name, f"{what} reaches {_g(ratio[i])} at {_rig_at(table, i)}; the "
                                f"soil's friction limits it to below about 1 (more than {RIG_FORCE_ERROR:g} is an "
                                f"error){hint}"))
+        out += _pull_in_kilonewton(table, radius, file)
     if table.has("sinkage") and spec.rig is not None:
         z = table["sinkage"]
         i = int(np.nanargmax(np.abs(z)))
@@ -122,3 +137,26 @@ def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
             out.append(Finding("warning", file, "slip_angle", f"|slip_angle| reaches {_g(a[i])} rad at "
                                f"{_rig_at(table, i)}, beyond pi/4 ({_g(math.degrees(a[i]))} degrees if radians)"))
     return out
+
+
+def _pull_in_kilonewton(table: RigTable, radius: float | None, file: str) -> list[Finding]:
+    """A drawbar pull too small for the thrust the torque transmits (module docstring); the
+    load is > 0 in every row."""
+    if not (table.has("torque") and radius):
+        return []
+    slip, load = table["slip"], table["vertical_load"]
+    if not (np.min(slip) <= RIG_ROLLING_SLIP and np.max(slip) >= RIG_TRACTION_SLIP):
+        return []
+    pull, thrust = np.abs(table["drawbar_pull"]), np.abs(table["torque"]) / radius
+    # A torque in N mm inflates the thrust a thousandfold too: its own check names it, not the pull.
+    if np.nanmax(thrust / load) > RIG_FORCE_ERROR or np.nanmax(1000.0 * pull / load) > RIG_FORCE_ERROR:
+        return []
+    i, j = int(np.nanargmax(pull)), int(np.nanargmax(thrust))
+    if not pull[i] < RIG_PULL_THRUST_MIN * thrust[j]:
+        return []
+    std = " (and drawbar_pull_std)" if table.has("drawbar_pull" + RIG_STD_SUFFIX) else ""
+    return [Finding("error", file, "drawbar_pull", f"|drawbar_pull| reaches only {_g(pull[i])} at {_rig_at(table, i)}, "
+                    f"under {RIG_PULL_THRUST_MIN:.0%} of the thrust the torque transmits (|torque| / radius reaches "
+                    f"{_g(thrust[j])} N at {_rig_at(table, j)}) over slips from {_g(np.min(slip))} to "
+                    f"{_g(np.max(slip))}, where a wheel pulls a sizeable part of its thrust; a thousand times it "
+                    f"is a plausible pull: drawbar_pull{std} in kN? (1 kN is 1000 N)")]
