@@ -93,6 +93,9 @@ def test_the_example_rig_campaign_loads_and_is_plausible():
      "must be > 0"),
     ("vertical_load,slip,drawbar_pull,slip\n80,0.1,3,0.1\n", 1, "slip", "duplicate column"),
     ("vertical_load,slip,drawbar_pull\n", 1, None, "only a header"),
+    ("vertical_load,slip,drawbar_pull\n80,0.1,3\n80,0.1,3\n", 3, None, "repeats line 2"),
+    ("vertical_load,slip,drawbar_pull,clock\n80,0.1,3,17\n80,0.2,4,18\n80.0,0.10,3.0,17\n", 4, None,
+     "repeats line 2"),
 ])
 def test_bad_tables_are_refused_naming_line_and_column(tmp_path, text, line, column, message):
     path = tmp_path / "rig.csv"
@@ -101,6 +104,20 @@ def test_bad_tables_are_refused_naming_line_and_column(tmp_path, text, line, col
     assert message in error.message
     assert (error.path, error.line, error.column) == (str(path), line, column)
     assert str(error).startswith(f"{path}, line {line}")
+
+
+def test_repeated_set_points_are_kept_and_a_repeated_row_is_refused(tmp_path):
+    """Rows are steady points in any order: a set point measured twice is two points, but a row
+    equal cell for cell to another (its clock too, when it has one) counts one point twice, as a
+    repeated time stamp would in a rover run; a column of one's own tells genuine repeats apart."""
+    path = tmp_path / "rig.csv"
+    path.write_text("vertical_load,slip,drawbar_pull\n80,0.1,3\n80,0.2,4\n80,0.1,3.2\n")
+    assert len(read_rig_csv(path)) == 3
+    path.write_text("vertical_load,slip,drawbar_pull,repeat\n80,0.1,3,1\n80,0.1,3,2\n")
+    assert len(read_rig_csv(path)) == 2
+    path.write_text("vertical_load,slip,drawbar_pull,torque,operator\n80,0.1,3,,kk\n80,0.2,4,1,kk\n80,0.1,3,,kk\n")
+    error = refusal(path)
+    assert (error.line, error.column) == (4, None) and "counts one point twice" in error.message
 
 
 @pytest.mark.parametrize("change, message", [

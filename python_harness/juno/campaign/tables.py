@@ -158,7 +158,8 @@ def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
         :func:`read_run_csv`; an empty cell of a set-point column (``vertical_load``, ``slip``,
         ``slip_angle``); a ``_std`` column without its measured column; a measured value without
         its standard deviation when the file has that ``_std`` column, or a standard deviation
-        that is not > 0; a measured column without any value. Physical ranges (a load > 0, a
+        that is not > 0; a measured column without any value; a row equal cell for cell to an
+        earlier one (the line of each). Physical ranges (a load > 0, a
         slip < 1) are checked with the units by :mod:`juno.plausibility`.
     """
     p = Path(path)
@@ -186,7 +187,22 @@ def read_rig_csv(path: PathLike, run_id: Optional[str] = None) -> RigTable:
         if bad.size:
             raise InputError(f"a standard deviation must be > 0, got {std[bad[0]]!r}", p, lines[int(bad[0])],
                              name + RIG_STD_SUFFIX)
+    _check_no_repeated_row(p, [*columns.values(), *extra.values()], lines)
     return RigTable(path=p, columns=columns, extra=extra, lines=np.asarray(lines, dtype=np.int64), run_id=run_id)
+
+
+def _check_no_repeated_row(path: Path, columns: list[np.ndarray], lines: list[int]) -> None:
+    """A testbed table's rows are steady points in any order, so it has no clock to repeat; its
+    counterpart of a rover run's repeated time is a row equal cell for cell to another (numbers
+    by value, an empty cell equal to an empty cell), which counts one point twice in the fit."""
+    cells = [[None if isinstance(v, float) and v != v else v for v in column.tolist()] for column in columns]
+    first: dict[tuple, int] = {}
+    for i, row in enumerate(zip(*cells)):
+        seen = first.setdefault(row, lines[i])
+        if seen != lines[i]:
+            raise InputError(f"the row repeats line {seen} cell for cell, which counts one point twice; a set "
+                             f"point measured twice differs in its measured values, or in a column of your own "
+                             f"(a 'repeat' number)", path, lines[i])
 
 
 def _check_rig_header(path: Path, names: list[str]) -> None:
