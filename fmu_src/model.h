@@ -6,7 +6,8 @@
  *   State   - everything the integrator changes
  *   Outputs - computed from State and Inputs after every step
  * All five are plain old data (no pointers), so an FMU state is a byte copy.
- * The terrain grid and the terrain file name live beside them in Model.
+ * The terrain grid, the terrain file name and the path it is loaded from
+ * live beside them in Model.
  */
 #ifndef JUNO_MODEL_H
 #define JUNO_MODEL_H
@@ -159,7 +160,14 @@ typedef struct {
     State s;
     Outputs out;
     /* not part of the byte-copied FMU state (ModelState): */
-    char *terrain_file;            /* owned (malloc), NULL = flat ground */
+    char *terrain_file;            /* owned (malloc), NULL = flat ground; reads back as set */
+    /* The String variables that name files, as initialisation opens them (model_resolve_resources):
+     * owned, the path in the FMU's resources folder of a relative name found there; NULL, the name
+     * as set.  Apart from the variables, so that a host reads back and saves what it set, not a
+     * path that exists only on this machine. */
+    struct {
+        char *terrain_file;
+    } resolved;
     Terrain terrain;
     uint64_t terrain_fingerprint;  /* of terrain, as loaded by the last initialisation */
     /* The input-independent evaluation of the state at the end of the

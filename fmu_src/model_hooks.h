@@ -62,7 +62,9 @@ int model_set_string(Model *m, unsigned vr, const char *value);
 
 /* A relative file name among the String variables that names no file
  * here is looked up in the FMU's resources folder (resource_dir, a local
- * path; NULL: none), and replaced by that path if a file is there. */
+ * path; NULL: none); if a file is there, initialisation opens that path
+ * (Model.resolved), else the name as set.  The variables keep their
+ * values. */
 void model_resolve_resources(Model *m, const char *resource_dir);
 
 /* The simulation time (s). */

@@ -233,23 +233,21 @@ int model_set_string(Model *m, unsigned vr, const char *value)
     }
 }
 
-/* A relative path that does not exist here, looked up in the resources:
- * stat, not fopen, decides, as opening a FIFO would wait for a writer. */
-static void resolve_in(char **field, const char *resource_dir)
+/* *resolved: the path in the resources of name, a relative path that does not exist here, if a
+ * file is there; else NULL (opened as set, also when out of memory: the open then fails naming
+ * it).  stat, not fopen, decides, as opening a FIFO would wait for a writer. */
+static void resolve_in(char **resolved, const char *name, const char *resource_dir)
 {
     struct stat st;
-    const char *name = *field;
+    free(*resolved);
+    *resolved = NULL;
     if (!name || !name[0] || name[0] == '/' || !resource_dir || stat(name, &st) == 0) return;
     const size_t n = strlen(resource_dir) + strlen(name) + 2;
-    char *resolved = (char *)malloc(n);
-    if (!resolved) return;
-    snprintf(resolved, n, "%s/%s", resource_dir, name);
-    if (stat(resolved, &st) == 0) {
-        free(*field);
-        *field = resolved;
-    } else {
-        free(resolved);
-    }
+    char *path = (char *)malloc(n);
+    if (!path) return;
+    snprintf(path, n, "%s/%s", resource_dir, name);
+    if (stat(path, &st) == 0) *resolved = path;
+    else free(path);
 }
 
 void model_resolve_resources(Model *m, const char *resource_dir)
@@ -259,7 +257,7 @@ void model_resolve_resources(Model *m, const char *resource_dir)
     (void)resolve_in;         /* unused when the table has no String variable */
 #define REAL(vr_, name, kind, unit, start, lo, hi, field, desc)
 #define INT(vr_, name, kind, start, lo, hi, field, desc)
-#define STR(vr_, name, kind, start, field, desc) resolve_in(&m->field, resource_dir);
+#define STR(vr_, name, kind, start, field, desc) resolve_in(&m->resolved.field, m->field, resource_dir);
     JUNO_VARIABLES
 #undef REAL
 #undef INT

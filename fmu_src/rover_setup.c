@@ -305,8 +305,9 @@ int model_initialize(Model *m, char *err, size_t errlen)
     derive(m);
 
     terrain_free(&m->terrain);
-    if (m->terrain_file && m->terrain_file[0]) {
-        if (terrain_load(&m->terrain, m->terrain_file, err, errlen) != 0) return -1;
+    const char *terrain_path = m->resolved.terrain_file ? m->resolved.terrain_file : m->terrain_file;
+    if (terrain_path && terrain_path[0]) {
+        if (terrain_load(&m->terrain, terrain_path, err, errlen) != 0) return -1;
     } else {
         terrain_init_flat(&m->terrain);
     }
@@ -339,6 +340,8 @@ void model_free(Model *m)
     terrain_free(&m->terrain);
     free(m->terrain_file);
     m->terrain_file = NULL;
+    free(m->resolved.terrain_file);
+    m->resolved.terrain_file = NULL;
     m->eval_valid = 0;
 }
 

@@ -15,6 +15,7 @@
  * instance usable; fmi2Reset and fmi2FreeInstance from every state;
  * serialisation with too small, too large and corrupted buffers; log
  * categories; resource URIs with %20 and without a resources folder;
+ * a terrain.file from the resources read back as set;
  * communication steps of 0, negative, tiny, huge and non-finite size and a
  * wrong communication point; NULL arguments; a wrong GUID and the
  * ModelExchange type; a diverging state.  Nothing may crash.
@@ -1034,6 +1035,62 @@ static void test_unreadable_terrain(void)
 #endif
 }
 
+/* terrain.file of instance c as fmi2GetString reads it: "(failed)" if the call fails */
+static const char *terrain_file_read(fmi2Component c)
+{
+    fmi2String v = NULL;
+    if (fmi->GetString(c, &vr_terrain, 1, &v) != fmi2OK || !v) return "(failed)";
+    return v;
+}
+
+/* A relative terrain.file found in the resources folder reads back as the user set it, in
+ * Initialization Mode once the initial values have been read, after initialisation, and after a
+ * state was set and deserialised: what a host saves is the parameter, not this machine's
+ * resources path.  The state still restores only on the same ground. */
+static void test_terrain_file_reads_as_set(void)
+{
+    fmi2Component c = make("asset", resources_uri), d = make("asset2", resources_uri);
+    const fmi2String file = "raised.asc";
+    double z = NAN;
+    if (!c || !d || reach(c, S_INIT) != 0 || reach(d, S_INIT) != 0) {
+        check(0, "cannot bring two instances to Initialization Mode: %s", last_error);
+        fmi->FreeInstance(c);
+        fmi->FreeInstance(d);
+        return;
+    }
+    fmi->SetString(c, &vr_terrain, 1, &file);
+    fmi->SetString(d, &vr_terrain, 1, &file);
+    check(fmi->GetReal(c, &vr_z, 1, &z) == fmi2OK && isfinite(z), "z in Initialization Mode: %s", last_error);
+    check(strcmp(terrain_file_read(c), file) == 0,
+          "terrain.file read in Initialization Mode after the initial values: '%s', set '%s'", terrain_file_read(c),
+          file);
+    check(fmi->ExitInitializationMode(c) == fmi2OK && fmi->ExitInitializationMode(d) == fmi2OK,
+          "initialisation on the resources' grid: %s", last_error);
+    check(strcmp(terrain_file_read(c), file) == 0, "terrain.file read after initialisation: '%s', set '%s'",
+          terrain_file_read(c), file);
+    fmi2FMUstate s = NULL;
+    check(fmi->DoStep(c, 0.0, 0.01, fmi2True) == fmi2OK && fmi->GetFMUstate(c, &s) == fmi2OK,
+          "a step and a state on the resources' grid: %s", last_error);
+    check(fmi->SetFMUstate(d, s) == fmi2OK, "a state taken on the same grid is refused: %s", last_error);
+    check(strcmp(terrain_file_read(d), file) == 0, "terrain.file read after fmi2SetFMUstate: '%s', set '%s'",
+          terrain_file_read(d), file);
+    size_t size = 0;
+    unsigned char *buf = NULL;
+    fmi2FMUstate back = NULL;
+    if (fmi->SerializedFMUstateSize(c, s, &size) == fmi2OK) buf = (unsigned char *)malloc(size);
+    check(buf && fmi->SerializeFMUstate(c, s, (fmi2Byte *)buf, size) == fmi2OK &&
+              fmi->DeSerializeFMUstate(d, (const fmi2Byte *)buf, size, &back) == fmi2OK &&
+              fmi->SetFMUstate(d, back) == fmi2OK,
+          "a serialised state taken on the same grid is refused: %s", last_error);
+    check(strcmp(terrain_file_read(d), file) == 0,
+          "terrain.file read after a deserialised state: '%s', set '%s'", terrain_file_read(d), file);
+    free(buf);
+    fmi->FreeFMUstate(d, &back);
+    fmi->FreeFMUstate(c, &s);
+    fmi->FreeInstance(c);
+    fmi->FreeInstance(d);
+}
+
 static void test_resources(void)
 {
     char err[2048], path[4096], uri[4400];
@@ -1074,6 +1131,7 @@ static void test_resources(void)
     check(z == z_flat, "an empty resource URI: %s", err);
     z = initial_z("file:///%zz%2", "raised.asc", err, sizeof err);
     check(isnan(z), "a malformed percent escape in the resource URI");
+    test_terrain_file_reads_as_set();
     test_unreadable_terrain();
 }
 
