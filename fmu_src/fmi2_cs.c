@@ -149,10 +149,23 @@ static int hex_value(char ch)
     return -1;
 }
 
+/* uri begins with the scheme "file:", in any case (RFC 3986, 3.1: schemes are case-insensitive;
+ * an importer may write FILE: or File:).  ASCII folding, not tolower: the host's locale (Turkish:
+ * 'I' -> dotless i) must not decide. */
+static int has_file_scheme(const char *uri)
+{
+    static const char scheme[] = "file:";
+    for (size_t i = 0; i < sizeof scheme - 1; ++i) {
+        const char ch = uri[i] >= 'A' && uri[i] <= 'Z' ? (char)(uri[i] - 'A' + 'a') : uri[i];
+        if (ch != scheme[i]) return 0;   /* also at the end of a shorter uri */
+    }
+    return 1;
+}
+
 /* file:///a%20b/resources -> /a b/resources.  NULL when not a file URI. */
 static char *resource_uri_to_path(const char *uri)
 {
-    if (!uri || strncmp(uri, "file:", 5) != 0) return NULL;
+    if (!uri || !has_file_scheme(uri)) return NULL;
     const char *p = uri + 5;
     if (strncmp(p, "///", 3) == 0) p += 2;              /* file:///path */
     else if (strncmp(p, "//localhost/", 12) == 0) p += 11;

@@ -14,8 +14,8 @@
  * return fmi2Error and log why, naming the function, and leave the
  * instance usable; fmi2Reset and fmi2FreeInstance from every state;
  * serialisation with too small, too large and corrupted buffers; log
- * categories; resource URIs with %20 and without a resources folder;
- * a terrain.file from the resources read back as set;
+ * categories; resource URIs with %20, the scheme in capitals and without
+ * a resources folder; a terrain.file from the resources read back as set;
  * communication steps of 0, negative, tiny, huge and non-finite size and a
  * wrong communication point; NULL arguments; a wrong GUID and the
  * ModelExchange type; a diverging state.  Nothing may crash.
@@ -1111,6 +1111,13 @@ static void test_resources(void)
     snprintf(uri, sizeof uri, "file://localhost%s", enc + 7);
     z = initial_z(uri, "raised.asc", err, sizeof err);
     check(fabs(z - z_flat - 0.5) < 1e-6, "resource URI of the form file://localhost/path (%s): %s", uri, err);
+    /* the scheme is case-insensitive (RFC 3986, 3.1) */
+    snprintf(uri, sizeof uri, "FILE:///%s", enc + 8);
+    z = initial_z(uri, "raised.asc", err, sizeof err);
+    check(fabs(z - z_flat - 0.5) < 1e-6, "resource URI with the scheme in capitals (%s): %s", uri, err);
+    snprintf(uri, sizeof uri, "File:%s", enc + 7);
+    z = initial_z(uri, "raised.asc", err, sizeof err);
+    check(fabs(z - z_flat - 0.5) < 1e-6, "resource URI of the form File:/path (%s): %s", uri, err);
     /* an absolute path with spaces needs no resources */
     snprintf(path, sizeof path, "%s/resources/raised.asc", scratch);
     z = initial_z(NULL, path, err, sizeof err);
