@@ -275,8 +275,15 @@ FMI2_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranc
                                            fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     CHECK(c, "fmi2SetupExperiment", ST_INSTANTIATED);
-    (void)toleranceDefined;
-    (void)tolerance;
+    /* The standard lets a Co-Simulation FMU ignore the tolerance (FMI 2.0, 2.1.6), and this one
+     * does: it is relative, and an importer may pass one by default, while the internal step's accuracy
+     * is the model's own parameters (the rover's solver.tolerance, absolute, in m/s), part of its
+     * state.  Taking it would change a run's results with the importer that runs it. */
+    if (toleranceDefined)
+        log_message(inst, fmi2OK, LOG_EVENTS,
+                    "fmi2SetupExperiment: tolerance %g not used: the internal step follows the FMU's solver "
+                    "parameters",
+                    tolerance);
     if (!isfinite(startTime))
         return refuse(inst, "fmi2SetupExperiment", "startTime is not finite");
     if (stopTimeDefined && !(stopTime >= startTime))

@@ -168,10 +168,12 @@ class Rover:
     # --- life cycle --------------------------------------------------------------------------
 
     def setup(self, params: Mapping[str, object] | None = None, start_time: float = 0.0,
-              stop_time: float | None = None, initial_inputs: Mapping[str, float] | None = None) -> None:
-        """setupExperiment, enterInitializationMode, parameters, exitInitializationMode."""
+              stop_time: float | None = None, initial_inputs: Mapping[str, float] | None = None,
+              tolerance: float | None = None) -> None:
+        """setupExperiment (with toleranceDefined when a tolerance is given), enterInitializationMode,
+        parameters, exitInitializationMode."""
         self._initialised = False
-        self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
+        self.fmu.setupExperiment(tolerance=tolerance, startTime=start_time, stopTime=stop_time)
         self.fmu.enterInitializationMode()
         if params:
             self.set(params)

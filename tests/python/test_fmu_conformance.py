@@ -316,6 +316,32 @@ def test_two_instances_interleaved_equal_each_run_alone(fmu_unzipped, busy_param
     assert not np.array_equal(ya, yb), "different parameters must give different results"
 
 
+def test_importer_tolerance_leaves_the_internal_step_to_solver_tolerance(fmu_unzipped):
+    """fmi2SetupExperiment's tolerance (relative, the importer's) does not set the automatic step's
+    tolerance (solver.tolerance, absolute, in m/s): the same parameters give bit-identical runs
+    whatever tolerance an importer passes, and the FMU logs (logEvents) that it does not use it."""
+    names = output_names(fmu_unzipped)
+    params = {"drive.mode": 2}
+    inputs = {"drawbarForce": 300.0, "throttleLeft": 0.5, "throttleRight": 0.4}
+    n = 100
+
+    def outputs_after(tolerance, solver_tolerance=None, log=None):
+        p = dict(params, **({"solver.tolerance": solver_tolerance} if solver_tolerance is not None else {}))
+        with Rover(fmu_unzipped, log=log, logging_on=log is not None) as r:
+            r.setup(p, initial_inputs=inputs, tolerance=tolerance)
+            return r.advance(n, H, inputs, names)
+
+    log = LogCapture()
+    undefined = outputs_after(None)
+    for tolerance in (1e-9, 1e-4, 0.5):
+        _assert_bit_identical(outputs_after(tolerance, log=log if tolerance == 1e-4 else None), undefined,
+                              f"importer tolerance {tolerance} vs none")
+    # the check can fail: the automatic step is in use and follows solver.tolerance
+    assert not np.array_equal(outputs_after(None, solver_tolerance=1e-5), undefined)
+    notes = [text for _, category, text in log.messages if category == "logEvents" and "fmi2SetupExperiment" in text]
+    assert any("0.0001" in t and "not used" in t and "solver" in t for t in notes), log.text()
+
+
 def test_reset_returns_to_the_start(fmu_unzipped, busy_params):
     names = output_names(fmu_unzipped)
     with Rover(fmu_unzipped) as r:
