@@ -624,6 +624,7 @@ SETTLING = 2.0   # s at the start of a run left out (the rover starts from rest)
 def traverse_of(campaign, run) -> Traverse:
     """The measured traverse of a terrain run of ``campaign`` (juno.campaign objects)."""
     from .campaign import read_run
+    from .heading import track_headings
     data = read_run(campaign, run)
     t, x = data.samples("pos_x")
     _, y = data.samples("pos_y")
@@ -633,8 +634,8 @@ def traverse_of(campaign, run) -> Traverse:
     if data.has("yaw"):
         ty, yaw = data.samples("yaw")
         yaw = np.interp(t, ty, np.unwrap(yaw))
-    else:   # heading from the track: the rover drives forwards
-        yaw = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
+    else:   # heading from the track (juno.heading): the rover drives forwards and does not crab
+        yaw = track_headings(t, x, y)
     attitude = {}
     for name in ("pitch", "roll"):
         if data.has(name):

@@ -19,7 +19,8 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    6 sigma^2).  No scale is assumed.
 3. **The null distribution by simulation** (a parametric bootstrap): REPLICAS times, the
    measured inputs and the measured start pose the replay begins from get fresh white noise at
-   their estimated sigma and the run is replayed with
+   their estimated sigma (a start heading taken from the track, without a yaw column, at its own
+   standard error: juno.heading) and the run is replayed with
    the same parameters; the measured outputs get fresh white noise, processed as the
    comparison processes them (position increments).  The replicas' block means give, for each
    run and signal, the variance a block mean has when the model is right: this covers the
@@ -61,6 +62,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .campaign import Campaign, RunData, read_run
+from .heading import start_heading
 from .identify import PreparedRun, run_residuals
 from .periodic_structure import (PeriodicBases, PeriodicSignal, PeriodicStructure, periodic_structure,
                                  series_of_residuals)
@@ -430,6 +432,9 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     columns = set(INPUT_COLUMNS) | set(START_POSE_COLUMNS) | {c for p in tested for c in p.targets}
     noise = {(p.run_id, c): column_noise(*data[p.run_id].samples(c)) for p in tested for c in columns
              if data[p.run_id].has(c)}
+    for p in tested:     # a start heading taken from the track has its own error (juno.heading)
+        if not data[p.run_id].has("yaw"):
+            noise[(p.run_id, "yaw")] = start_heading(data[p.run_id], p.run_id).sigma
     units = _units(meta, train, runs)
     observed = _block_means(residuals[units.index], units.key)
 

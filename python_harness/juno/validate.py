@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
+from .heading import start_heading
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
 from .sensor_noise import column_noise
@@ -103,9 +104,8 @@ def simulate_terrain_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec, soil: d
     })
     params = {**base_parameters(campaign), **soil, **SPIN_TRACKER, **VALIDATE_STEP, "drive.mode": 1,
               "terrain.file": str(grid_file),
-              "init.x": float(data.samples("pos_x")[1][0]), "init.y": float(data.samples("pos_y")[1][0])}
-    if data.has("yaw"):
-        params["init.yaw"] = float(data.samples("yaw")[1][0])
+              "init.x": float(data.samples("pos_x")[1][0]), "init.y": float(data.samples("pos_y")[1][0]),
+              "init.yaw": start_heading(data, run.id).value}
     params.update(extra or {})
     try:
         return fmu.simulate(params, inputs, float(t[-1] - t[0]), output_interval,

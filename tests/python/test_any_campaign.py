@@ -20,6 +20,9 @@ and diagnosed as well:
   of a terrain run, and refuses before any fit when that leaves none;
 * five drawbar runs and two terrain runs, each on its own scan: every run is replayed, each
   terrain run on its own gridded scan, and validated and reported under its own id;
+* positions in a frame turned from the rover's and no yaw column (an IMU without a heading): the
+  replays start along the track, as with a measured heading; the terrain run's pose is left
+  untested against its scan, and said so;
 * a drawbar run without a steady window: the paper-style fit says it averages the whole run;
 * one diagnosis opens one snapshot of the FMU, and ``juno validate`` grids as the others do.
 
@@ -238,6 +241,64 @@ def test_a_clock_offset_leaves_the_registration_evidence_as_it_is(short_campaign
     at_zero, later = evidence
     assert later.ratio == pytest.approx(at_zero.ratio, rel=1e-6)
     assert later.held_out_ms_registered == pytest.approx(at_zero.held_out_ms_registered, rel=1e-6)
+
+
+#: A total station's frame turned from the rover's start direction (rad).
+TURN = np.radians(40.0)
+
+
+def turned_without_heading(header: list[str], rows: list[list[str]]) -> Table:
+    """Positions in a frame turned by TURN about the vertical, and no yaw column (an IMU without a
+    heading)."""
+    ix, iy = header.index("pos_x"), header.index("pos_y")
+    c, s = float(np.cos(TURN)), float(np.sin(TURN))
+    for row in rows:
+        if row[ix] and row[iy]:
+            x, y = float(row[ix]), float(row[iy])
+            row[ix], row[iy] = repr(float(c * x - s * y)), repr(float(s * x + c * y))
+    keep = [i for i, name in enumerate(header) if name != "yaw"]
+    rows = [[row[i] for i in keep] for row in rows]
+    return [header[i] for i in keep], [row for row in rows if any(row[1:])]
+
+
+def _turned_scan(root: Path, manifest: dict) -> None:
+    """The terrain run's scan in the same turned frame."""
+    c, s = float(np.cos(TURN)), float(np.sin(TURN))
+    for run in manifest["runs"]:
+        if run["kind"] != "terrain":
+            continue
+        path = root / run["terrain"]
+        lines = []
+        for line in path.read_text().splitlines():
+            if line.startswith("#"):
+                lines.append(line)
+                continue
+            x, y, z = (float(v) for v in line.split()[:3])
+            lines.append(f"{c * x - s * y!r} {s * x + c * y!r} {z!r}")
+        path.write_text("\n".join(lines) + "\n")
+
+
+def test_a_turned_frame_without_a_heading_starts_each_replay_along_its_track(short_campaign, tmp_path, harness_fmu):
+    """Without a yaw column the replays start the rover along the direction of its track
+    (juno.heading), so that positions in a turned frame replay as in the rover's own: each start
+    heading within 0.02 rad of the measured one turned by TURN, and the drawbar runs' residuals
+    at the truth's soil within 10 % (in mean square) of the original's; the terrain run's pose
+    is not tested against its scan, and the diagnosis says why."""
+    from juno.scan_consistency import campaign_scan_consistency
+    turned = variant(short_campaign, tmp_path / "turned", turned_without_heading, _turned_scan)
+    original, other = load_campaign(short_campaign), load_campaign(turned)
+    soil = truth_soil(short_campaign)
+    scans = gridded_scans(other, tmp_path / "grids", "validate")
+    for spec in original.runs:
+        measured = read_run(original, spec).samples("yaw")[1][0]
+        pb = prepare_run(other, other.run(spec.id), terrain_file=scans[spec.id][0] if spec.id in scans else None)
+        assert pb.params["init.yaw"] == pytest.approx(measured + TURN, abs=0.02), spec.id
+        if spec.kind == "drawbar":
+            ra = run_residuals(harness_fmu, prepare_run(original, spec), soil)
+            rb = run_residuals(harness_fmu, pb, soil)
+            assert np.mean(rb ** 2) == pytest.approx(np.mean(ra ** 2), rel=0.1), spec.id
+    tests = campaign_scan_consistency(other, {run: grid for run, (_path, grid) in scans.items()}, 4.0)
+    assert tests.runs == [] and "yaw" in tests.untested["t3d"]
 
 
 def test_columns_in_any_order_with_extra_ones_read_the_same(short_campaign, tmp_path):

@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from ..campaign import Campaign, RunData, RunSpec, read_run
+from ..heading import start_heading
 from ..sensor_noise import residual_scale
 from ..simulator import InputSignals, JunoFMU, SimulationError
 from .base import IDENTIFY_STEP, base_parameters
@@ -185,9 +186,8 @@ def prepare_run(campaign: Campaign, run: RunSpec, data: RunData | None = None,
     data = data or read_run(campaign, run)
     t = data.time
     grid = np.arange(t[0], t[-1] + 1e-9, 0.01)
-    start_pose = {"init.x": float(data.samples("pos_x")[1][0]), "init.y": float(data.samples("pos_y")[1][0])}
-    if data.has("yaw"):
-        start_pose["init.yaw"] = float(data.samples("yaw")[1][0])
+    start_pose = {"init.x": float(data.samples("pos_x")[1][0]), "init.y": float(data.samples("pos_y")[1][0]),
+                  "init.yaw": start_heading(data, run.id).value}
     params: dict[str, object] = {**base_parameters(campaign), **start_pose, "solver.step": IDENTIFY_STEP,
                                  "solver.tolerance": 0.0, "drive.mode": 1, **SPIN_TRACKER}
     drawbar = (_column_signal(data, "drawbar_force", grid) if run.kind == "drawbar" and data.has("drawbar_force")
