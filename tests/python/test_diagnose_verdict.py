@@ -79,6 +79,16 @@ def test_nothing_named_but_a_scan_that_disagrees_with_the_pose_is_unexplained():
     assert v.unexplained.to_json()["scan"]["runs"][0]["signals"][0]["disagrees"] is True
 
 
+def test_none_says_which_terrain_runs_could_not_be_tested_against_their_scan():
+    """The scan test is what catches a tilted scan when no cause is named: `none` says where it
+    could not be made."""
+    scan = ScanTests([], {"t3d": "no measured heading (yaw column)"})
+    v = verdict([], _structure(torque_left=0.0), None, scan=scan)
+    assert v.cause == "none"
+    assert "terrain run t3d's pose was not tested against its scan (no measured heading (yaw column))" in \
+        explanation(v, "")
+
+
 def test_a_scan_within_its_floor_leaves_none_none():
     v = verdict([], _structure(torque_left=0.0), None, scan=_scan(0.5 * FLOORS["height"] * 1000))
     assert (v.cause, v.unexplained) == ("none", None)

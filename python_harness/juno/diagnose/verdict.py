@@ -208,6 +208,8 @@ class Verdict:
     unexplained: Unexplained | None
     #: with ``none``: the base model's signals the structure test resolves below their floors
     below_floors: list[SignalStructure] = field(default_factory=list)
+    #: with ``none``: the terrain runs whose pose could not be tested against their scan, and why
+    scans_untested: dict[str, str] = field(default_factory=dict)
 
 
 def verdict(causes: list[str], base: ResidualStructure | None, extended: ResidualStructure | None,
@@ -228,7 +230,7 @@ def verdict(causes: list[str], base: ResidualStructure | None, extended: Residua
         if base.significant or disagrees is not None or partial:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
                                                           scan=disagrees, offsets=base.offsets(), partial=partial))
-        return Verdict("none", [], None, base.below_floors())
+        return Verdict("none", [], None, base.below_floors(), dict(scan.untested) if scan is not None else {})
     if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
     makers = ripple_makers_not_named(causes, extended.ripples(), candidates or [])
@@ -267,7 +269,10 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     """The verdict in words, from the named causes' physical explanation."""
     u = verdict_.unexplained
     if verdict_.cause == "none":
-        return "no extension explains the held-out data significantly better, and " + residuals_of_none(verdict_)
+        untested = "".join(f"; terrain run {run}'s pose was not tested against its scan ({why})"
+                           for run, why in verdict_.scans_untested.items())
+        return ("no extension explains the held-out data significantly better, and " + residuals_of_none(verdict_)
+                + untested)
     if verdict_.cause == "unexplained":
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
