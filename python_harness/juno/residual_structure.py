@@ -165,12 +165,8 @@ class SignalStructure:
 
     def sentence(self) -> str:
         """The finding in words: its size, and the covariate it follows best with the slope."""
-        text = f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x its sensor noise)"
-        if not self.follows:
-            return text
-        c = self.follows[0]
-        slope = f" {c.slope:+.3g} {c.unit}" if c.name != "run" else ""
-        return f"{text}, following {c.name}{slope} ({c.share:.0%} of it)"
+        return self._with_what_it_follows(f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS "
+                                          f"({self.ratio:.2g} x its sensor noise)")
 
     def brief(self) -> str:
         """The finding in a few words (a progress line)."""
@@ -178,8 +174,12 @@ class SignalStructure:
 
     def below_floor_sentence(self) -> str:
         """A structure resolved below its floor, in words: its size beside the floor."""
-        text = (f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x its sensor noise, "
-                f"floor {material_fraction(self.signal):g} x; p {self.p_value:.2g})")
+        return self._with_what_it_follows(f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x "
+                                          f"its sensor noise, floor {material_fraction(self.signal):g} x; "
+                                          f"p {self.p_value:.2g})")
+
+    def _with_what_it_follows(self, text: str) -> str:
+        """``text``, then the covariate the structure follows best, with the slope."""
         if not self.follows:
             return text
         c = self.follows[0]
