@@ -183,6 +183,21 @@ class Rover:
         self._initialised = True
         self.time = start_time
 
+    def initial_values(self, names: list[str], *changes: Mapping[str, object]) -> list[dict[str, float]]:
+        """In Initialization Mode, after each of ``changes`` (parameters and inputs set in turn),
+        the values of ``names``; then after exitInitializationMode, once more."""
+        self._initialised = False
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        read = []
+        for change in changes:
+            self.set(change)
+            read.append(dict(zip(names, self.get(names))))
+        self.fmu.exitInitializationMode()
+        self._initialised = True
+        self.time = 0.0
+        return read + [dict(zip(names, self.get(names)))]
+
     def step(self, h: float) -> None:
         self.fmu.doStep(currentCommunicationPoint=self.time, communicationStepSize=h)
         self.time = self.time + h

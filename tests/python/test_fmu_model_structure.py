@@ -72,15 +72,8 @@ def test_initial_unknowns_read_in_initialization_mode_are_the_initial_values(fmu
     names = _initial_unknowns(fmu_unzipped)
     assert "z" in names and "soil.A1" in names and "wheelFL.Fn" in names
     with Rover(fmu_unzipped) as rover:
-        rover.fmu.setupExperiment(startTime=0.0)
-        rover.fmu.enterInitializationMode()
-        rover.set({"soil.kh": 1.2e5, "drive.mode": 2, "throttleLeft": 0.3, "throttleRight": 0.3})
-        soft = dict(zip(names, rover.get(names)))
-        rover.set({"soil.kh": 2.4e5})
-        stiff = dict(zip(names, rover.get(names)))
-        rover.fmu.exitInitializationMode()
-        rover._initialised = True
-        after = dict(zip(names, rover.get(names)))
+        soft, stiff, after = rover.initial_values(
+            names, {"soil.kh": 1.2e5, "drive.mode": 2, "throttleLeft": 0.3, "throttleRight": 0.3}, {"soil.kh": 2.4e5})
     assert stiff == after
     assert soft["wheelFL.sinkage"] > stiff["wheelFL.sinkage"] > 0.0
     assert soft["z"] < stiff["z"]

@@ -121,15 +121,7 @@ def test_initial_unknowns_read_in_initialization_mode_are_the_initial_values(rig
     names = [u.variable.name for u in read_model_description(rig_dir).initialUnknowns]
     assert "rig.sinkage" in names and "rig.verticalForce" in names and "rig.movingMass" in names
     with Rover(rig_dir, instance_name="rig") as r:
-        r.fmu.setupExperiment(startTime=0.0)
-        r.fmu.enterInitializationMode()
-        r.set({"rig.load": 600.0, "rig.slip": 0.2})
-        light = dict(zip(names, r.get(names)))
-        r.set({"rig.load": 900.0})
-        heavy = dict(zip(names, r.get(names)))
-        r.fmu.exitInitializationMode()
-        r._initialised = True
-        after = dict(zip(names, r.get(names)))
+        light, heavy, after = r.initial_values(names, {"rig.load": 600.0, "rig.slip": 0.2}, {"rig.load": 900.0})
     assert heavy == after
     assert light["rig.verticalForce"] == pytest.approx(600.0) and heavy["rig.verticalForce"] == pytest.approx(900.0)
     assert 0.0 < light["rig.sinkage"] < heavy["rig.sinkage"]
