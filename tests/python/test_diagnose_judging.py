@@ -616,8 +616,8 @@ def test_of_a_candidates_two_fits_the_drawbar_runs_choose_unless_their_choice_lo
     assert diagnose.better_of_two_fits(problem, run_kind, from_base, from_paper) is from_base
     assert diagnose.better_of_two_fits(problem, run_kind, from_paper, from_base) is from_base
     lost, kept = _two_fits(run_kind, drawbar=(1.0, 1.1), terrain=(6.0, 1.0))
-    assert diagnose.loss_on(lost, problem.train & (run_kind == "terrain")) > \
-        diagnose.LOST_RATIO * diagnose.loss_on(kept, problem.train & (run_kind == "terrain"))
+    assert diagnose.loss_on(problem, lost, problem.train & (run_kind == "terrain")) > \
+        diagnose.LOST_RATIO * diagnose.loss_on(problem, kept, problem.train & (run_kind == "terrain"))
     assert diagnose.better_of_two_fits(problem, run_kind, lost, kept) is kept
     assert diagnose.better_of_two_fits(problem, run_kind, kept, lost) is kept
     # A failed fit never wins, and never unseats a fit that ran.

@@ -19,6 +19,7 @@ from ..simulator import JunoFMU
 from .candidates import Candidate, ExtParam
 from .problem import (Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds,
                       training_run)
+from .ripple_nuisance import nuisance_free
 
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
@@ -163,7 +164,7 @@ class _FitSession:
         self.evaluations += 1
         part = self.training_problem(kinds)
         r = residuals_for(self.fmu, part, self.space.params(x), kinds, self.replays)
-        return np.inf if r is None else fit_loss(r[part.train])
+        return np.inf if r is None else fit_loss(nuisance_free(part, r)[part.train])
 
 
 def fit_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
@@ -191,7 +192,8 @@ def fit_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
         else:
             runs.append(short)
             train.append(np.ones(int(np.sum(mine)), bool))
-    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs)
+    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs,
+                   ripple_lugs=problem.ripple_lugs)
     part.train = np.concatenate(train) if train else np.zeros(0, bool)
     return part
 
@@ -241,7 +243,7 @@ class _TrainingResiduals:
             r, failure = residuals_or_failure(session.fmu, self.problem, self.space.params(x), self.kinds,
                                               session.replays)
             session.log.record(failure)
-        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else r[self.train]
+        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else nuisance_free(self.problem, r)[self.train]
         if session is not None and not self._in_jacobian:
             self.steps += 1
             self._last = out
@@ -601,14 +603,15 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
     residuals on the training blocks (infinite for a failed fit).  Chooses between fits from
     different starts without looking at the held-out blocks."""
     mask = problem.train & (run_kind == "drawbar")
-    return loss_on(res, mask if np.any(mask) else problem.train)
+    return loss_on(problem, res, mask if np.any(mask) else problem.train)
 
 
-def loss_on(res: FitResult, mask: np.ndarray) -> float:
-    """The mean fit_loss of a fit's residuals where ``mask`` holds; infinite for a failed fit."""
+def loss_on(problem: Problem, res: FitResult, mask: np.ndarray) -> float:
+    """The mean fit_loss of a fit's residuals on ``problem`` where ``mask`` holds, a ripple the
+    fits take as a nuisance removed (ripple_nuisance.nuisance_free); infinite for a failed fit."""
     if res.error or res.residuals.size == 0:
         return np.inf
-    value = fit_loss(res.residuals[mask])
+    value = fit_loss(nuisance_free(problem, res.residuals)[mask])
     return value if np.isfinite(value) else np.inf
 
 
@@ -629,7 +632,7 @@ def better_of_two_fits(problem: Problem, run_kind: np.ndarray, first: FitResult,
     terrain = problem.train & (run_kind == "terrain")
     preferred, other = (second, first) if fit_objective(problem, run_kind, second) < \
         fit_objective(problem, run_kind, first) else (first, second)
-    if np.any(terrain) and loss_on(preferred, terrain) > LOST_RATIO * loss_on(other, terrain):
+    if np.any(terrain) and loss_on(problem, preferred, terrain) > LOST_RATIO * loss_on(problem, other, terrain):
         return other
     return preferred
 
@@ -644,4 +647,4 @@ def training_objective(problem: Problem, res: FitResult) -> float:
     refitted from the paper's soil won on the drawbar objective (1.17 against 1.35) and took
     the terrain replay off the measured path (held-out error x12.5 there); on every run's
     training blocks it lost (4.56 against 1.49)."""
-    return loss_on(res, problem.train)
+    return loss_on(problem, res, problem.train)

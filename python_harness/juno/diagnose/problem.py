@@ -32,6 +32,10 @@ class Problem:
     prepared: list[PreparedRun] = field(default_factory=list)
     train: np.ndarray | None = None      # boolean mask over the concatenated residuals
     meta: dict[str, np.ndarray] = field(default_factory=dict)   # per residual: run, signal, time, block
+    #: the lug count of a ripple in the wheel angle the fits take as a nuisance (ripple_nuisance.py)
+    ripple_lugs: int | None = None
+    #: that ripple's bases over these runs' residuals, made once (ripple_nuisance._bases)
+    ripple_bases: list | None = field(default=None, repr=False)
 
 
 def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, str] | None,
@@ -95,7 +99,8 @@ def training_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
         if p.kind in kinds:
             runs.append(training_run(p, problem.train[start:start + n]))
         start += n
-    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs)
+    part = Problem(problem.campaign_root, problem.grid_file, problem.fmu_path, runs,
+                   ripple_lugs=problem.ripple_lugs)
     part.train = np.ones(sum(sum(len(v[0]) for v in p.targets.values()) for p in runs), bool)
     return part
 

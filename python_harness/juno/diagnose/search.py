@@ -169,10 +169,12 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
             moment the scans are gridded (in this process when the diagnosis is to run in one)."""
             registering.append(stack.enter_context(
                 BackgroundTask(_registration_task, (campaign, grids), background=workers != 1)))
-        setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration)
+        bases = PeriodicBases()
+        setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration,
+                          periodic_bases=bases)
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
-                        registering[0] if registering else None)
+                        registering[0] if registering else None, periodic_bases=bases)
         first = first_round(search, setting)
         outcome = further_causes(search, first)
         *structures, untested = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
@@ -267,12 +269,14 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
 
 def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terrain_segment: float | None,
             say: Callable[[str], None], workers: int | None = 1,
-            on_grid: Callable[[Any], None] | None = None) -> Setting:
+            on_grid: Callable[[Any], None] | None = None, periodic_bases: PeriodicBases | None = None) -> Setting:
     """Grids every terrain run's scan into ``tmp`` (each terrain run is replayed on its own), builds
     the problem, fits the base model (an error if it fails; its Jacobians over ``workers`` local
     processes) and chooses the terrain drive the candidates are fitted with.  Without a terrain
     run the candidates that need one are left out.  ``on_grid`` is called with every terrain
-    run's gridded scan (by run id) as soon as they are made."""
+    run's gridded scan (by run id) as soon as they are made.  When the base model's drive torques
+    ripple with the wheel angle, the fits take that ripple as a nuisance from then on
+    (_with_ripple_as_nuisance); ``periodic_bases``: what that test keeps (Search.periodic_bases)."""
     grid_file: dict[str, str] | None = None
     grids: dict[str, Any] = {}
     if campaign.runs_of_kind("terrain"):
@@ -297,6 +301,7 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
     base = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS, workers=workers)
     if base.error:
         raise SimulationError("the base model could not be fitted", [base.error])
+    base = _with_ripple_as_nuisance(campaign, problem, base, periodic_bases or PeriodicBases(), say, workers)
     terrain_drive, drive_losses, problems = "spin", {}, {"spin": problem}
     if grid_file is not None:
         problems = drive_problems(campaign, problem, terrain_segment)
@@ -306,6 +311,25 @@ def prepare(campaign: Campaign, fmu_path: str, names: list[str], tmp: str, terra
             + ", ".join(f"{d} {v:.3g}" for d, v in drive_losses.items()) + ")")
     say(f"base model: held-out mean squared residual {base.test_mse:.4g}; fitting {len(names)} candidates")
     return Setting(problem, problems, base, terrain_drive, drive_losses, names, grids)
+
+
+def _with_ripple_as_nuisance(campaign: Campaign, problem: Problem, base: FitResult, bases: PeriodicBases,
+                             say: Callable[[str], None], workers: int | None) -> FitResult:
+    """When ``base``'s drive torques ripple with the wheel angle (ripple_of), every fit from here
+    on takes that ripple as a nuisance (ripple_nuisance.py: ``problem.ripple_lugs``), and the
+    base model is fitted again so, as at first, from the paper's soil (from its own optimum the
+    fit stays where the ripple bent it: gamma at its bound on a campaign with rippling lugs);
+    otherwise ``base`` as it is."""
+    found = ripple_of(campaign, problem, base, bases)
+    if found is None or not found.significant:
+        return base
+    problem.ripple_lugs = found.found()[0].lugs
+    say(f"the drive torques ripple with the wheel angle at {problem.ripple_lugs} per revolution, which no "
+        "candidate makes: the fits leave it out (refitting the base model)")
+    refit = fit_candidate(problem, None, dict(PAPER_INITIAL), max_nfev=BASE_ITERATIONS, workers=workers)
+    if refit.error:
+        raise SimulationError("the base model could not be fitted with the ripple left out", [refit.error])
+    return refit
 
 
 # ------------------------------------------------------------------ the first round
@@ -359,15 +383,18 @@ def wheel_angle_ripple(search: Search, model: FitResult) -> PeriodicStructure | 
     residuals are the model's, the sensor noise is estimated from the data, and the ripple is in
     every catalog model's residuals alike (none makes one).  None without a drawbar run that
     measures a drive torque and its side's spin."""
-    data = {p.run_id: read_run(search.campaign, p.run_id) for p in search.problem.prepared if p.kind == "drawbar"}
-    series = series_of_residuals(search.problem.prepared, search.problem.meta, search.problem.train,
-                                 model.residuals, data)
-    if not series:
-        return None
-    found = periodic_structure(series, UNITS, bases=search.periodic_bases)
-    if found.significant:
+    found = ripple_of(search.campaign, search.problem, model, search.periodic_bases)
+    if found is not None and found.significant:
         search.say("the drive torques ripple with the wheel angle: " + ", ".join(s.brief() for s in found.found()))
     return found
+
+
+def ripple_of(campaign: Campaign, problem: Problem, model: FitResult, bases: PeriodicBases
+              ) -> PeriodicStructure | None:
+    """wheel_angle_ripple of ``model`` on ``problem`` (``bases``: Search.periodic_bases)."""
+    data = {p.run_id: read_run(campaign, p.run_id) for p in problem.prepared if p.kind == "drawbar"}
+    series = series_of_residuals(problem.prepared, problem.meta, problem.train, model.residuals, data)
+    return periodic_structure(series, UNITS, bases=bases) if series else None
 
 
 def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list[str]]:

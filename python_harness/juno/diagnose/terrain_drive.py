@@ -11,6 +11,7 @@ model's error.  Which replay fits the training blocks better is the blind, per-c
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -28,7 +29,8 @@ def drive_problems(campaign: Campaign, problem: Problem, terrain_segment: float 
     drive; ``problem`` is the spin replay's (build_problem's default).  Their residuals line up:
     the drive changes how the terrain runs are replayed, not what is compared."""
     return {drive: problem if drive == "spin" else
-            build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive)
+            replace(build_problem(campaign, problem.fmu_path, problem.grid_file, terrain_segment, drive),
+                    ripple_lugs=problem.ripple_lugs)
             for drive in REPLAY_DRIVES}
 
 
