@@ -3,9 +3,15 @@
 No noise level is assumed: a user's instruments are not the paper's.  The estimate is the
 median absolute second difference of the samples over 0.6745 sqrt(6): white noise's second
 differences have variance 6 sigma^2, a signal that is smooth at the sample rate adds little to
-them, and the median ignores the few steps and glitches.  Assumptions: the noise is white at
-the sample rate and its level does not change much within a run (a noise that grows with the
-signal, as a motor current's does, is estimated at its typical level).
+them, and the median ignores the few steps and glitches.  A quantised column (an encoder's counts
+over a read interval, at a steady spin) steps between two neighbouring levels, and more than
+half of its second differences are exactly zero: the median then reads it as noiseless.  Its
+rounding error is at least uniform over one level, so the estimate is never below the column's
+resolution (the smallest gap between two of its distinct values) over sqrt(12); a column read
+to many digits has a resolution far below its noise, and the bound leaves it as it is.
+Assumptions: the noise is white at the sample rate and its level does not change much within a
+run (a noise that grows with the signal, as a motor current's does, is estimated at its typical
+level).
 """
 
 from __future__ import annotations
@@ -22,7 +28,10 @@ def column_noise(times: np.ndarray, values: np.ndarray) -> float:
     if len(v) < 5:
         return float("nan")
     d2 = np.diff(v, 2)
-    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
+    robust = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
+    gaps = np.diff(np.unique(v))
+    resolution = float(gaps.min()) if gaps.size else 0.0
+    return max(robust, resolution / np.sqrt(12.0))
 
 
 def residual_scale(times: np.ndarray, values: np.ndarray, nominal: float, increment: bool) -> float:

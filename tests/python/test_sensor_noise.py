@@ -2,6 +2,9 @@
 
 * The noise of a measured column is estimated from the column itself, within a few % of the
   truth, on a signal that moves as a rover's do.
+* A quantised column (an encoder's counts over a read interval) has at least the noise of its
+  quantisation, not none: more than half of its second differences are zero, which the median
+  alone would read as a noiseless sensor.
 * A residual's scale is that noise (an increment's: sqrt(2) times it), never below the
   signal's nominal scale.
 * A campaign whose total station is ten times noisier than the paper's gets its positions
@@ -38,6 +41,35 @@ def _signal(seed: int, sigma: float, n: int = 2000, rate: float = 50.0) -> tuple
 def test_the_noise_of_a_column_is_estimated_from_the_column(sigma):
     t, v = _signal(1, sigma)
     assert column_noise(t, v) == pytest.approx(sigma, rel=0.08)
+
+
+def _encoder_spin(seed: int, counts: int = 2048, rate: float = 20.0, seconds: float = 30.0):
+    """A wheel spin as an encoder gives it: the angle of a wheel at a steady spin (0.79 rad/s,
+    slowly rising) counted in ``counts`` steps per revolution, read at ``rate``, differenced."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    angle = 0.79 * t + 0.0005 * t**2
+    n = np.floor(angle * counts / (2.0 * np.pi) + rng.uniform())
+    step = 2.0 * np.pi / counts * rate      # rad/s: one count in one read interval
+    return t[1:], np.diff(n) * step, angle, step
+
+
+def test_a_quantised_column_has_at_least_the_noise_of_its_quantisation():
+    t, spin, angle, step = _encoder_spin(3)
+    true_spin = np.diff(angle) * 20.0
+    error = float(np.std(spin - true_spin))
+    say(f"encoder spin: {step:.4f} rad/s per count, error {error:.4f} rad/s rms, "
+        f"estimated noise {column_noise(t, spin):.4f} rad/s")
+    assert np.mean(np.diff(spin, 2) == 0.0) > 0.5, "the premise: most second differences are zero"
+    assert column_noise(t, spin) >= step / np.sqrt(12.0) * 0.999
+    assert column_noise(t, spin) <= 2.0 * error
+
+
+def test_a_finely_resolved_column_is_estimated_as_before():
+    """The quantisation bound is the column's resolution: readings printed to many digits leave
+    the estimate of their noise unchanged."""
+    t, v = _signal(4, 3.0)
+    assert column_noise(t, np.round(v, 4)) == pytest.approx(column_noise(t, v), rel=1e-3)
 
 
 def test_a_residual_is_scaled_by_the_sensor_noise_and_never_below_the_nominal_scale():
