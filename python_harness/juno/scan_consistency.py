@@ -12,11 +12,16 @@ heading (juno.registration.pose_on_ground: the four wheels resting on the scanne
 chassis height above flat ground measured on the drawbar runs), and its height, pitch and roll
 are compared with the measured ones, the attitude gains fitted on the training blocks as the
 registration's held-out evidence fits them.  On each held-out 4 s block the mean residual of
-each signal is taken: sensor noise averages away (4 mm over 40 samples is 0.6 mm), what is left
-is the kinematic model's own error (the rover does not rest exactly as posed: its sinkage
-follows the load, and it pitches as it climbs) plus any disagreement between scan and ground.
+each signal is taken: sensor noise mostly averages away (4 mm over 40 samples is 0.6 mm), what
+is left is the kinematic model's own error (the rover does not rest exactly as posed: its
+sinkage follows the load, and it pitches as it climbs) plus any disagreement between scan and
+ground.  What the noise leaves (each block's sigma^2 / n, sigma estimated from the measured
+column: juno.sensor_noise) is taken off the block means' mean square.
 
-A signal disagrees when the RMS of its held-out block means exceeds its floor.  The floors
+A signal disagrees when the RMS of its held-out block means beyond the sensor's noise exceeds
+its floor.  A signal whose block means carry as much noise as its floor is not judged: a
+receiver's 4 cm at 2 Hz leaves 14 mm in a 4 s block's mean, and a disagreement of the floor's
+size could not be told from it (a run with no signal left to judge is untested, and says why).  The floors
 (FLOORS) are calibrated by simulation (scripts/structure_calibration.py --scan,
 docs/results/scan-calibration.md): on campaigns with nothing hidden, of both synthetic designs,
 each floor lies about twice above the largest block-mean RMS the scan as it is left.  There is
@@ -53,6 +58,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .sensor_noise import column_noise
+
 #: The floors of the RMS of the held-out block means, per signal (m for the height, rad for the
 #: angles): about twice the largest a scan with nothing wrong left on synthetic campaigns with
 #: nothing hidden, of both designs (the 16 of docs/results/scan-calibration.md: height 2.4 mm,
@@ -63,12 +70,15 @@ import numpy as np
 #: less than the roll floor and is not seen (the page lists those draws).
 FLOORS = {"height": 0.006, "pitch": 0.024, "roll": 0.017}
 UNITS = {"height": "m", "pitch": "rad", "roll": "rad"}
+#: The measured column of each compared signal (its sensor noise: juno.sensor_noise).
+SIGNAL_COLUMNS = {"height": "pos_z", "pitch": "pitch", "roll": "roll"}
 
 
 @dataclass
 class ScanSignal:
     """One compared signal: the RMS of its held-out block means (``rms``, signal units), its
-    floor, and the mean of the block means (``offset``: a constant disagreement)."""
+    floor, the mean of the block means (``offset``: a constant disagreement), and the RMS the
+    block means have from the sensor's noise alone (``noise``: each block's sigma^2 / n)."""
 
     signal: str
     unit: str
@@ -76,19 +86,37 @@ class ScanSignal:
     rms: float
     offset: float
     floor: float
+    noise: float = 0.0
+
+    @property
+    def excess(self) -> float:
+        """The block means' RMS beyond their sensor noise: sqrt(rms^2 - noise^2), at least 0."""
+        return float(np.sqrt(max(self.rms ** 2 - self.noise ** 2, 0.0)))
+
+    @property
+    def resolvable(self) -> bool:
+        """Whether the block means' own noise lies below the floor: else no disagreement of the
+        floor's size can be told from the sensor's noise, and the signal is not judged."""
+        return bool(self.noise < self.floor)
 
     @property
     def disagrees(self) -> bool:
-        return bool(self.rms > self.floor)
+        return bool(self.resolvable and self.excess > self.floor)
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "unit": self.unit, "blocks": self.blocks, "block_rms": self.rms,
-                "mean": self.offset, "floor": self.floor, "disagrees": self.disagrees}
+                "noise": self.noise, "beyond_noise": self.excess, "mean": self.offset, "floor": self.floor,
+                "resolvable": self.resolvable, "disagrees": self.disagrees}
 
     def sentence(self) -> str:
         scale, shown = (1000.0, "mm") if self.unit == "m" else (1000.0, "mrad")
-        return (f"{self.signal} {self.rms * scale:.3g} {shown} RMS over held-out blocks "
-                f"({self.rms / self.floor:.2g} x its floor, mean {self.offset * scale:+.3g} {shown})")
+        return (f"{self.signal} {self.excess * scale:.3g} {shown} RMS over held-out blocks beyond the sensor's noise "
+                f"({self.excess / self.floor:.2g} x its floor, mean {self.offset * scale:+.3g} {shown})")
+
+    def unresolved_sentence(self) -> str:
+        scale, shown = (1000.0, "mm") if self.unit == "m" else (1000.0, "mrad")
+        return (f"{self.signal}'s block means carry {self.noise * scale:.3g} {shown} of sensor noise, at or above "
+                f"the floor of {self.floor * scale:.3g} {shown}")
 
 
 @dataclass
@@ -106,14 +134,20 @@ class ScanConsistency:
 
     def disagreeing(self) -> list[ScanSignal]:
         """The signals that disagree, largest relative to their floor first."""
-        return sorted((s for s in self.signals if s.disagrees), key=lambda s: -s.rms / s.floor)
+        return sorted((s for s in self.signals if s.disagrees), key=lambda s: -s.excess / s.floor)
+
+    def resolvable(self) -> bool:
+        """Whether some signal's block means are quiet enough to be judged (ScanSignal.resolvable)."""
+        return any(s.resolvable for s in self.signals)
 
     def summary(self) -> str:
         found = self.disagreeing()
+        unjudged = [s.unresolved_sentence() for s in self.signals if not s.resolvable]
+        aside = f" (not judged: {'; '.join(unjudged)})" if unjudged else ""
         if not found:
-            return f"the measured pose on terrain run {self.run} agrees with its scan"
+            return f"the measured pose on terrain run {self.run} agrees with its scan{aside}"
         return (f"the measured pose on terrain run {self.run} disagrees with its scan (posed on it kinematically): "
-                + "; ".join(s.sentence() for s in found))
+                + "; ".join(s.sentence() for s in found) + aside)
 
     def to_json(self) -> dict[str, Any]:
         return {"run": self.run, "significant": self.significant, "gains": list(self.gains),
@@ -160,12 +194,14 @@ class ScanTests:
                 "summary": self.summary()}
 
 
-def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.ndarray, run: str) -> ScanConsistency:
+def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.ndarray, run: str,
+                     noise: Mapping[str, float] | None = None) -> ScanConsistency:
     """The test (module docstring) of ``traverse`` (juno.registration.Traverse) on ``grid`` (its
     gridded scan, as it is), with chassis height ``h0`` (m) above flat ground; ``train`` marks the
-    training samples, ``block`` numbers every sample's block.  ValueError if a residual is not
-    finite (a measured sample missing, or the pose not solved): a test that cannot be computed is
-    not a test passed."""
+    training samples, ``block`` numbers every sample's block; ``noise``: each signal's sensor
+    noise per sample (1 sigma; "height", "pitch", "roll"), none where not given.  ValueError if a
+    residual is not finite (a measured sample missing, or the pose not solved): a test that
+    cannot be computed is not a test passed."""
     from scipy.optimize import least_squares
 
     from .registration import GAIN_LIMITS, NOFFSETS, SIGMA_PITCH, SIGMA_ROLL, SIGMA_Z, _Posing, residuals
@@ -200,8 +236,11 @@ def scan_consistency(grid, traverse, h0: float, train: np.ndarray, block: np.nda
         means = np.array([np.mean(values[held & (block == b)]) for b in blocks])
         if len(means) == 0:
             continue
+        sigma = float((noise or {}).get(name, 0.0))
+        sigma = sigma if np.isfinite(sigma) else 0.0
+        counts = np.array([np.sum(held & (block == b)) for b in blocks])
         signals.append(ScanSignal(name, UNITS[name], len(means), float(np.sqrt(np.mean(means ** 2))),
-                                  float(np.mean(means)), FLOORS[name]))
+                                  float(np.mean(means)), FLOORS[name], float(np.sqrt(np.mean(sigma ** 2 / counts)))))
     return ScanConsistency(run, signals, gains)
 
 
@@ -230,12 +269,15 @@ def terrain_run_scan_consistency(campaign, run, grid, block_s: float, h0: float 
     if h0 is None:
         return None
     traverse = traverse_of(campaign, run)
-    since_start = traverse.t - read_run(campaign, run).time[0]
+    data = read_run(campaign, run)
+    since_start = traverse.t - data.time[0]
     block = np.floor(since_start / block_s).astype(int)
     train = block % 2 == 0
     if train.all() or not train.any():
         return None
-    return scan_consistency(grid, traverse, h0, train, block, run.id)
+    noise = {signal: column_noise(*data.samples(column)) for signal, column in SIGNAL_COLUMNS.items()
+             if data.has(column)}
+    return scan_consistency(grid, traverse, h0, train, block, run.id, noise)
 
 
 def campaign_scan_consistency(campaign, grids: Mapping[str, Any], block_s: float) -> ScanTests | None:
@@ -260,6 +302,9 @@ def campaign_scan_consistency(campaign, grids: Mapping[str, Any], block_s: float
         test = terrain_run_scan_consistency(campaign, run, grids[run.id], block_s, h0)
         if test is None:
             tests.untested[run.id] = f"shorter than two blocks of {block_s:g} s after settling"
+        elif not test.resolvable():
+            tests.untested[run.id] = ("the sensors' noise in the held-out block means reaches every floor: "
+                                      + "; ".join(s.unresolved_sentence() for s in test.signals))
         else:
             tests.runs.append(test)
     return tests

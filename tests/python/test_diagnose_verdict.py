@@ -87,6 +87,11 @@ def test_none_says_which_terrain_runs_could_not_be_tested_against_their_scan():
     assert v.cause == "none"
     assert "terrain run t3d's pose was not tested against its scan (no measured heading (yaw column))" in \
         explanation(v, "")
+    drowned = ScanTests([ScanConsistency("t3r", [ScanSignal("height", "m", 3, 0.02, 0.0, FLOORS["height"], 0.015),
+                                                 ScanSignal("roll", "rad", 3, 0.001, 0.0, FLOORS["roll"], 0.0)])])
+    words = explanation(verdict([], _structure(torque_left=0.0), None, scan=drowned), "")
+    assert "terrain run t3r's height was not judged against its scan (height's block means carry 15 mm" in words
+    assert "roll" not in words
 
 
 def test_a_scan_within_its_floor_leaves_none_none():

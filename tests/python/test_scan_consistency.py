@@ -93,6 +93,34 @@ def test_a_signal_disagrees_only_beyond_its_floor():
     assert ScanConsistency("t3d", [at, above]).disagreeing() == [above]
 
 
+def test_the_sensor_noise_left_in_the_block_means_is_taken_off_before_the_floor():
+    """A block mean of n samples carries sigma / sqrt(n) of sensor noise: what is compared with
+    the floor is the RMS beyond it; a signal whose block means' noise reaches its floor cannot
+    show a disagreement of the floor's size and is not judged."""
+    noisy = ScanSignal("height", "m", 3, 0.0075, 0.0, 0.006, noise=0.005)
+    assert noisy.excess == pytest.approx(np.sqrt(0.0075 ** 2 - 0.005 ** 2))
+    assert noisy.resolvable and not noisy.disagrees
+    drowned = ScanSignal("height", "m", 3, 0.03, 0.0, 0.006, noise=0.014)
+    assert not drowned.resolvable and not drowned.disagrees
+    assert "14 mm of sensor noise" in drowned.unresolved_sentence()
+
+
+def test_positions_from_a_noisy_receiver_leave_the_height_unjudged_not_disagreeing():
+    """The scan that is the ground, the heights measured by a receiver with 4 cm of noise at
+    5 Hz (about 13 mm in a 4 s block's mean): the height is not judged, and the pose does not
+    disagree; with a millimetre of noise it is judged and agrees."""
+    traverse, block = _measured_traverse()
+    rng = np.random.default_rng(7)
+    for sigma, judged in ((0.04, False), (0.001, True)):
+        measured = Traverse(traverse.x, traverse.y, traverse.z + rng.normal(0.0, sigma, len(traverse.z)),
+                            traverse.yaw, traverse.pitch, traverse.wheelbase, traverse.track, roll=traverse.roll,
+                            pivot_height=traverse.pivot_height, wheel_radius=traverse.wheel_radius, t=traverse.t)
+        result = scan_consistency(_ground(), measured, H0, block % 2 == 0, block, "t3d", {"height": sigma})
+        height = next(s for s in result.signals if s.signal == "height")
+        assert height.resolvable == judged and not result.significant, result.to_json()
+        assert ("not judged" in result.summary()) != judged
+
+
 def test_the_gains_fit_poses_the_rover_once_and_gives_what_a_pose_per_evaluation_gives(monkeypatch):
     """The attitude gains only scale the posed attitude, so the fit of the gains poses the rover on
     the scan once for its training samples (and once more for every sample), and its gains and

@@ -208,8 +208,8 @@ class Verdict:
     unexplained: Unexplained | None
     #: with ``none``: the base model's signals the structure test resolves below their floors
     below_floors: list[SignalStructure] = field(default_factory=list)
-    #: with ``none``: the terrain runs whose pose could not be tested against their scan, and why
-    scans_untested: dict[str, str] = field(default_factory=dict)
+    #: with ``none``: what of the terrain runs' pose could not be tested against their scan, and why
+    scan_not_judged: list[str] = field(default_factory=list)
 
 
 def verdict(causes: list[str], base: ResidualStructure | None, extended: ResidualStructure | None,
@@ -230,7 +230,7 @@ def verdict(causes: list[str], base: ResidualStructure | None, extended: Residua
         if base.significant or disagrees is not None or partial:
             return Verdict("unexplained", [], Unexplained("base", base.structured(), ripples=base.ripples(),
                                                           scan=disagrees, offsets=base.offsets(), partial=partial))
-        return Verdict("none", [], None, base.below_floors(), dict(scan.untested) if scan is not None else {})
+        return Verdict("none", [], None, base.below_floors(), not_judged(scan))
     if extended is None or not extended.significant:
         return Verdict(causes[0], causes, None)
     makers = ripple_makers_not_named(causes, extended.ripples(), candidates or [])
@@ -269,10 +269,8 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
     """The verdict in words, from the named causes' physical explanation."""
     u = verdict_.unexplained
     if verdict_.cause == "none":
-        untested = "".join(f"; terrain run {run}'s pose was not tested against its scan ({why})"
-                           for run, why in verdict_.scans_untested.items())
         return ("no extension explains the held-out data significantly better, and " + residuals_of_none(verdict_)
-                + untested)
+                + "".join(f"; {note}" for note in verdict_.scan_not_judged))
     if verdict_.cause == "unexplained":
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
@@ -293,3 +291,14 @@ def residuals_of_none(verdict_: Verdict) -> str:
     return ("the residuals hold no structure above the floors a right model's replay stays under; below them "
             "the test resolves " + "; ".join(s.below_floor_sentence() for s in verdict_.below_floors))
 
+
+def not_judged(scan: ScanTests | None) -> list[str]:
+    """What of the terrain runs' measured pose the scan test could not judge, in words: the runs
+    not tested, and the signals whose block means carry as much sensor noise as their floor."""
+    if scan is None:
+        return []
+    notes = [f"terrain run {run}'s pose was not tested against its scan ({why})" for run, why in scan.untested.items()]
+    for run in scan.runs:
+        notes += [f"terrain run {run.run}'s {s.signal} was not judged against its scan ({s.unresolved_sentence()})"
+                  for s in run.signals if not s.resolvable]
+    return notes
