@@ -317,9 +317,9 @@ def _with_ripple_as_nuisance(campaign: Campaign, problem: Problem, base: FitResu
                              say: Callable[[str], None], workers: int | None) -> FitResult:
     """When ``base``'s drive torques ripple with the wheel angle (ripple_of), every fit from here
     on takes that ripple as a nuisance (ripple_nuisance.py: ``problem.ripple_lugs``), and the
-    base model is fitted again so, as at first, from the paper's soil (from its own optimum the
-    fit stays where the ripple bent it: gamma at its bound on a campaign with rippling lugs);
-    otherwise ``base`` as it is."""
+    base model is fitted again so, as it was at first, from the paper's soil (its loss is another
+    one now, and every fit of the base model starts where the first did); otherwise ``base`` as
+    it is."""
     found = ripple_of(campaign, problem, base, bases)
     if found is None or not found.significant:
         return base
