@@ -6,9 +6,11 @@ differences have variance 6 sigma^2, a signal that is smooth at the sample rate 
 them, and the median ignores the few steps and glitches.  A quantised column (an encoder's counts
 over a read interval, at a steady spin) steps between two neighbouring levels, and more than
 half of its second differences are exactly zero: the median then reads it as noiseless.  Its
-rounding error is at least uniform over one level, so the estimate is never below the column's
-resolution (the smallest gap between two of its distinct values) over sqrt(12); a column read
-to many digits has a resolution far below its noise, and the bound leaves it as it is.
+rounding error is at least uniform over one level, so the estimate of a quantised column is
+never below its step over sqrt(12). A column is quantised when every change from one sample to
+the next is a whole multiple of the smallest such change (the step); a column read to many
+digits has a step far below its noise, and a column that moves (a position along the track)
+changes by no common step at all: the bound leaves both as they are.
 Assumptions: the noise is white at the sample rate and its level does not change much within a
 run (a noise that grows with the signal, as a motor current's does, is estimated at its typical
 level).
@@ -29,9 +31,19 @@ def column_noise(times: np.ndarray, values: np.ndarray) -> float:
         return float("nan")
     d2 = np.diff(v, 2)
     robust = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
-    gaps = np.diff(np.unique(v))
-    resolution = float(gaps.min()) if gaps.size else 0.0
-    return max(robust, resolution / np.sqrt(12.0))
+    return max(robust, quantisation_step(v) / np.sqrt(12.0))
+
+
+def quantisation_step(values: np.ndarray) -> float:
+    """The step of a quantised column (module docstring): the smallest change from one sample to
+    the next when every change is a whole multiple of it (to rounding), else 0."""
+    changes = np.abs(np.diff(np.asarray(values, float)))
+    changes = changes[changes > 0]
+    if changes.size == 0:
+        return 0.0
+    step = float(changes.min())
+    multiples = changes / step
+    return step if bool(np.all(np.abs(multiples - np.round(multiples)) < 1e-6)) else 0.0
 
 
 def residual_scale(times: np.ndarray, values: np.ndarray, nominal: float, increment: bool) -> float:

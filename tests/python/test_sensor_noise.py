@@ -22,7 +22,7 @@ import pytest
 from harness_fixtures import say
 from juno.campaign import load_campaign
 from juno.identify import INCREMENT_SIGNALS, JOINT_SIGNALS, identify_joint, prepare_run
-from juno.sensor_noise import column_noise, residual_scale
+from juno.sensor_noise import column_noise, quantisation_step, residual_scale
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -66,10 +66,22 @@ def test_a_quantised_column_has_at_least_the_noise_of_its_quantisation():
 
 
 def test_a_finely_resolved_column_is_estimated_as_before():
-    """The quantisation bound is the column's resolution: readings printed to many digits leave
+    """The quantisation bound is the column's step: readings printed to many digits leave
     the estimate of their noise unchanged."""
     t, v = _signal(4, 3.0)
     assert column_noise(t, np.round(v, 4)) == pytest.approx(column_noise(t, v), rel=1e-3)
+
+
+def test_a_moving_position_is_no_quantised_column():
+    """A position along the track changes by 2-5 cm a sample with 2 mm of noise: no common
+    step, so its noise is the second differences' alone (not its smallest change over sqrt 12)."""
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 30.0, 0.2)
+    x = 0.2 * t + 0.05 * np.sin(0.3 * t) + rng.normal(0.0, 0.002, len(t))
+    assert quantisation_step(x) == 0.0
+    assert column_noise(t, x) == pytest.approx(0.002, rel=0.25)
+    _t, spin, _angle, step = _encoder_spin(3)
+    assert quantisation_step(spin) == pytest.approx(step, rel=1e-9)
 
 
 def test_a_residual_is_scaled_by_the_sensor_noise_and_never_below_the_nominal_scale():
