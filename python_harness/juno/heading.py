@@ -13,7 +13,7 @@ heading there; the kinematic registration poses it at every position.
   the rover drives straight over that stretch and does not crab (it starts on flat ground).
   Over 0.5 m with 5 mm of position noise at 5 Hz the error is about 0.01 rad.
 * **Along the run** (:func:`track_headings`): the direction of travel over ``TRACK_WINDOW`` s
-  either side of each sample. It is the body's heading only where the rover does not crab: on a
+  either side of each sample (the local least-squares velocity juno.campaign.forward_speed uses). It is the body's heading only where the rover does not crab: on a
   slope a skid-steered rover slides sideways, and the track's direction differs from its
   heading by a tenth of a radian or more (measured on the synthetic mound), so a kinematic pose
   from it is not as good as one from a measured heading (juno.scan_consistency leaves a run
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .campaign import RunData
+from .campaign import RunData, travel_direction
 from .sensor_noise import column_noise
 
 #: Travel (m) over which the start heading is taken from the track.
@@ -90,18 +90,9 @@ def _backward(data: RunData, t0: float, t1: float) -> bool:
 
 def track_headings(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """The direction of travel (rad, unwrapped) at each sample time ``t`` (s) of a track (m):
-    from the position TRACK_WINDOW s before to the one TRACK_WINDOW s after (interpolated, and
-    clipped to the track's ends); where the rover stands still, the direction it last had."""
-    before = np.clip(t - TRACK_WINDOW, t[0], t[-1])
-    after = np.clip(t + TRACK_WINDOW, t[0], t[-1])
-    dx = np.interp(after, t, x) - np.interp(before, t, x)
-    dy = np.interp(after, t, y) - np.interp(before, t, y)
-    moving = np.hypot(dx, dy) > 0
-    heading = np.arctan2(dy, dx)
-    if moving.any():
-        idx = np.where(moving, np.arange(len(t)), 0)
-        np.maximum.accumulate(idx, out=idx)
-        first = int(np.argmax(moving))
-        idx[:first] = first
-        heading = heading[idx]
-    return np.unwrap(heading)
+    juno.campaign.travel_direction over 2 TRACK_WINDOW s (where the rover stands still, the
+    direction at the nearest time it moved); 0 for a track that never moves."""
+    direction = travel_direction(t, x, t, y, t, 2.0 * TRACK_WINDOW)
+    if direction is None:
+        return np.zeros(len(t))
+    return np.unwrap(np.arctan2(direction[1], direction[0]))

@@ -38,7 +38,7 @@ from .records import (ANGLE_COLUMNS, BASE_REQUIRED, KINDS, KNOWN_COLUMNS, MANIFE
                       REQUIRED_COLUMNS, RIG_COLUMNS, RIG_INPUTS, RIG_MEASURED, RIG_REQUIRED, RIG_STD_SUFFIX,
                       RIG_WHEEL_KEYS, TIME_SERIES_KINDS, AlignedColumns, Campaign, RigSetup, RigTable, RunData,
                       RunSpec)
-from .signals import aligned, forward_speed, steady_average
+from .signals import aligned, forward_speed, steady_average, travel_direction
 from .tables import read_any, read_rig, read_rig_csv, read_run, read_run_csv, read_terrain_points
 from .writing import format_rig_csv, format_run_csv, write_campaign
 
@@ -48,6 +48,6 @@ __all__ = [
     "RIG_COLUMNS", "RIG_WHEEL_KEYS",
     "Campaign", "RunSpec", "RigSetup", "RunData", "RigTable", "AlignedColumns",
     "load_campaign", "read_run", "read_run_csv", "read_rig", "read_rig_csv", "read_any", "read_terrain_points",
-    "aligned", "steady_average", "forward_speed",
+    "aligned", "steady_average", "forward_speed", "travel_direction",
     "format_run_csv", "format_rig_csv", "write_campaign",
 ]

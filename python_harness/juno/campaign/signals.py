@@ -163,14 +163,25 @@ def forward_speed(
     if run.has("yaw"):
         yaw = aligned(run, "yaw", t)["yaw"]
         return vx * np.cos(yaw) + vy * np.sin(yaw)
-    ux = _local_slope(tx, x, t, heading_window)
-    uy = _local_slope(ty, y, t, heading_window)
+    direction = travel_direction(tx, x, ty, y, t, heading_window)
+    if direction is None:
+        return vx  # never moves: any direction gives noise around zero
+    return vx * direction[0] + vy * direction[1]
+
+
+def travel_direction(tx: FloatArray, x: FloatArray, ty: FloatArray, y: FloatArray, t: FloatArray,
+                     window: float) -> tuple[FloatArray, FloatArray] | None:
+    """The unit vector of the direction of travel at times ``t`` (s) of a track (``x`` at ``tx``,
+    ``y`` at ``ty``; m): the local least-squares velocity over ``window`` s; where the rover moves
+    slower than 1 mm/s, the direction at the nearest time it moved.  None if it never moves."""
+    ux = _local_slope(tx, x, t, window)
+    uy = _local_slope(ty, y, t, window)
     norm = np.hypot(ux, uy)
     moving = norm > 1e-3
     if not moving.any():
-        return vx  # never moves: any direction gives noise around zero
+        return None
     src = _nearest_true(t, moving)
-    return vx * ux[src] / norm[src] + vy * uy[src] / norm[src]
+    return ux[src] / norm[src], uy[src] / norm[src]
 
 
 def _nearest_true(t: FloatArray, mask: NDArray[np.bool_]) -> NDArray[np.intp]:
