@@ -244,10 +244,16 @@ class ResidualStructure:
         found = [*self.structured(), *self.ripples(), *self.offsets()]
         return [f.brief() if brief else f.sentence() for f in found]
 
+    def contact_signals(self) -> list[str]:
+        """The signals tested here that MATERIAL_FRACTION_CONTACT applies to (CONTACT_SIGNALS):
+        the pitch only where the drawbar runs measure it."""
+        tested = {s.signal for s in self.signals}
+        return [s for s in CONTACT_SIGNALS if s in tested]
+
     def to_json(self) -> dict[str, Any]:
         return {"significant": self.significant, "false_alarm": FALSE_ALARM, "level": self.level,
                 "material_fraction": MATERIAL_FRACTION, "material_fraction_contact": MATERIAL_FRACTION_CONTACT,
-                "contact_signals": list(CONTACT_SIGNALS), "replicas": self.replicas, "runs": self.runs,
+                "contact_signals": self.contact_signals(), "replicas": self.replicas, "runs": self.runs,
                 "signals": [s.to_json() for s in self.signals],
                 "periodic": self.periodic.to_json() if self.periodic else None,
                 "timing": self.timing.to_json() if self.timing else None}
