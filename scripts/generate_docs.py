@@ -16,6 +16,8 @@ hand-typed numbers:
   commit and the machine.  Without a study the page says that the rates are not measured.
 * the sections of README.md and docs/*.md between ``<!-- BEGIN generated: NAME -->`` and
   ``<!-- END generated: NAME -->``, filled from the files above.
+* the table of what the optional columns buy in ``docs/campaign-format.md``, from
+  ``juno.campaign.OPTIONAL_COLUMN_USES`` (which the commands' ``missing_columns`` quote).
 * ``docs/images/wheel-and-drawbar.png`` (``--figure``): the README's figure, simulated.
 
 Usage (from the repository root)::
@@ -467,9 +469,21 @@ def _load_json(path: Path) -> Optional[dict[str, Any]]:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
+def optional_columns_table() -> str:
+    """docs/campaign-format.md's table of what each optional column buys: per column and kind of
+    run that uses it, what a run without it loses (juno.campaign.OPTIONAL_COLUMN_USES)."""
+    sys.path.insert(0, str(ROOT / "python_harness"))
+    from juno.campaign import OPTIONAL_COLUMN_USES
+    rows = ["| column | runs that use it | without it |", "|---|---|---|"]
+    for column, uses in OPTIONAL_COLUMN_USES.items():
+        rows += [f"| `{column}` | {kind} | {_cell(consequence)} |" for kind, consequence in uses.items()]
+    return "\n".join(rows) + "\n"
+
+
 def sections(bench: Optional[dict[str, Any]], detection: Optional[dict[str, Any]]) -> dict[Path, dict[str, str]]:
     """For each document, the content of each generated section."""
     return {
+        DOCS / "campaign-format.md": {"optional-columns": optional_columns_table()},
         ROOT / "README.md": {"headline": headline(bench, detection)},
         DOCS / "benchmarks.md": {"bench-summary": headline(bench, None, with_detection=False, results="results")},
         DOCS / "diagnosis.md": {"detection-summary": detection_summary(detection)

@@ -23,12 +23,17 @@ and diagnosed as well:
 * positions in a frame turned from the rover's and no yaw column (an IMU without a heading): the
   replays start along the track, as with a measured heading; the terrain run's pose is left
   untested against its scan, and said so;
+* no roll, pitch or yaw column (no IMU angles): ``juno identify``, ``juno validate`` and ``juno
+  diagnose`` each name the columns missing from the runs they use, with what that costs, in their
+  printout and their JSON (``missing_columns``, empty for a full campaign), and the structure test
+  lists no pitch among its signals;
 * a drawbar run without a steady window: the paper-style fit says it averages the whole run;
 * one diagnosis opens one snapshot of the FMU, and ``juno validate`` grids as the others do.
 
 Campaigns are short (``time_scale`` 0.25-0.3: runs of 5.5-10 s), so each test takes seconds.
-A whole diagnosis is not run here: at these lengths a drawbar run has one held-out block, too
-few for the diagnosis's significance tests (a full-length ``alt`` campaign takes minutes).
+A diagnosis is run once, of one candidate, for what it says of the columns a campaign lacks; its
+verdict is not tested here: at these lengths a drawbar run has one held-out block, too few for
+the diagnosis's significance tests (a full-length ``alt`` campaign takes minutes).
 """
 
 from __future__ import annotations
@@ -184,10 +189,12 @@ def test_identify_and_validate_run_on_an_alt_design_campaign(alt_campaign, tmp_p
                     "--json", identified)
     assert proc.returncode == 0, proc.stderr
     assert set(json.loads(identified.read_text())["joint"]["params"]) == set(SOIL_PARAMETERS)
+    assert json.loads(identified.read_text())["missing_columns"] == []
     validated = tmp_path / "validate.json"
     proc = run_juno("validate", alt_campaign, "--params", identified, "--quiet", "--json", validated)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.startswith("t3d: RMS pos_x"), proc.stdout
+    assert proc.stdout.startswith("t3d: RMS pos_x") and len(proc.stdout.splitlines()) == 1, proc.stdout
+    assert json.loads(validated.read_text())["missing_columns"] == []
     rms = json.loads(validated.read_text())["rms"]
     assert list(rms) == ["t3d"] and all(np.isfinite(v) for v in rms["t3d"].values())
 
@@ -487,3 +494,76 @@ def test_a_drawbar_run_without_a_steady_window_is_said_to_be_averaged_whole(shor
     assert said[0].startswith("dbp1: no steady_window in the manifest"), said
     run = read_run(load_campaign(root), "dbp1")
     assert results[0].averages.window == (run.time[0], run.time[-1])
+
+
+# ------------------------------------------------------------------ a campaign without IMU angles
+
+#: The IMU's attitude columns, all optional (docs/campaign-format.md, "What roll, pitch and yaw buy").
+IMU_ANGLES = ("roll", "pitch", "yaw")
+
+
+def without_imu_angles(header: list[str], rows: list[list[str]]) -> Table:
+    """No roll, pitch or yaw column (an IMU that gives none, or none at all); rows left empty dropped."""
+    keep = [i for i, name in enumerate(header) if name not in IMU_ANGLES]
+    header = [header[i] for i in keep]
+    rows = [[row[i] for i in keep] for row in rows]
+    return header, [row for row in rows if any(cell for j, cell in enumerate(row) if header[j] != "time")]
+
+
+@pytest.fixture(scope="module")
+def no_imu_angles(short_campaign, tmp_path_factory) -> Path:
+    return variant(short_campaign, tmp_path_factory.mktemp("no-imu") / "campaign", without_imu_angles)
+
+
+def _missing(entries: list[dict]) -> dict[tuple[str, str], dict]:
+    """A ``missing_columns`` JSON list by (column, kind)."""
+    return {(m["column"], m["kind"]): m for m in entries}
+
+
+def test_the_columns_a_campaign_lacks_are_named_with_the_runs_and_what_each_costs(no_imu_angles, short_campaign):
+    """Each optional column a kind of run uses (OPTIONAL_COLUMN_USES), lacking from the runs of
+    that kind, is named once per kind with those runs and what its absence costs there; the
+    IMU's accelerations and rates, which no analysis uses, are not; a full campaign lacks nothing."""
+    from juno.campaign import OPTIONAL_COLUMN_USES, missing_columns
+    found = missing_columns(load_campaign(no_imu_angles))
+    assert [(m.column, m.kind) for m in found] == [("pitch", "drawbar"), ("pitch", "terrain"), ("roll", "terrain"),
+                                                   ("yaw", "drawbar"), ("yaw", "terrain")]
+    for m in found:
+        assert m.runs == (("dbp1", "dbp2", "dbp3") if m.kind == "drawbar" else ("t3d",)), m
+        assert m.consequence == OPTIONAL_COLUMN_USES[m.column][m.kind]
+    assert "k_h" in OPTIONAL_COLUMN_USES["pitch"]["drawbar"]
+    assert "not tested against its scan" in OPTIONAL_COLUMN_USES["yaw"]["terrain"]
+    assert [(m.column, m.kind) for m in missing_columns(load_campaign(no_imu_angles), ("terrain",))] == \
+        [("pitch", "terrain"), ("roll", "terrain"), ("yaw", "terrain")]
+    assert missing_columns(load_campaign(short_campaign)) == []
+
+
+def test_identify_validate_and_diagnose_say_which_angles_are_missing_and_what_that_costs(no_imu_angles, tmp_path,
+                                                                                        capsys):
+    """Each command prints every missing column once, as a line naming the column, the runs and
+    the cost, and carries the same in its JSON (``missing_columns``), for the kinds of run it
+    uses: the joint fit its drawbar runs, validate (given the soil) its terrain run, the diagnosis
+    both.  The structure test of the drawbar runs, which measure no pitch, lists no pitch among
+    the signals it tested or calibrated."""
+    from juno.campaign import missing_columns
+    every = {(m.column, m.kind): m for m in missing_columns(load_campaign(no_imu_angles))}
+    identified, validated, diagnosed = tmp_path / "identify.json", tmp_path / "validate.json", tmp_path / "diagnose.json"
+    commands = {
+        identified: ("identify", no_imu_angles, "--method", "joint", "--workers", "1"),
+        validated: ("validate", no_imu_angles, "--params", identified),
+        diagnosed: ("diagnose", no_imu_angles, "--candidates", "drivetrain_loss", "--workers", "1"),
+    }
+    expected = {identified: [("pitch", "drawbar"), ("yaw", "drawbar")],
+                validated: [("pitch", "terrain"), ("roll", "terrain"), ("yaw", "terrain")],
+                diagnosed: list(every)}
+    for out, args in commands.items():
+        proc = run_juno_here(capsys, *args, "--quiet", "--json", out)
+        assert proc.returncode == 0, proc.stderr
+        entries = json.loads(out.read_text())["missing_columns"]
+        assert [(m["column"], m["kind"]) for m in entries] == expected[out], (args[0], entries)
+        for key, m in _missing(entries).items():
+            assert m["runs"] == list(every[key].runs) and m["consequence"] == every[key].consequence
+            assert proc.stdout.count(every[key].sentence() + "\n") == 1, (args[0], proc.stdout)
+    structure = json.loads(diagnosed.read_text())["structure"]["base"]
+    assert "pitch" not in structure["contact_signals"] and "pitch" not in [s["signal"] for s in structure["signals"]]
+    assert {"torque_left", "torque_right"} <= set(structure["contact_signals"])

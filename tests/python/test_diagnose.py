@@ -48,6 +48,7 @@ def test_no_effect_names_no_cause(none_case):
     diagnosis, seed = none_case
     for key in ("cause", "candidates", "baseline", "extended", "gain"):
         assert key in diagnosis, f"diagnose JSON lacks '{key}'"
+    assert diagnosis["missing_columns"] == [], "a full campaign lacks no column"
     assert diagnosis["cause"] == "none", f"seed {seed}: a false cause was named: {candidates_summary(diagnosis)}"
     assert len(diagnosis["candidates"]) == 6
 

@@ -24,7 +24,7 @@ JUDGED_KEYS = ["name", "cause", "gain", "z", "gain_by_kind", "z_by_kind", "acts"
                "extension", "soil_at_bounds", "evaluations", "failed_evaluations", "status", "wall_time"]
 RESULT_KEYS = ["cause", "causes", "explanation", "equally_good", "telling_apart", "head_to_head", "candidates",
                "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time",
-               "unexplained", "structure"]
+               "unexplained", "structure", "missing_columns"]
 
 
 def _problem() -> tuple[Problem, np.ndarray]:
@@ -111,6 +111,20 @@ def test_the_printout_reads_the_typed_result():
     assert lines[0] == "cause: none (no extension explains the held-out data significantly better)"
     assert lines[1].startswith("   slip_sinkage ") and "drawbar +1.0% (z 0.4)" in lines[1]
     assert lines[2].startswith("What would tell a from b: a steady drawbar run on flat ground at 1400 N")
+
+
+def test_the_columns_a_campaign_lacks_close_the_printout_and_are_typed_in_the_json():
+    """A campaign without pitch: the printout ends with the column, its runs and the cost, and
+    the JSON's ``missing_columns`` has them as fields; a full campaign's is empty."""
+    from juno.campaign import OPTIONAL_COLUMN_USES, MissingColumn
+    assert public_json(_no_cause_result())["missing_columns"] == []
+    lacking = MissingColumn("pitch", "drawbar", ("dbp1", "dbp2"), OPTIONAL_COLUMN_USES["pitch"]["drawbar"])
+    result = replace(_no_cause_result(), missing_columns=[lacking])
+    assert summary_lines(result)[-1] == ("no pitch in drawbar runs dbp1, dbp2: "
+                                         + OPTIONAL_COLUMN_USES["pitch"]["drawbar"])
+    assert to_jsonable(public_json(result))["missing_columns"] == [
+        {"column": "pitch", "kind": "drawbar", "runs": ["dbp1", "dbp2"],
+         "consequence": OPTIONAL_COLUMN_USES["pitch"]["drawbar"]}]
 
 
 def test_a_branch_contender_ranks_like_a_judged_candidate():

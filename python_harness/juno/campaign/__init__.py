@@ -27,13 +27,15 @@ deviation ``<column>_std`` of each measured column; the wheel is described in th
 
 Where each part lives: ``records`` (the format's names and the records of a read campaign),
 ``manifest`` (``campaign.json``), ``tables`` (the run CSVs and LIDAR points), ``signals``
-(resampling and quantities derived from the samples), ``writing`` (a campaign written
-atomically).  Everything public is imported from ``juno.campaign``.
+(resampling and quantities derived from the samples), ``optional`` (what the optional columns
+buy, and which a campaign lacks), ``writing`` (a campaign written atomically).  Everything
+public is imported from ``juno.campaign``.
 """
 
 from __future__ import annotations
 
 from .manifest import load_campaign
+from .optional import OPTIONAL_COLUMN_USES, MissingColumn, missing_columns
 from .records import (ANGLE_COLUMNS, BASE_REQUIRED, KINDS, KNOWN_COLUMNS, MANIFEST_NAME, OPTIONAL_COLUMNS,
                       REQUIRED_COLUMNS, RIG_COLUMNS, RIG_INPUTS, RIG_MEASURED, RIG_REQUIRED, RIG_STD_SUFFIX,
                       RIG_WHEEL_KEYS, TIME_SERIES_KINDS, AlignedColumns, Campaign, RigSetup, RigTable, RunData,
@@ -48,6 +50,7 @@ __all__ = [
     "RIG_COLUMNS", "RIG_WHEEL_KEYS",
     "Campaign", "RunSpec", "RigSetup", "RunData", "RigTable", "AlignedColumns",
     "load_campaign", "read_run", "read_run_csv", "read_rig", "read_rig_csv", "read_any", "read_terrain_points",
+    "OPTIONAL_COLUMN_USES", "MissingColumn", "missing_columns",
     "aligned", "steady_average", "forward_speed", "travel_direction",
     "format_run_csv", "format_rig_csv", "write_campaign",
 ]

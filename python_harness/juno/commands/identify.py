@@ -42,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..campaign import load_campaign
+    from ..campaign import load_campaign, missing_columns
     from ..identify import identify_joint, identify_multistart, identify_paper_runs, terrain_grids
     from ..plausibility import enforce_plausibility
     from ..simulator import JunoFMU
@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     campaign = load_campaign(args.campaign)
     enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     batch = {"workers": args.workers, "scheduler": args.scheduler}
-    out: dict[str, Any] = {"campaign": campaign.name}
+    missing = missing_columns(campaign, joint_fit_kinds(args))
+    out: dict[str, Any] = {"campaign": campaign.name, "missing_columns": missing}
     has_rig = bool(campaign.runs_of_kind("wheel_rig"))
     if args.method == "rig" or (has_rig and args.method == "both"):
         out["rig"] = _rig_fits(campaign, args, say)
@@ -95,8 +96,18 @@ def run(args: argparse.Namespace) -> int:
             print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
             for doubt in joint.doubts:
                 print(f"joint: doubtful: {doubt}")
+    for m in missing:
+        print(m.sentence())
     write_json(args.json, out, "identify")
     return 0
+
+
+def joint_fit_kinds(args: argparse.Namespace) -> tuple[str, ...]:
+    """The kinds of run whose optional columns the requested fits use: the joint fit's drawbar
+    runs (and terrain runs, --with-terrain); the paper's steady averages and the rig fit use none."""
+    if args.method not in ("joint", "both"):
+        return ()
+    return ("drawbar", "terrain") if args.with_terrain else ("drawbar",)
 
 
 def paper_fit_caveats(fit) -> list[str]:

@@ -61,7 +61,7 @@ def load_identified_soil(path: str | Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..campaign import load_campaign
+    from ..campaign import load_campaign, missing_columns
     from ..identify import identify_joint, require_runs
     from ..plausibility import enforce_plausibility
     from ..simulator import JunoFMU
@@ -72,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
     campaign = load_campaign(args.campaign)
     enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     require_runs(campaign, "validate")
+    # the terrain runs are replayed; the drawbar runs too when the soil is identified here first
+    missing = missing_columns(campaign, ("terrain",) if soil is not None else ("drawbar", "terrain"))
     with JunoFMU(args.fmu) as fmu:
         if soil is None:
             say("no --params given: identifying first (joint fit)")
@@ -83,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
                 v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=cell)
                 results[run_spec.id], noise[run_spec.id] = v.rms, v.noise
                 print(f"{run_spec.id}: RMS " + ", ".join(_rms_text(v, k) for k in v.rms))
-    write_json(args.json, {"soil": soil, "rms": results, "noise": noise}, "validate")
+    for m in missing:
+        print(m.sentence())
+    write_json(args.json, {"soil": soil, "rms": results, "noise": noise, "missing_columns": missing}, "validate")
     return 0
 
 

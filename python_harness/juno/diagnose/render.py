@@ -16,7 +16,8 @@ from .verdict import Unexplained
 def summary_lines(result: DiagnosisResult) -> list[str]:
     """The diagnosis in a few lines of text: the cause, every candidate's held-out gain and
     significance, the head-to-head judgements, ties and the run that would settle them, the
-    second round and the causes named, strongest first."""
+    second round, the causes named, strongest first, and the optional columns the campaign lacks
+    with what that costs."""
     lines = [f"cause: {result.cause} ({result.explanation})"]
     for c in result.candidates:
         mark = "*" if c.significant else " "
@@ -34,6 +35,7 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
             lines += at_bounds_lines(c)
     if len(result.causes) > 1:
         lines.append("causes, strongest first: " + ", ".join(result.causes))
+    lines += [m.sentence() for m in result.missing_columns]
     return lines
 
 

@@ -10,6 +10,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..campaign import MissingColumn
 from .verdict import Unexplained
 
 
@@ -355,8 +356,9 @@ class DiagnosisResult:
     """The whole diagnosis: the cause(s) named strongest first and their physical explanation,
     the candidates reported equally good and the runs that would tell them apart, every
     head-to-head comparison, every candidate judged (ranked) and the second round, the base
-    model, the criteria, where the base model is wrong, the extended model and its gain, and
-    the wall time (s)."""
+    model, the criteria, where the base model is wrong, the extended model and its gain, the
+    wall time (s), and the optional columns the campaign's runs lack with what that costs
+    (juno.campaign.missing_columns; [] when none is missing)."""
 
     cause: str
     causes: list[str]
@@ -375,6 +377,7 @@ class DiagnosisResult:
     plot_data: PlotData | None = None
     unexplained: Unexplained | None = None        # structure the named causes (or none) leave
     structure: dict[str, Any] | None = None       # residual structure tests: "base", "extended"
+    missing_columns: list[MissingColumn] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``juno diagnose --json`` (everything but the figures' data)."""

@@ -15,7 +15,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..campaign import Campaign, load_campaign, read_run
+from ..campaign import Campaign, load_campaign, missing_columns, read_run
 from ..errors import InputError
 from ..identify import PAPER_INITIAL, gridded_scans, require_runs
 from ..registration import HELD_OUT_RATIO, ScanRegistrations
@@ -160,6 +160,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     fmu_path = str(fmu.fmu_path) if fmu is not None else str(default_fmu_path())
     names = list(candidates or CANDIDATES)
     require_runs(campaign, "diagnose")
+    missing = missing_columns(campaign)
     with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp, contextlib.ExitStack() as stack:
         fmu_path = fmu_snapshot(fmu_path, tmp, scheduler)
         registering: list[BackgroundTask] = []
@@ -187,7 +188,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                               judged, (structures[0], structures[1]), untested)
     if result.structure is not None:
         result.structure["scan"] = scan.to_json() if scan is not None else None
-    return result
+    return replace(result, missing_columns=missing)
 
 
 def scan_against_pose(campaign: Campaign, grids: dict[str, Any], say: Callable[[str], None]) -> ScanTests | None:
