@@ -44,7 +44,8 @@ from generate_docs import _now, _write, commit_description, machine_description 
 
 from juno.campaign import load_campaign  # noqa: E402
 from juno.identify import identify_joint  # noqa: E402
-from juno.residual_structure import CONTACT_SIGNALS, MATERIAL_FRACTION, MATERIAL_FRACTION_CONTACT  # noqa: E402
+from juno.residual_structure import (CONTACT_SIGNALS, FIDELITY_MARGIN, MATERIAL_FRACTION,  # noqa: E402
+                                     MATERIAL_FRACTION_CONTACT, REPLAY_FIDELITY, UNITS)
 from juno.simulator import JunoFMU  # noqa: E402
 from juno.timing_structure import LINEAR_LIMIT, MATERIAL_OFFSET, TIMED_SIGNALS  # noqa: E402
 from juno.synthesize import synthesize  # noqa: E402
@@ -54,21 +55,25 @@ RESULTS = ROOT / "docs" / "results"
 RESOLVED_P = 0.05
 
 
-def one_campaign(fmu: JunoFMU, seed: int, design: str, time_scale: float) -> dict:
-    """The structure test of a joint fit of a campaign with nothing hidden."""
+def one_campaign(fmu: JunoFMU, seed: int, design: str, time_scale: float, noise: float = 1.0) -> dict:
+    """The structure test of a joint fit of a campaign with nothing hidden, its sensors' noise
+    ``noise`` times the design's (0: exact measurements)."""
     with tempfile.TemporaryDirectory(prefix="juno-calibration-") as tmp:
-        path = synthesize(Path(tmp) / "campaign", effect="none", seed=seed, noise=1.0, fmu=fmu,
+        path = synthesize(Path(tmp) / "campaign", effect="none", seed=seed, noise=noise, fmu=fmu,
                           time_scale=time_scale, design=design)
         fit = identify_joint(fmu, load_campaign(path), workers=1)
     signals = (fit.structure or {}).get("signals", [])
     timing = ((fit.structure or {}).get("timing") or {}).get("signals", [])
-    return {"seed": seed, "design": design, "time_scale": time_scale,
+    ripples = ((fit.structure or {}).get("periodic") or {}).get("signals", [])
+    return {"seed": seed, "design": design, "time_scale": time_scale, "noise": noise,
+            "structure_rms": {s["signal"]: s["structure_rms"] for s in signals},
             "offsets": {s["signal"]: s["offset"] for s in timing},
             "offset_p_values": {s["signal"]: s["p_value"] for s in timing},
             "offsets_reported": [s["signal"] for s in timing if s["significant"]],
             "ratios": {s["signal"]: s["ratio_to_noise"] for s in signals},
             "p_values": {s["signal"]: s["p_value"] for s in signals},
             "significant": [s["signal"] for s in signals if s["significant"]],
+            "ripples_reported": [s["signal"] for s in ripples if s["significant"]],
             "below_floors": [s["signal"] for s in signals if s["resolved"] and not s["significant"]],
             "doubts": fit.doubts}
 
@@ -85,9 +90,10 @@ def page(cases: list[dict], started: str) -> str:
              f"in {', '.join(CONTACT_SIGNALS)}; a right model must stay below it.", "",
              "| design | time scale | seeds | " + " | ".join(signals) + " | reported structure | resolved below the floor |",
              "|---|---|---|" + "---|" * len(signals) + "---|---|"]
-    groups = sorted({(c["design"], c["time_scale"]) for c in cases})
+    noisy = [c for c in cases if c.get("noise", 1.0) > 0]
+    groups = sorted({(c["design"], c["time_scale"]) for c in noisy})
     for design, scale in groups:
-        mine = [c for c in cases if c["design"] == design and c["time_scale"] == scale]
+        mine = [c for c in noisy if c["design"] == design and c["time_scale"] == scale]
         worst = [max(c["ratios"].get(s, 0.0) for c in mine) for s in signals]
         flagged = sum(bool(c["significant"]) for c in mine)
         small = sum(bool(c["below_floors"]) for c in mine)
@@ -97,7 +103,40 @@ def page(cases: list[dict], started: str) -> str:
               "floor: campaigns where some signal's block means are told from sensor noise (p below the "
               "test's level) by a structure smaller than its floor; the verdict `none` lists such signals "
               "instead of calling the residuals sensor noise.", ""]
-    return "\n".join(lines + _offset_lines(cases, groups))
+    return "\n".join(lines + _fidelity_lines([c for c in cases if c.get("noise", 1.0) == 0])
+                     + _offset_lines(noisy, groups))
+
+
+def _fidelity_lines(exact: list[dict]) -> list[str]:
+    """The table of what a right model leaves on exact measurements (noise-free campaigns), in
+    each signal's units, beside the floor it sets (FIDELITY_MARGIN x REPLAY_FIDELITY)."""
+    if not exact:
+        return []
+    signals = sorted({s for c in exact for s in c["structure_rms"]})
+    unit = {s: UNITS.get(s, "") for s in signals}
+    lines = ["## What a right model leaves on exact measurements", "",
+             "The same fits on campaigns whose sensors have no noise: what is left is the replay's own "
+             "fidelity (its spin-following drive against the truth's motors, the fit's tolerance), which "
+             "no sensor, however quiet, takes away. Each cell is the largest structure RMS over the seeds; "
+             "a signal's floor is never below "
+             f"{FIDELITY_MARGIN:g} times its fidelity (juno.residual_structure.REPLAY_FIDELITY), so that a "
+             "campaign from instruments much quieter than the designs' does not read the replay's own "
+             "error as a cause.", "",
+             "| design | time scale | seeds | " + " | ".join(f"{s} ({unit[s]})" for s in signals)
+             + " | reported structure | reported ripples |",
+             "|---|---|---|" + "---|" * len(signals) + "---|---|"]
+    for design, scale in sorted({(c["design"], c["time_scale"]) for c in exact}):
+        mine = [c for c in exact if c["design"] == design and c["time_scale"] == scale]
+        worst = [max(c["structure_rms"].get(s, 0.0) for c in mine) for s in signals]
+        flagged = sum(bool(c["significant"]) for c in mine)
+        rippled = sum(bool(c.get("ripples_reported")) for c in mine)
+        lines.append(f"| {design} | {scale:g} | {len(mine)} | " + " | ".join(f"{w:.3g}" for w in worst)
+                     + f" | {flagged} of {len(mine)} | {rippled} of {len(mine)} |")
+    lines.append("| **fidelity (REPLAY_FIDELITY)** | | | "
+                 + " | ".join(f"{REPLAY_FIDELITY.get(s, 0.0):.3g}" for s in signals) + " | | |")
+    lines.append(f"| **floor ({FIDELITY_MARGIN:g} x fidelity)** | | | "
+                 + " | ".join(f"{FIDELITY_MARGIN * REPLAY_FIDELITY.get(s, 0.0):.3g}" for s in signals) + " | | |")
+    return lines + [""]
 
 
 def _largest_resolved_offset(cases: list[dict], signal: str) -> float | None:
@@ -221,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-seed", type=int, default=90000)
     ap.add_argument("--designs", nargs="+", default=["default", "alt"])
     ap.add_argument("--time-scales", nargs="+", type=float, default=[1.0])
+    ap.add_argument("--noises", nargs="+", type=float, default=[1.0],
+                    help="sensor noise scales (0: exact measurements, the replay's fidelity)")
     ap.add_argument("--fmu", default=None)
     ap.add_argument("--scan", action="store_true", help="calibrate the terrain run's scan test instead")
     args = ap.parse_args(argv)
@@ -229,24 +270,30 @@ def main(argv: list[str] | None = None) -> int:
     started = _now()
     cases = []
     with JunoFMU(args.fmu) as fmu:
-        for design in args.designs:
-            for scale in args.time_scales:
-                for seed in range(args.first_seed, args.first_seed + args.seeds):
-                    t0 = time.perf_counter()
-                    case = one_campaign(fmu, seed, design, scale)
-                    cases.append(case)
-                    print(f"{design:8s} x{scale:g} seed {seed}: " + ", ".join(
-                        f"{k} {v:.2f}" for k, v in case["ratios"].items()) + f"; structure {case['significant']}; "
-                        + "offsets " + ", ".join(f"{k} {v:+.3f} s (p {case['offset_p_values'][k]:.2g})"
-                                                 for k, v in case["offsets"].items())
-                        + f", reported {case['offsets_reported']} "
-                        f"({time.perf_counter() - t0:.0f} s)", flush=True)
+        for noise in args.noises:
+            for design in args.designs:
+                for scale in args.time_scales:
+                    for seed in range(args.first_seed, args.first_seed + args.seeds):
+                        cases.append(_one_printed(fmu, seed, design, scale, noise))
     _write(RESULTS / "structure-calibration.json",
            json.dumps({"provenance": {"run": started, "commit": commit_description(), "machine": machine_description()},
-                       "material_fraction": MATERIAL_FRACTION, "material_offset": MATERIAL_OFFSET,
-                       "cases": cases}, indent=1) + "\n")
+                       "material_fraction": MATERIAL_FRACTION, "material_fraction_contact": MATERIAL_FRACTION_CONTACT,
+                       "replay_fidelity": REPLAY_FIDELITY, "fidelity_margin": FIDELITY_MARGIN,
+                       "material_offset": MATERIAL_OFFSET, "cases": cases}, indent=1) + "\n")
     _write(RESULTS / "structure-calibration.md", page(cases, started))
     return 0
+
+
+def _one_printed(fmu: JunoFMU, seed: int, design: str, scale: float, noise: float) -> dict:
+    """one_campaign, with a progress line."""
+    t0 = time.perf_counter()
+    case = one_campaign(fmu, seed, design, scale, noise)
+    print(f"{design:8s} x{scale:g} noise {noise:g} seed {seed}: " + ", ".join(
+        f"{k} {v:.2f} ({case['structure_rms'][k]:.3g})" for k, v in case["ratios"].items())
+        + f"; structure {case['significant']}; "
+        + "offsets " + ", ".join(f"{k} {v:+.3f} s (p {case['offset_p_values'][k]:.2g})" for k, v in case["offsets"].items())
+        + f", reported {case['offsets_reported']} ({time.perf_counter() - t0:.0f} s)", flush=True)
+    return case
 
 
 if __name__ == "__main__":

@@ -33,7 +33,8 @@ Method (docs/diagnosis.md, "What no candidate explains"):
    a fraction of the signal's sensor noise calibrated on campaigns with nothing hidden (the
    replay leaves small structure the bootstrap does not reproduce): MATERIAL_FRACTION for the
    positions and height, which integrate the replay's drift, MATERIAL_FRACTION_CONTACT for the
-   torques and the pitch, which do not.
+   torques and the pitch, which do not; and never below what a right model leaves on exact
+   measurements (REPLAY_FIDELITY, with a margin), which no sensor, however quiet, takes away.
 5. **What it follows.** For a signal with structure, the block means are set against the
    covariates an engineer would look at: a constant offset, time in the run, position x and y,
    the drive torque, the wheel spin, the slip, the run, and for the paired left/right signals
@@ -92,6 +93,19 @@ MATERIAL_FRACTION = 1.0
 #: it in each torque at p below 1e-150.  The floor lies over three times above the most a right
 #: model left.
 MATERIAL_FRACTION_CONTACT = 0.5
+#: What a right model's replay leaves in each signal on exact measurements, in the signal's units
+#: (pos_x, pos_y: m per increment over identify's POSITION_LAG): the largest structure RMS over
+#: 48 noise-free campaigns of both designs, rounded up (scripts/structure_calibration.py
+#: --noises 0, docs/results/structure-calibration.md).  It is the replay's own fidelity (its
+#: spin-following drive against the truth's motors, the fit's tolerance), and does not shrink with
+#: the sensors' noise: with instruments much quieter than the designs', a floor that is only a
+#: fraction of the noise calls it a cause.  One value for both sides, and for both horizontal
+#: positions (a campaign's runs may head along y).
+REPLAY_FIDELITY = {"torque_left": 0.26, "torque_right": 0.26, "pitch": 1.5e-4,
+                   "pos_x": 9.3e-4, "pos_y": 9.3e-4, "pos_z": 2.4e-4}
+#: The floor lies this many times above REPLAY_FIDELITY, as MATERIAL_FRACTION lies about twice
+#: above the most a right model leaves in the positions relative to their noise.
+FIDELITY_MARGIN = 2.0
 #: The signals MATERIAL_FRACTION_CONTACT applies to (the calibrated ones: the drawbar runs compare
 #: no roll).
 CONTACT_SIGNALS = ("torque_left", "torque_right", "pitch")
@@ -127,6 +141,20 @@ def material_fraction(signal: str) -> float:
     return MATERIAL_FRACTION_CONTACT if signal in CONTACT_SIGNALS else MATERIAL_FRACTION
 
 
+def materiality_floor(signal: str, noise: float) -> float:
+    """The smallest structure RMS (``signal``'s units) the test attributes to a cause, for a
+    sensor noise (1 sigma of the compared quantity) of ``noise``: material_fraction(signal) of the
+    noise, and never below FIDELITY_MARGIN times the replay's fidelity on exact measurements
+    (REPLAY_FIDELITY): a quieter sensor does not make the replay more exact."""
+    return max(material_fraction(signal) * noise, FIDELITY_MARGIN * REPLAY_FIDELITY.get(signal, 0.0))
+
+
+def floor_is_fidelity(signal: str, noise: float) -> bool:
+    """Whether ``signal``'s floor at ``noise`` is the replay's fidelity rather than the fraction of
+    the noise."""
+    return FIDELITY_MARGIN * REPLAY_FIDELITY.get(signal, 0.0) > material_fraction(signal) * noise
+
+
 @dataclass
 class Covariate:
     """How much of a signal's structure one covariate accounts for: ``share`` in [0, 1] (the
@@ -150,16 +178,22 @@ class SignalStructure:
     structure_rms: float          # RMS of the block means beyond the null, signal units
     ratio: float                  # structure_rms / noise
     p_value: float
-    significant: bool             # p below the Bonferroni level and ratio >= material_fraction(signal)
+    significant: bool             # p below the Bonferroni level and structure_rms >= floor
     follows: list[Covariate] = field(default_factory=list)
     #: p below the Bonferroni level, whatever the size: the test tells the block means from noise
     resolved: bool = False
+
+    @property
+    def floor(self) -> float:
+        """The smallest structure RMS attributed to a cause (signal units): materiality_floor."""
+        return materiality_floor(self.signal, self.noise)
 
     def to_json(self) -> dict[str, Any]:
         return {"signal": self.signal, "unit": self.unit, "blocks": self.blocks, "noise": self.noise,
                 "structure_rms": self.structure_rms, "ratio_to_noise": self.ratio, "p_value": self.p_value,
                 "significant": self.significant, "resolved": self.resolved,
-                "floor": material_fraction(self.signal),
+                "floor": self.floor, "floor_fraction": material_fraction(self.signal),
+                "floor_is_fidelity": floor_is_fidelity(self.signal, self.noise),
                 "follows": [{"covariate": c.name, "share": c.share, "slope": c.slope, "unit": c.unit}
                             for c in self.follows]}
 
@@ -174,9 +208,12 @@ class SignalStructure:
 
     def below_floor_sentence(self) -> str:
         """A structure resolved below its floor, in words: its size beside the floor."""
+        if floor_is_fidelity(self.signal, self.noise):
+            floor = f"floor {self.floor:.3g} {self.unit}, the replay's own error"
+        else:
+            floor = f"floor {material_fraction(self.signal):g} x"
         return self._with_what_it_follows(f"{self.signal} {self.structure_rms:.3g} {self.unit} RMS ({self.ratio:.2g} x "
-                                          f"its sensor noise, floor {material_fraction(self.signal):g} x; "
-                                          f"p {self.p_value:.2g})")
+                                          f"its sensor noise, {floor}; p {self.p_value:.2g})")
 
     def _with_what_it_follows(self, text: str) -> str:
         """``text``, then the covariate the structure follows best, with the slope."""
@@ -544,14 +581,14 @@ def _test_signal(sig: str, units: _Units, observed: np.ndarray, null_means: np.n
     rms = float(np.sqrt(excess)) * scale
     ratio = rms / sensor if sensor > 0 else float("inf")
     level = FALSE_ALARM / max(n_signals, 1)
-    floor = material_fraction(sig)
+    floor = materiality_floor(sig, sensor) if np.isfinite(sensor) else float("inf")
     resolved = bool(p < level)
-    significant = bool(resolved and ratio >= floor)
+    significant = bool(resolved and rms >= floor)
     unit = UNITS.get(sig, "")
     follows: list[Covariate] = []
     if resolved:
         cov = {name: (x[mine], u) for name, (x, u) in covariates.items()}
-        varying = float(np.var(means)) - float(np.mean(ref)) >= (floor * sensor / scale) ** 2
+        varying = float(np.var(means)) - float(np.mean(ref)) >= (floor / scale) ** 2
         follows = _what_it_follows(means, scale, unit, cov, runs, varying)
         side = _side_covariate(sig, means_by_signal, {s: sigma_of[s] for s in means_by_signal}, unit)
         if side is not None and side.share >= FOLLOWS_SHARE:

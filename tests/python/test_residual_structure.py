@@ -138,6 +138,37 @@ def test_the_soil_enters_only_through_the_given_parameters(noisy_campaign, harne
     assert {"torque_left", "torque_right"} & {s.signal for s in result.structured()}
 
 
+def test_exact_measurements_leave_the_replays_own_error_below_its_floor(clean_campaign, harness_fmu):
+    """Sensors without noise: the test resolves what the replay itself leaves (its spin-following
+    drive against the truth's motors, the fit's tolerance), many times the noise estimated from
+    such columns, but no more than a right model leaves on exact measurements: no structure,
+    each resolved signal listed below a floor that is the replay's fidelity."""
+    from juno.identify import identify_joint
+    fit = identify_joint(harness_fmu, clean_campaign.campaign, workers=1)
+    assert fit.structure is not None and not fit.structure["significant"], \
+        [s for s in fit.structure["signals"] if s["significant"]]
+    below = [s for s in fit.structure["signals"] if s["resolved"]]
+    assert below, "exact measurements should let the test resolve the replay's own error"
+    assert all(s["floor_is_fidelity"] and s["structure_rms"] < s["floor"] for s in below), below
+    assert not any("structure beyond sensor noise" in d for d in fit.doubts), fit.doubts
+
+
+@pytest.mark.parametrize("design", ["default", "alt"])
+def test_at_the_designs_sensors_the_floor_is_the_calibrated_fraction_of_their_noise(design):
+    """The replay's fidelity sets the floor only for sensors much quieter than the synthetic
+    designs': at the designs' own noise (the least a column has: its constant part) the floor is
+    the fraction of the noise the calibration at that noise set."""
+    from juno.residual_structure import floor_is_fidelity, material_fraction, materiality_floor
+    from juno.synthetic_design import DESIGNS
+    for sensor in DESIGNS[design].sensors:
+        if sensor.column not in ("torque_left", "torque_right", "pitch", "pos_x", "pos_y", "pos_z"):
+            continue
+        noise = sensor.sigma * (np.sqrt(2.0) if sensor.column in ("pos_x", "pos_y") else 1.0)
+        assert not floor_is_fidelity(sensor.column, noise), sensor
+        assert materiality_floor(sensor.column, noise) == material_fraction(sensor.column) * noise
+        assert materiality_floor(sensor.column, 0.0) > 0.0
+
+
 # ------------------------------------------------------------ the joint identification's doubts
 
 def test_a_joint_fit_of_the_models_own_data_has_no_doubts(noisy_campaign, harness_fmu):
