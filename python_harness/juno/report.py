@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .outputs import REPORT_MARKER, OutputError, marked_directory  # noqa: E402
-from .campaign import Campaign, forward_speed, read_run  # noqa: E402
+from .campaign import Campaign, forward_speed, missing_columns, read_run  # noqa: E402
 from .identify import JointResult, PaperResult  # noqa: E402
 from . import rover_model  # noqa: E402
 from .rover_model import SOIL_PARAMETERS, Rover  # noqa: E402
@@ -183,8 +183,11 @@ def _paper_section(campaign: Campaign, paper: Sequence[PaperResult], out: Path) 
 
 def _joint_section(joint: JointResult) -> list[str]:
     """Section 2: the joint fit's estimates, uncertainties, identifiability and correlations."""
-    lines = ["## 2. Joint identification (beyond the paper)", "",
-             f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
+    lines = ["## 2. Joint identification (beyond the paper)", ""]
+    if joint.doubts:
+        lines += ["**The fit is doubtful**; read its estimates and uncertainties with that in mind:", ""]
+        lines += [f"- {d}" for d in joint.doubts] + [""]
+    lines += [f"One fit over runs {', '.join(joint.runs)} using the whole time series: the model follows the "
              "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
              "pitch; parameters searched as log/logit; trust-region Gauss-Newton on the scaled residuals; "
              "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
@@ -289,6 +292,10 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         lines += ["Volumetric wheel/soil model of Petersen and McPhee (2013) in the JunoRover FMU.",
                   f"Campaign folder: `{campaign.root}`; runs: " +
                   ", ".join(f"{r.id} ({r.kind})" for r in campaign.runs) + ".", ""]
+        missing = missing_columns(campaign, ("drawbar", "terrain"))
+        if missing:
+            lines += ["What the campaign's runs lack, and what that costs:", ""]
+            lines += [f"- {m.sentence()}" for m in missing] + [""]
         if paper:
             lines += _paper_section(campaign, paper, tmp)
         if joint is not None:
@@ -313,7 +320,9 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         (tmp / "report.md").write_text("\n".join(lines), encoding="utf-8")
         summary = {"campaign": campaign.name,
                    "paper": [{"run": p.run_id, "final": p.final, "cost": p.cost} for p in paper],
-                   "joint": None if joint is None else {"params": joint.params, "std": joint.std},
+                   "joint": None if joint is None else {"params": joint.params, "std": joint.std,
+                                                        "doubts": list(joint.doubts)},
+                   "missing_columns": [m.to_json() for m in missing],
                    # run id -> parameter set -> RMS errors: one entry per terrain run
                    "validation": _validation_summary(validations)}
         if rig is not None:

@@ -567,3 +567,30 @@ def test_identify_validate_and_diagnose_say_which_angles_are_missing_and_what_th
     structure = json.loads(diagnosed.read_text())["structure"]["base"]
     assert "pitch" not in structure["contact_signals"] and "pitch" not in [s["signal"] for s in structure["signals"]]
     assert {"torque_left", "torque_right"} <= set(structure["contact_signals"])
+
+
+def test_the_report_says_what_the_campaign_lacks_and_that_its_joint_fit_is_doubtful(no_imu_angles, tmp_path):
+    """A report reader sees, before any estimate, what the campaign's runs lack (with what that
+    costs) and, above the joint fit's table, every reason to doubt it; summary.json carries both."""
+    from juno.campaign import missing_columns
+    from juno.identify import JointResult
+    from juno.report import write_report
+    from juno.rover_model import SOIL_PARAMETERS
+    campaign = load_campaign(no_imu_angles)
+    doubts = ["soil.gamma at the limit of its range (0.002)", "structure beyond sensor noise: pos_x 5.2 x noise"]
+    n = len(SOIL_PARAMETERS)
+    joint = JointResult(params={k: 1.0 for k in SOIL_PARAMETERS}, std={k: 0.01 for k in SOIL_PARAMETERS},
+                        relative_std={k: 0.01 for k in SOIL_PARAMETERS}, correlation=np.eye(n),
+                        identifiability={k: "pinned" for k in SOIL_PARAMETERS}, cost=5.0, evaluations=27,
+                        wall_time=1.0, runs=["dbp1", "dbp2", "dbp3"], doubts=doubts)
+    text = write_report(tmp_path / "report", campaign, [], joint, []).read_text()
+    for m in missing_columns(campaign, ("drawbar", "terrain")):
+        assert f"- {m.sentence()}" in text
+    section = text[text.index("## 2. Joint identification"):]
+    table = section.index("| Parameter |")
+    assert "**The fit is doubtful**" in section[:table]
+    assert all(f"- {d}" in section[:table] for d in doubts)
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert summary["joint"]["doubts"] == doubts
+    assert [(m["column"], m["kind"]) for m in summary["missing_columns"]] == \
+        [(m.column, m.kind) for m in missing_columns(campaign, ("drawbar", "terrain"))]
