@@ -594,3 +594,25 @@ def test_the_report_says_what_the_campaign_lacks_and_that_its_joint_fit_is_doubt
     assert summary["joint"]["doubts"] == doubts
     assert [(m["column"], m["kind"]) for m in summary["missing_columns"]] == \
         [(m.column, m.kind) for m in missing_columns(campaign, ("drawbar", "terrain"))]
+
+
+def test_validate_that_identifies_first_says_when_the_soil_it_validates_is_doubtful(short_campaign, tmp_path,
+                                                                                   capsys):
+    """Without --params, validate fits the soil itself; a fit the data make doubtful (a pitch
+    sensor 1.5 degrees off, which the soil bends to absorb) is validated all the same, and the
+    printout and the JSON (``soil_doubts``) say why it should not be trusted."""
+    bias = float(np.radians(1.5))
+
+    def pitch_biased(header: list[str], rows: list[list[str]]) -> Table:
+        i = header.index("pitch")
+        return header, [[repr(float(c) + bias) if j == i and c != "" else c for j, c in enumerate(row)]
+                        for row in rows]
+
+    root = variant(short_campaign, tmp_path / "campaign", pitch_biased)
+    out = tmp_path / "validate.json"
+    proc = run_juno_here(capsys, "validate", root, "--quiet", "--json", out)
+    assert proc.returncode == 0, proc.stderr
+    doubts = json.loads(out.read_text())["soil_doubts"]
+    assert any("structure beyond sensor noise" in d for d in doubts), doubts
+    for d in doubts:
+        assert f"the soil validated comes from a doubtful joint fit: {d}\n" in proc.stdout

@@ -74,10 +74,12 @@ def run(args: argparse.Namespace) -> int:
     require_runs(campaign, "validate")
     # the terrain runs are replayed; the drawbar runs too when the soil is identified here first
     missing = missing_columns(campaign, ("terrain",) if soil is not None else ("drawbar", "terrain"))
+    soil_doubts: list[str] = []   # why the soil identified here should not be trusted (fit_doubts)
     with JunoFMU(args.fmu) as fmu:
         if soil is None:
             say("no --params given: identifying first (joint fit)")
-            soil = identify_joint(fmu, campaign, progress=say).params
+            fit = identify_joint(fmu, campaign, progress=say)
+            soil, soil_doubts = fit.params, list(fit.doubts)
         results, noise = {}, {}
         with tempfile.TemporaryDirectory() as tmp:
             for run_spec in campaign.runs_of_kind("terrain"):
@@ -85,9 +87,12 @@ def run(args: argparse.Namespace) -> int:
                 v = validate_run(fmu, campaign, run_spec, soil, tmp, cell=cell)
                 results[run_spec.id], noise[run_spec.id] = v.rms, v.noise
                 print(f"{run_spec.id}: RMS " + ", ".join(_rms_text(v, k) for k in v.rms))
+    for doubt in soil_doubts:
+        print(f"the soil validated comes from a doubtful joint fit: {doubt}")
     for m in missing:
         print(m.sentence())
-    write_json(args.json, {"soil": soil, "rms": results, "noise": noise, "missing_columns": missing}, "validate")
+    write_json(args.json, {"soil": soil, "soil_doubts": soil_doubts, "rms": results, "noise": noise,
+                           "missing_columns": missing}, "validate")
     return 0
 
 
