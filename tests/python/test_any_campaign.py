@@ -538,6 +538,28 @@ def test_the_columns_a_campaign_lacks_are_named_with_the_runs_and_what_each_cost
     assert missing_columns(load_campaign(short_campaign)) == []
 
 
+def test_a_fit_without_imu_angles_states_no_more_certainty_than_it_has(no_imu_angles, short_campaign, harness_fmu):
+    """Without pitch the joint fit sees k_h less well, and what it states must still hold: either
+    every estimate lies within Z_MAX of its stated 1-sigma uncertainties of the truth, or the fit
+    states no uncertainty at all (status "not converged", every ``std`` infinite) and a doubt says
+    why: where it stopped, the residuals are not differentiable at the Jacobian's step (a Jacobian
+    from a step ten times larger does not reproduce it), so neither the point nor a covariance
+    from that Jacobian is an estimate.  Never a value far off with a small uncertainty."""
+    result = identify_joint(harness_fmu, load_campaign(no_imu_angles), workers=1)
+    truth = truth_soil(short_campaign)
+    z = {k: (result.params[k] - truth[k]) / result.std[k] for k in SOIL_PARAMETERS}
+    say(f"{no_imu_angles}: status {result.status}, {result.evaluations} evaluations, z-scores "
+        + ", ".join(f"{k} {v:+.2f}" for k, v in z.items()))
+    if result.status == "ok":
+        far = {k: round(v, 2) for k, v in z.items() if not abs(v) <= Z_MAX}
+        assert not far, f"estimates more than {Z_MAX} sigma off the truth: {far}"
+    else:
+        assert result.status == "not converged", result.status
+        assert all(np.isinf(s) for s in result.std.values()), result.std
+        assert set(result.identifiability.values()) == {"not identified"}
+        assert any("not differentiable" in d for d in result.doubts), result.doubts
+
+
 def test_identify_validate_and_diagnose_say_which_angles_are_missing_and_what_that_costs(no_imu_angles, tmp_path,
                                                                                         capsys):
     """Each command prints every missing column once, as a line naming the column, the runs and

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
             out["joint"] = joint
             for k, v in joint.params.items():
                 print(f"joint: {k} = {v:.5g} +- {joint.std[k]:.2g} ({joint.identifiability[k]})")
-            print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s")
+            print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s; status {joint.status}")
             for doubt in joint.doubts:
                 print(f"joint: doubtful: {doubt}")
     for m in missing:

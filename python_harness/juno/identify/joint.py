@@ -29,7 +29,10 @@ class JointResult:
 
     ``status``: "ok", or "not identified" when the fit did not move from its start or the data
     does not see some parameter (a zero Jacobian column); such a parameter has an infinite
-    ``std`` (null in JSON) and the identifiability "not identified".  A fit whose simulations
+    ``std`` (null in JSON) and the identifiability "not identified".  "not converged": where the
+    fit stopped, the residuals are not differentiable in ``rough_parameters`` (a Jacobian from a
+    step JACOBIAN_CHECK_STEP does not reproduce the fit's), so the search did not converge and
+    no parameter has an uncertainty (every ``std`` infinite).  A fit whose simulations
     failed is not a result: it raises FitError.  ``failed_evaluations``: simulations that
     failed along the way (at most MAX_FAILED_FRACTION of ``evaluations``)."""
 
@@ -51,6 +54,9 @@ class JointResult:
     #: the residuals (fit_doubts).
     doubts: list[str] = field(default_factory=list)
     structure: dict | None = None    # the residual structure test of the fit (juno.residual_structure)
+    #: Parameters in which the residuals are not differentiable where the fit stopped (status
+    #: "not converged"): their Jacobian columns at two steps disagree.
+    rough_parameters: list[str] = field(default_factory=list)
 
 
 def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int]) -> float:
@@ -257,6 +263,11 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
     from ..residual_structure import residual_labels, residual_structure
     doubts = [f"{b.name} = {b.value:.4g} is at the {b.side} bound of the search ({b.bound:.3g}): "
               "the data push it as far as the fit allows" for b in soil_at_search_bounds(result.params)]
+    if result.rough_parameters:
+        doubts.append(f"the residuals are not differentiable in {', '.join(result.rough_parameters)} where the "
+                      f"fit stopped (its Jacobian is not reproduced by a step {JACOBIAN_CHECK_STEP / JACOBIAN_STEP:.0f} "
+                      "times larger: the replays jump there), so the search stopped without converging and the "
+                      "values are not an estimate; no uncertainty is stated")
     meta = residual_labels(prepared, STRUCTURE_BLOCK)
     t = meta["time"]
     try:
@@ -303,14 +314,18 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     # the Jacobian by forward differences, its four points evaluated through fun.map.
     lo, hi = SOIL_SEARCH_BOUNDS
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=1e-4, max_nfev=80, bounds=(lo, hi),
+    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=JACOBIAN_STEP, max_nfev=80, bounds=(lo, hi),
                        xtol=1e-8, ftol=1e-10, workers=fun.map)
     x_best = ls.x if np.mean(ls.fun**2) <= f0 else x0
     params = from_search(x_best)
-    J = ls.jac
+    J = ls.jac if x_best is ls.x else None
     # ls.fun holds the residuals at ls.x (the model is deterministic): no need to simulate again.
     r = np.array(ls.fun, float) if x_best is ls.x else fun(x_best)
     optimum_failed = bool(np.all(r == FAILED_RESIDUAL))
+    if not optimum_failed:
+        if J is None:
+            J = _forward_jacobian(fun, x_best, r, JACOBIAN_STEP)
+        rough = _rough_columns(J, _forward_jacobian(fun, x_best, r, JACOBIAN_CHECK_STEP))
     if optimum_failed or fun.log.failed_fraction > MAX_FAILED_FRACTION:
         fun.log.first_failure = fun.first_failure()
     fun.log.check("joint fit of " + ", ".join(f"'{r_.id}'" for r_ in runs), optimum_failed)
@@ -335,6 +350,12 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     moved = bool(np.any(x_best != to_search(initial or PAPER_INITIAL)))
     seen = _seen_columns(J) & moved
     std = np.where(seen, std, np.inf)
+    # Where the residuals are not differentiable at the Jacobian's step, the Jacobian is not a
+    # derivative: the trust region, whose steps it predicts, shrinks until the search stops
+    # where it happens to be, and its covariance reads noise as information.  Neither the point
+    # nor an uncertainty is an estimate there: every parameter is left without one.
+    if rough.any():
+        std = np.full(4, np.inf)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
     rel = {k: float(std[i] / abs(params[k])) for i, k in enumerate(SOIL_PARAMETERS)}
@@ -343,7 +364,48 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
                        cost=float(np.mean(r * r)), evaluations=fun.evaluations,
                        wall_time=time.perf_counter() - start, runs=[r_.id for r_ in runs],
                        singular_values=sv.tolist(), inflation=inflation,
-                       status="ok" if np.all(seen) else "not identified", failed_evaluations=fun.log.failed), r
+                       status=("not converged" if rough.any() else "ok" if np.all(seen) else "not identified"),
+                       failed_evaluations=fun.log.failed, rough_parameters=[k for k, bad in
+                                                                             zip(SOIL_PARAMETERS, rough) if bad]), r
+
+
+#: Relative step of the fit's forward-difference Jacobian in the search space (log, logit).
+JACOBIAN_STEP = 1e-4
+#: The step of the second Jacobian that checks the first, ten times larger: where the residuals
+#: are differentiable the two agree to within the curvature over the larger step; where the
+#: replay jumps (a spin tracker swinging between its torque limits starts or stops) each
+#: difference is a jump divided by its own step, and they disagree by about the step ratio.
+JACOBIAN_CHECK_STEP = 1e-3
+#: A Jacobian column that the check's column does not reproduce within this fraction (the norm
+#: of their difference over the larger norm) is not a derivative.
+JACOBIAN_AGREEMENT = 0.25
+
+
+def _forward_jacobian(fun: JointResiduals, x: np.ndarray, r: np.ndarray, step: float) -> np.ndarray:
+    """Forward-difference Jacobian of ``fun`` at ``x`` (residuals ``r``) with relative step
+    ``step``, as least_squares takes it (h = step max(1, |x|)), its points through fun.map; a
+    failed point gives a column of non-finite values."""
+    h = step * np.maximum(1.0, np.abs(x))
+    lo, hi = SOIL_SEARCH_BOUNDS
+    h = np.where(x + h > hi, -h, h)       # stay inside the search, as SciPy does
+    points = [x + np.where(np.arange(len(x)) == i, h[i], 0.0) for i in range(len(x))]
+    columns = []
+    for i, ri in enumerate(fun.map(fun, points)):
+        ri = np.asarray(ri, float)
+        columns.append(np.full(len(r), np.nan) if np.all(ri == FAILED_RESIDUAL) else (ri - r) / h[i])
+    return np.column_stack(columns)
+
+
+def _rough_columns(J: np.ndarray, check: np.ndarray) -> np.ndarray:
+    """Which parameters' Jacobian columns the check Jacobian (another step) does not reproduce
+    within JACOBIAN_AGREEMENT: the residuals are not differentiable in them at this point."""
+    J, check = np.asarray(J, float), np.asarray(check, float)
+    diff = np.linalg.norm(J - check, axis=0)
+    scale = np.maximum(np.linalg.norm(J, axis=0), np.linalg.norm(check, axis=0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rough = ~(diff <= JACOBIAN_AGREEMENT * scale)
+    # A column zero at both steps is the same derivative (zero): _seen_columns deals with it.
+    return rough & ~((scale == 0) & np.isfinite(diff))
 
 
 def _seen_columns(J: np.ndarray) -> np.ndarray:

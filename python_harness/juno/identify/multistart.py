@@ -19,7 +19,8 @@ from .joint import JointResult, identify_joint
 @dataclass
 class MultiStartResult:
     """Joint fits from several starting points; ``best`` has the lowest cost (first on a tie)
-    among the fits that did not fail.  A start whose fit failed (FitError) is in ``fits`` with
+    among the fits that did not fail and converged (status not "not converged"; the first start
+    when none did).  A start whose fit failed (FitError) is in ``fits`` with
     ``status`` "failed", its start as ``params``, an infinite cost and no uncertainty."""
 
     best: JointResult
@@ -87,6 +88,9 @@ def identify_multistart(fmu: JunoFMU, campaign: Campaign, starts: int | Sequence
     if all(isinstance(o, FitError) for o in outcomes):
         raise outcomes[0]
     fits = [_failed_start(p, o) if isinstance(o, FitError) else o for p, o in zip(points, outcomes)]
-    costs = [f.cost if np.isfinite(f.cost) and f.status != "failed" else np.inf for f in fits]
+    # A start that failed, or stopped where the residuals are not differentiable ("not
+    # converged"), is no estimate to keep: the best is among the others when there are any.
+    costs = [f.cost if np.isfinite(f.cost) and f.status not in ("failed", "not converged") else np.inf
+             for f in fits]
     best = fits[int(np.argmin(costs))]
     return MultiStartResult(best, fits, points, time.perf_counter() - t0)
