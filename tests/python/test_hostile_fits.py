@@ -198,6 +198,20 @@ def test_a_model_blind_to_the_soil_is_not_identified_with_no_uncertainty(campaig
     assert all(v is None for v in payload["std"].values()), "no uncertainty, not a zero one"
 
 
+def test_a_joint_fit_that_uses_its_whole_budget_is_not_called_converged(campaign, harness_fmu, monkeypatch):
+    """A search stopped by its budget of evaluations (each Jacobian's four points counted) is where
+    it stopped, not at the optimum: its status and a doubt say so; with the default budget the
+    same smooth model converges and says nothing of the kind."""
+    from juno.identify import EVALUATION_LIMIT
+    monkeypatch.setattr(JunoFMU, "simulate", _soil_simulate)
+    cut = identify_joint(harness_fmu, campaign, workers=1, max_evaluations=10)
+    assert cut.status == EVALUATION_LIMIT and cut.evaluations <= 10 + 2 * len(SOIL_PARAMETERS)
+    assert any("stopped at its limit" in d for d in cut.doubts), cut.doubts
+    full = identify_joint(harness_fmu, campaign, workers=1)
+    assert full.status == "ok" and full.evaluations < 400
+    assert not any("stopped at its limit" in d for d in full.doubts), full.doubts
+
+
 def test_paper_fit_that_never_moves_is_not_identified_and_not_converged(campaign, harness_fmu, monkeypatch):
     monkeypatch.setattr(JunoFMU, "simulate", _blind_simulate)
     p = identify_paper(harness_fmu, campaign, "dbp1", max_evaluations=60)

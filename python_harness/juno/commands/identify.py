@@ -32,7 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--with-terrain", action="store_true", help="include the terrain runs in the joint fit")
     p.add_argument("--optimizer", choices=("least-squares", "nelder-mead"), default="least-squares",
                    help="joint fit: trust-region Gauss-Newton (default) or Nelder-Mead then a polish")
-    p.add_argument("--max-evaluations", type=positive_int, default=400, help="Nelder-Mead budget of the joint fit")
+    p.add_argument("--max-evaluations", type=positive_int, default=400,
+                   help="the joint fit's budget of model evaluations, each Jacobian's four points included; "
+                        "a fit that uses it without converging says so (default 400)")
     p.add_argument("--starts", type=positive_int, default=1,
                    help="joint fit from N starting points (the paper's guess and N-1 scattered around it), "
                         "one parallel task each; reports the best and how far the others ended (default 1)")

@@ -46,12 +46,12 @@ from .paper import PaperResult, SteadyAverages, identify_paper, identify_paper_r
 from .replay import (INCREMENT_SIGNALS, JOINT_SIGNALS, POSITION_LAG, REPLAY_DRIVES, REPLAY_MOTOR, REPLAY_SPIN_DAMPING,
                      SEGMENT_SETTLE, SEGMENT_SPEED_WINDOW, SETTLING_TIME, SPIN_TRACKER, TERRAIN_SIGNALS, PreparedRun,
                      Segment, prepare_run, restart_segments, run_residuals, torque_replay_throttle)
-from .joint import (STRUCTURE_BLOCK, JointResiduals, JointResult, classify, correlation_inflation, fit_doubts,
-                    identify_joint)
+from .joint import (EVALUATION_LIMIT, STRUCTURE_BLOCK, JointResiduals, JointResult, classify, correlation_inflation,
+                    fit_doubts, identify_joint)
 from .multistart import MultiStartResult, identify_multistart, multistart_points
 
 __all__ = [
-    "AT_LIMIT", "FAILED_COST", "FAILED_RESIDUAL", "IDENTIFY_STEP", "MAX_FAILED_FRACTION", "PAPER_INITIAL",
+    "EVALUATION_LIMIT", "AT_LIMIT", "FAILED_COST", "FAILED_RESIDUAL", "IDENTIFY_STEP", "MAX_FAILED_FRACTION", "PAPER_INITIAL",
     "SOIL_SEARCH_BOUNDS", "STEP_NEEDS", "ZERO_COLUMN", "EvaluationLog", "FitError", "SearchBound",
     "base_parameters", "from_search", "gridded_scans", "require_runs", "soil_at_search_bounds",
     "terrain_grids", "to_search", "PaperResult", "SteadyAverages", "identify_paper", "identify_paper_runs",

@@ -27,7 +27,8 @@ from .replay import PreparedRun, prepare_run, run_residuals
 class JointResult:
     """A joint identification with uncertainty and identifiability.
 
-    ``status``: "ok", or "not identified" when the fit did not move from its start or the data
+    ``status``: "ok", EVALUATION_LIMIT when the search used its budget (``max_evaluations``)
+    without meeting a convergence test, or "not identified" when the fit did not move from its start or the data
     does not see some parameter (a zero Jacobian column); such a parameter has an infinite
     ``std`` (null in JSON) and the identifiability "not identified".  "not converged": where the
     fit stopped, the residuals are not differentiable in ``rough_parameters`` (a Jacobian from a
@@ -268,6 +269,10 @@ def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun]
                       f"fit stopped (its Jacobian is not reproduced by a step {JACOBIAN_CHECK_STEP / JACOBIAN_STEP:.0f} "
                       "times larger: the replays jump there), so the search stopped without converging and the "
                       "values are not an estimate; no uncertainty is stated")
+    if result.status == EVALUATION_LIMIT:
+        doubts.append(f"the search stopped at its limit of {result.evaluations} evaluations without meeting its "
+                      "convergence tests: the values are where it stopped, not the optimum, and their uncertainty "
+                      "is the curvature there (--max-evaluations raises the limit)")
     meta = residual_labels(prepared, STRUCTURE_BLOCK)
     t = meta["time"]
     try:
@@ -314,7 +319,10 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     # the Jacobian by forward differences, its four points evaluated through fun.map.
     lo, hi = SOIL_SEARCH_BOUNDS
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=JACOBIAN_STEP, max_nfev=80, bounds=(lo, hi),
+    # The budget counts model evaluations as Nelder-Mead's does: each iteration's residuals and
+    # its Jacobian's four points (least_squares' max_nfev counts the residuals alone).
+    ls = least_squares(fun, x0, method="trf", x_scale=1.0, diff_step=JACOBIAN_STEP,
+                       max_nfev=max(1, max_evaluations // (1 + len(x0))), bounds=(lo, hi),
                        xtol=1e-8, ftol=1e-10, workers=fun.map)
     x_best = ls.x if np.mean(ls.fun**2) <= f0 else x0
     params = from_search(x_best)
@@ -356,6 +364,10 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     # nor an uncertainty is an estimate there: every parameter is left without one.
     if rough.any():
         std = np.full(4, np.inf)
+    # A search that used its whole budget without meeting a convergence test (least_squares'
+    # status 0) stopped where it was: the values are not the optimum, as a paper-style fit that
+    # reaches its evaluation limit is not converged; the uncertainty is the curvature there.
+    at_limit = bool(x_best is ls.x and ls.status == 0)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
     rel = {k: float(std[i] / abs(params[k])) for i, k in enumerate(SOIL_PARAMETERS)}
@@ -364,11 +376,14 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
                        cost=float(np.mean(r * r)), evaluations=fun.evaluations,
                        wall_time=time.perf_counter() - start, runs=[r_.id for r_ in runs],
                        singular_values=sv.tolist(), inflation=inflation,
-                       status=("not converged" if rough.any() else "ok" if np.all(seen) else "not identified"),
+                       status=("not converged" if rough.any() else "not identified" if not np.all(seen)
+                               else EVALUATION_LIMIT if at_limit else "ok"),
                        failed_evaluations=fun.log.failed, rough_parameters=[k for k, bad in
                                                                              zip(SOIL_PARAMETERS, rough) if bad]), r
 
 
+#: The status of a joint fit that used its whole budget of evaluations without converging.
+EVALUATION_LIMIT = "stopped at the evaluation limit"
 #: Relative step of the fit's forward-difference Jacobian in the search space (log, logit).
 JACOBIAN_STEP = 1e-4
 #: The step of the second Jacobian that checks the first, ten times larger: where the residuals
