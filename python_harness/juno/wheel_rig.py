@@ -56,7 +56,7 @@ from scipy.optimize import least_squares
 
 from .campaign import RIG_MEASURED, Campaign, RigSetup, RigTable, read_rig
 from .errors import InputError
-from .identify import FAILED_RESIDUAL, EvaluationLog, classify
+from .identify import EVALUATION_LIMIT, FAILED_RESIDUAL, EvaluationLog, classify
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 FloatArray = NDArray[np.float64]
@@ -410,8 +410,9 @@ class RigFitResult:
     squared scaled residual; ``chi2`` and ``dof``; ``noise``: per measured column, how its
     sigma was set ("per-point std", or the estimated scale in its unit); ``noise_scale``: that
     estimated scale (its unit), None where the table gives standard deviations; ``rms``: per column, the
-    root-mean-square error of the fit in its unit; ``status``: "ok", or "not identified" when a
-    parameter is not seen or the fit did not move; ``doubts``: why the values may be wrong even
+    root-mean-square error of the fit in its unit; ``status``: "ok", "not identified" when a
+    parameter is not seen or the fit did not move, or EVALUATION_LIMIT when the search used its
+    whole budget without converging; ``doubts``: why the values may be wrong even
     with status "ok" (:data:`MISFIT_P`); ``evaluations``, ``failed_evaluations``."""
 
     law: str
@@ -654,6 +655,13 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
     rms = {c: float(np.sqrt(np.mean(np.concatenate([v for (_rid, cc), v in raw.items() if cc == c]) ** 2)))
            for c in columns}
     doubts = _misfit_doubts(runs, raw, _sigmas(runs, scale), n_values, len(names))
+    # A search that used its whole budget without meeting a convergence test stopped where it was
+    # (least_squares' status 0): its values are not the optimum (identify's EVALUATION_LIMIT).
+    at_limit = ls.status == 0
+    if at_limit:
+        doubts.append(f"the search stopped at its limit of {max_evaluations} iterations without meeting its "
+                      "convergence tests: the values are where it stopped, not the optimum, and their "
+                      "uncertainty is the curvature there")
     noise, noise_scale = {}, {}
     for c in columns:
         given = all(c in rr.std for rr in runs if c in rr.measured)
@@ -663,15 +671,16 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
                         identifiability=identifiability, correlation=corr, singular_values=sv.tolist(),
                         cost=float(np.mean(r * r)), chi2=chi2, dof=dof, noise=noise, noise_scale=noise_scale, rms=rms,
                         runs=[rr.run_id for rr in runs], evaluations=evaluations, failed_evaluations=failed,
-                        wall_time=time.perf_counter() - start, status=_status(seen, identifiability),
+                        wall_time=time.perf_counter() - start, status=_status(seen, identifiability, at_limit),
                         unsteady=fun.unsteady, doubts=doubts)
 
 
-def _status(seen: NDArray[np.bool_], identifiability: Mapping[str, str]) -> str:
-    """"ok" when the data sees every parameter and none lies at a bound of its search range."""
+def _status(seen: NDArray[np.bool_], identifiability: Mapping[str, str], at_limit: bool = False) -> str:
+    """"ok" when the data sees every parameter, none lies at a bound of its search range and the
+    search converged; EVALUATION_LIMIT when it used its whole budget instead."""
     if not np.all(seen) or any(v == "at the bound of its search range" for v in identifiability.values()):
         return "not identified"
-    return "ok"
+    return EVALUATION_LIMIT if at_limit else "ok"
 
 
 def _run(runs: Sequence[RigRun], run_id: str) -> RigRun:

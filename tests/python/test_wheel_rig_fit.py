@@ -134,6 +134,14 @@ def test_a_fit_whose_simulations_fail_is_an_error(rig_fmu):
         fit_rig(rig_fmu, campaign, "volumetric", fixed={"soil.cohesion": -1.0}, max_evaluations=20)
 
 
+def test_a_rig_fit_that_uses_its_whole_budget_is_not_called_converged(rig_fmu):
+    """A search stopped by its budget is where it stopped, not at the optimum: status and doubt say so."""
+    from juno.identify import EVALUATION_LIMIT
+    fit = fit_rig(rig_fmu, load_campaign(EXAMPLE), "volumetric", max_evaluations=3)
+    assert fit.status == EVALUATION_LIMIT
+    assert any("stopped at its limit of 3 iterations" in d for d in fit.doubts), fit.doubts
+
+
 @pytest.fixture(scope="module")
 def published_fit(rig_fmu):
     """The volumetric law fitted to the example campaign: a smooth and a lugged wheel of Ding et
