@@ -102,14 +102,15 @@ typedef struct {
     /* The automatic step's last accepted internal step, for the next one's correction
      * (rover_auto_step.c): its length (0: none, or not with the current inputs), the generalised
      * forces at its start, its increments, its own correction's velocities over its length
-     * squared (m/s^3, rad/s^3; valid where last_correction_valid) and the inputs it was taken
-     * with. */
+     * squared (m/s^3, rad/s^3; valid where last_correction_valid), the inputs it was taken
+     * with and its drive terms (Eval.drive_limit). */
     double last_step;              /* s */
     double last_Q[NU];
     double last_dq[NU], last_du[NU], last_dI[2];
     double last_correction[NU];
     int last_correction_valid;
     Inputs last_inputs;
+    double last_drive_limit[2];
 } State;
 
 typedef struct {
@@ -147,8 +148,10 @@ typedef struct {
     double Jv[NUM_BODIES][3][NU], Jw[NUM_BODIES][3][NU];   /* filled for the wheels only (the hubs) */
     double M[NU][NU], Q[NU], D[NU][NU], K[NU][NU];
     WheelContact wheel[NUM_WHEELS];
-    double torque[2];
-    double torque_slope[2];   /* d torque / d omega of the drive (0 when saturated) */
+    double torque[2];              /* N m, the drive torque applied: the demand, limited */
+    double torque_demand[2];       /* N m, the drive law's torque, unlimited (rover_drive_law) */
+    double torque_slope[2];        /* d torque / d omega of the drive law */
+    double drive_limit[2];         /* the step's drive terms: 0 the linear law, +-1 the limit of that sign */
     double ground_z[NUM_WHEELS];           /* terrain elevation under each hub (world, m) */
     double ground_normal[NUM_WHEELS][3];   /* unit terrain normal under each hub (world) */
 } Eval;

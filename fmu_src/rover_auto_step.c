@@ -93,6 +93,7 @@ typedef struct {
                                     * (rad, world), rocker angle, spin angles (rad) */
     double dI[2];                  /* PID integrals, rad */
     double du_first[NU];           /* the first-order solution's velocities */
+    double drive_torque[2];        /* N m, the drive torque the step gives each side's wheels (motor side) */
     double correction[NU];         /* the correction's share of du over h^2 (m/s^3, rad/s^3) */
     int has_correction;            /* 0: the step went without it (correction[] unset) */
 } StepIncrement;
@@ -128,10 +129,9 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
     if (m->p.drive_mode == DRIVE_PID)
         for (int k = 0; k < 2; ++k) {
             const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
-            const double e = ref - s->u[U_SPIN_L + k];
-            const int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
-            if (ev->torque_slope[k] != 0) c[k] = (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki;
-            if (!saturated || e * ev->torque[k] < 0) active[k] = 1, rate[k] = e;
+            const double e = ref - s->u[U_SPIN_L + k], limit = ev->drive_limit[k];
+            if (limit == 0) c[k] = (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki;
+            if (limit == 0 || e * limit < 0) active[k] = 1, rate[k] = e;
         }
 
     /* first stage: r = h f(y) */
@@ -154,7 +154,9 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
         for (int i = 0; i < NU; ++i) Mk[i] += ev->M[j][i] * k1u[j];
     for (int i = 0; i < NU; ++i) k2u[i] = Mk[i] - g * Kq[i];
     for (int k = 0; k < 2; ++k) k2u[U_SPIN_L + k] += g * c[k] * (k1q[U_SPIN_L + k] + k1I[k]);
-    inc->has_correction = s->last_step > 0;
+    /* the last step's forces are those of this step's drive terms only where it took the same */
+    inc->has_correction = s->last_step > 0 && s->last_drive_limit[0] == ev->drive_limit[0] &&
+                          s->last_drive_limit[1] == ev->drive_limit[1];
     if (inc->has_correction) {
         /* the correction (above): R from the last step, h^2 / (2 (1 - g)) M^-1 R / h_last added to
          * r_u, so that k2's weight 1 - g makes it h^2/2 M^-1 R / h_last in the solution; its share
@@ -195,7 +197,77 @@ static NOINLINE int two_stage(const Model *m, const Eval *ev, double h, StepIncr
         const double k2I = k1I[k] - g * active[k] * k2u[U_SPIN_L + k];
         inc->dI[k] = b1 * k1I[k] + b2 * k2I;
     }
+    /* The drive torque the step gives each side's wheels: the drive's share of the spin row of
+     * M du over h (consistent_two_stage).  Stage one's share of M k1u is h (1 - loss) T0 +
+     * g c rate h - g (d + g c) k1u (d = -(1 - loss) slope, D's drive entry; the PID integral's
+     * g h c u of K u and of the right-hand side cancel), stage two adds g c k1I - g (d + g c) k2u
+     * to it (the correction's drive share is zero: the law is linear, and a step with the last
+     * step's drive terms is the only one that takes it). */
+    const double transmitted = 1.0 - m->p.drive_lossFraction;
+    for (int k = 0; k < 2; ++k) {
+        const int sp = U_SPIN_L + k;
+        if (ev->drive_limit[k] != 0) {
+            inc->drive_torque[k] = ev->drive_limit[k] * m->p.drive_torqueMax;
+            continue;
+        }
+        const double d = -transmitted * ev->torque_slope[k], stiff = d + g * c[k];
+        const double stage1 = h * transmitted * ev->torque_demand[k] + g * c[k] * rate[k] * h - g * stiff * k1u[sp];
+        const double stage2 = stage1 + g * c[k] * k1I[k] - g * stiff * k2u[sp];
+        inc->drive_torque[k] = (b1 * stage1 + b2 * stage2) / (h * transmitted);
+    }
     return 0;
+}
+
+/* The two stages with each side's drive at the linear law or at its
+ * limit, consistently (rover_internal.h): first with ev's drive terms (the
+ * linear law), then, for a side whose law gives its wheels a torque beyond
+ * the limit over the step, again with that side at the limit of that
+ * torque's sign, until each side's choice is consistent (the set at the
+ * limit only grows: at most three passes).  The torque the step gives the
+ * wheels is the law's along the step as the stages weigh it
+ * (StepIncrement.drive_torque), not the law's at the step's end as in the
+ * fixed step: on a stiff tracker (drive.Kp h over the wheels' inertia
+ * beyond 2) the second-order solution's stability function is negative,
+ * so the step's end lies beyond the reference, and the end's demand may
+ * lie beyond the opposite limit while the step pushed the wheels towards
+ * the reference; at the limit of the end demand's sign the step would push
+ * them away from it.  ev's drive terms are left as the step took them;
+ * saved, the linear law's are restored by restore_drive_terms. */
+typedef struct {
+    double Q[2], D[2], K[2];
+} DriveTerms;
+
+static void save_drive_terms(const Eval *ev, DriveTerms *t)
+{
+    for (int k = 0; k < 2; ++k) {
+        const int sp = U_SPIN_L + k;
+        t->Q[k] = ev->Q[sp], t->D[k] = ev->D[sp][sp], t->K[k] = ev->K[sp][sp];
+    }
+}
+
+static void restore_drive_terms(Eval *ev, const DriveTerms *t)
+{
+    for (int k = 0; k < 2; ++k) {
+        const int sp = U_SPIN_L + k;
+        ev->Q[sp] = t->Q[k], ev->D[sp][sp] = t->D[k], ev->K[sp][sp] = t->K[k];
+        ev->drive_limit[k] = 0;
+    }
+}
+
+static int consistent_two_stage(const Model *m, Eval *ev, double h, StepIncrement *inc)
+{
+    for (int pass = 0;; ++pass) {
+        if (two_stage(m, ev, h, inc) != 0) return -1;
+        if (m->p.drive_mode == DRIVE_TORQUE || pass == 2) return 0;
+        int changed = 0;
+        for (int k = 0; k < 2; ++k) {
+            const double torque = inc->drive_torque[k];
+            if (ev->drive_limit[k] != 0 || !(fabs(torque) > m->p.drive_torqueMax)) continue;
+            rover_drive_at_limit(m, ev, k, torque > 0 ? 1 : -1);
+            changed = 1;
+        }
+        if (!changed) return 0;
+    }
 }
 
 /* The step's local error in its velocities (levers above), relative to
@@ -277,13 +349,12 @@ static int apply_increment(Model *m, Eval *ev, const StepIncrement *inc, double 
     memcpy(s->quat, quat, sizeof s->quat);
     s->beta = beta;
     for (int k = 0; k < 2; ++k) s->spin_angle[k] += inc->dq[U_SPIN_L + k];
-    if (m->p.drive_mode == DRIVE_PID) {
+    if (m->p.drive_mode == DRIVE_PID)
         for (int k = 0; k < 2; ++k) s->pid_integral[k] += inc->dI[k];
-        double slope[2];
-        rover_drive_torques(m, s->torque_applied, slope);   /* the end-of-step PID torque */
-    } else {
-        for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
-    }
+    /* What the wheels got over the step: the limit where the step took it, else the law's end torque. */
+    rover_drive_torques(m, s->torque_applied);
+    for (int k = 0; k < 2; ++k)
+        if (ev->drive_limit[k] != 0) s->torque_applied[k] = ev->drive_limit[k] * m->p.drive_torqueMax;
     /* The soil memory over the step: where the wheel ends deeper than its memory, the memory is
      * the end's sinkage; where it stays shallower, the memory relaxes towards the sinkage, and
      * the mean of the start's and the end's is its mean over the step (trapezoidal rule). */
@@ -323,7 +394,9 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
         char why[768];
         StepIncrement inc;
         double ratio = HUGE_VAL;
-        int ok = two_stage(m, ev, hs, &inc) == 0;
+        DriveTerms linear_law;
+        save_drive_terms(ev, &linear_law);
+        int ok = consistent_two_stage(m, ev, hs, &inc) == 0;
         if (!ok) snprintf(why, sizeof why, "singular mass matrix at t = %.4f s", s->time);
         if (ok) {
             ratio = error_ratio(m, &inc, hs);
@@ -338,6 +411,7 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                     if (inc.has_correction) memcpy(s->last_correction, inc.correction, sizeof s->last_correction);
                     s->last_correction_valid = inc.has_correction;
                     s->last_inputs = m->in;
+                    for (int k = 0; k < 2; ++k) s->last_drive_limit[k] = ev->drive_limit[k];
                     const double grow = ratio > 0 ? 0.9 / sqrt(ratio) : 2.0;
                     /* never below STEP_MIN: a step accepted there with a large error would otherwise
                      * shrink the next towards 0, and the step would never reach its end */
@@ -352,7 +426,8 @@ int rover_do_step_automatic(Model *m, double h_comm, char *err, size_t errlen)
                 /* the state is the step's start's still (apply_increment wrote nothing), as is ev */
             }
         }
-        /* rejected: again from the step's start, shorter */
+        /* rejected: again from the step's start (with the drive's linear law), shorter */
+        restore_drive_terms(ev, &linear_law);
         if (smallest) return snprintf(err, errlen, "%s", why), -1;   /* a state diverging at any step */
         m->steps_rejected++;
         h = fmax_of(STEP_MIN, hs * (ok && isfinite(ratio) ? fmax_of(0.2, 0.9 / sqrt(ratio)) : 0.25));

@@ -322,32 +322,49 @@ void rover_evaluate_passive(const Model *m, Eval *ev, int matrices)
 
 /* ---------------------------------------------------------- drive, drawbar */
 
-void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2])
+double rover_drive_law(const Model *m, int side, double omega, double integral, double *slope)
 {
     const Params *p = &m->p;
-    const double omega[2] = {m->s.u[U_SPIN_L], m->s.u[U_SPIN_R]};
-    for (int k = 0; k < 2; ++k) {
-        double t = 0, slope = 0;
-        if (p->drive_mode == DRIVE_TORQUE) {
-            t = k == SIDE_LEFT ? m->in.torqueLeft : m->in.torqueRight;
-        } else if (p->drive_mode == DRIVE_PID) {
-            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
-            t = p->drive_Kp * (ref - omega[k]) + p->drive_Ki * m->s.pid_integral[k];
-            slope = -p->drive_Kp;
-        } else {
-            /* DC motor at throttle u: T = eff * n * kt * (u V - ke n w) / Ra, ke = kt (SI). */
-            double u = k == SIDE_LEFT ? m->in.throttleLeft : m->in.throttleRight;
-            double n = p->motor_gearRatio, kt = p->motor_kt;
-            t = p->motor_efficiency * n * kt * (u * p->motor_voltage - kt * n * omega[k]) / p->motor_resistance;
-            slope = -p->motor_efficiency * n * n * kt * kt / p->motor_resistance;
-        }
-        if (p->drive_mode != DRIVE_TORQUE && fabs(t) > p->drive_torqueMax) {
-            t = copysign(p->drive_torqueMax, t);
-            slope = 0;
-        }
-        torque[k] = t;
-        dtorque_domega[k] = slope;
+    if (p->drive_mode == DRIVE_TORQUE) {
+        *slope = 0;
+        return side == SIDE_LEFT ? m->in.torqueLeft : m->in.torqueRight;
     }
+    if (p->drive_mode == DRIVE_PID) {
+        const double ref = side == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+        *slope = -p->drive_Kp;
+        return p->drive_Kp * (ref - omega) + p->drive_Ki * integral;
+    }
+    /* DC motor at throttle u: T = eff * n * kt * (u V - ke n w) / Ra, ke = kt (SI). */
+    const double u = side == SIDE_LEFT ? m->in.throttleLeft : m->in.throttleRight;
+    const double n = p->motor_gearRatio, kt = p->motor_kt;
+    *slope = -p->motor_efficiency * n * n * kt * kt / p->motor_resistance;
+    return p->motor_efficiency * n * kt * (u * p->motor_voltage - kt * n * omega) / p->motor_resistance;
+}
+
+double rover_drive_limited(const Model *m, double demand)
+{
+    if (m->p.drive_mode != DRIVE_TORQUE && fabs(demand) > m->p.drive_torqueMax)
+        return copysign(m->p.drive_torqueMax, demand);
+    return demand;
+}
+
+void rover_drive_torques(const Model *m, double torque[2])
+{
+    for (int k = 0; k < 2; ++k) {
+        double slope;
+        torque[k] = rover_drive_limited(m, rover_drive_law(m, k, m->s.u[U_SPIN_L + k], m->s.pid_integral[k], &slope));
+    }
+}
+
+void rover_drive_at_limit(const Model *m, Eval *ev, int side, double sign)
+{
+    const Params *p = &m->p;
+    const int sp = U_SPIN_L + side;
+    const double transmitted = 1.0 - p->drive_lossFraction;
+    ev->drive_limit[side] = sign;
+    ev->Q[sp] += transmitted * (sign * p->drive_torqueMax - ev->torque_demand[side]);
+    ev->D[sp][sp] += transmitted * ev->torque_slope[side];
+    if (p->drive_mode == DRIVE_PID) ev->K[sp][sp] -= transmitted * p->drive_Ki;
 }
 
 /* The part that depends on the inputs (and s.pid_integral): the drive
@@ -360,22 +377,26 @@ void rover_evaluate_inputs(const Model *m, Eval *ev, int matrices)
     const double *u = m->s.u;
     double (*D)[NU] = ev->D, (*K)[NU] = ev->K;
     const double *slope = ev->torque_slope;
-    rover_drive_torques(m, ev->torque, ev->torque_slope);
+    for (int k = 0; k < 2; ++k) {
+        ev->torque_demand[k] = rover_drive_law(m, k, u[U_SPIN_L + k], m->s.pid_integral[k], &ev->torque_slope[k]);
+        ev->torque[k] = rover_drive_limited(m, ev->torque_demand[k]);
+        ev->drive_limit[k] = 0;
+    }
     if (!matrices) return;
 
     /* Drive: the motor on each rocker turns its side's wheels relative to it. */
     /* The drive torque is on the motor side (what the current measures);
-     * the wheels get (1 - drive.lossFraction) of it. */
+     * the wheels get (1 - drive.lossFraction) of it.  Its linear law, the
+     * unlimited demand and its slope, whatever the limit: the step decides
+     * whether it takes the law or the limit (rover_drive_at_limit). */
     const double transmitted = 1.0 - p->drive_lossFraction;
     for (int k = 0; k < 2; ++k) {
-        ev->Q[U_SPIN_L + k] += transmitted * ev->torque[k];
+        ev->Q[U_SPIN_L + k] += transmitted * ev->torque_demand[k];
         D[U_SPIN_L + k][U_SPIN_L + k] -= transmitted * slope[k];
         /* The PID's integral acts like a torsion spring on the spin angle (I' = ref - omega):
          * treated implicitly as a stiffness, so a stiff PID stays stable at large steps
-         * (explicitly, K_i = 2e4 N m/rad went unstable at 5 ms in soft soil).  Off when the
-         * torque is saturated (slope 0), where the anti-windup holds the integral. */
-        if (p->drive_mode == DRIVE_PID && slope[k] != 0)
-            K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
+         * (explicitly, K_i = 2e4 N m/rad went unstable at 5 ms in soft soil). */
+        if (p->drive_mode == DRIVE_PID) K[U_SPIN_L + k][U_SPIN_L + k] += transmitted * p->drive_Ki;
         /* Drivetrain friction on the wheel side (drive.frictionLeft/Right: Coulomb,
          * drive.viscousFriction: viscous), opposing the spin relative to the rocker; the
          * measured (motor) torque does not include it.  The Coulomb part is smoothed over

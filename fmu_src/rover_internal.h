@@ -132,9 +132,41 @@ void rover_wheel_contacts_on_ground(const Model *m, Eval *ev, int matrices);
  * of the derived data d. */
 void rover_side_body(const Params *p, const Derived *d, double *mass, double cg[3], double I[9]);
 
-/* Drive torque per side (N m, on the motor side) and its derivative in the
- * side's wheel spin (0 when saturated), from the drive mode and inputs. */
-void rover_drive_torques(const Model *m, double torque[2], double dtorque_domega[2]);
+/* The drive and its torque limit in the step.  Each side's drive is a
+ * law linear in its wheel spin omega (and, for the PID, in its integral
+ * I): the torque it demands (N m, on the motor side) and the slope
+ * d torque / d omega, from the drive mode and the inputs; the torque
+ * applied is the demand limited to +-drive.torqueMax (drive.mode 1 and 2).
+ * The step is linearly implicit in the drive: taken with the linear law,
+ * it gives the wheels the law's torque along the step (the fixed step's
+ * at the step's end, at the end's spin and integral; the automatic step's
+ * at its stages, as they weigh them).  That step is consistent if that
+ * torque lies within the limit; where it does not, the step is taken
+ * again with that side at the limit of the torque's sign, a constant
+ * torque (slope 0), which is then consistent too: with less torque than
+ * the law demanded the spin's error only grows, and the demand with it.
+ * (Taking
+ * the limit whenever the step's start is saturated, explicitly, would
+ * make a stiff tracker overshoot by far within the step and swing between
+ * the limits step after step; the linear law where the end lies outside
+ * the limit would give the wheels more than it.)  The steps keep each
+ * side's choice in ev->drive_limit. */
+
+/* The law of side's drive at spin omega (rad/s) and PID integral (rad):
+ * the torque demanded, unlimited, and its slope into *slope. */
+double rover_drive_law(const Model *m, int side, double omega, double integral, double *slope);
+
+/* A demand limited to the drive's torque limit (drive.mode 1 and 2). */
+double rover_drive_limited(const Model *m, double demand);
+
+/* The torque applied per side at the current state: the law's demand,
+ * limited. */
+void rover_drive_torques(const Model *m, double torque[2]);
+
+/* Changes side's drive terms in ev (with matrices and input terms) from
+ * the linear law to the constant torque sign * drive.torqueMax: its
+ * share of Q, its slope in D and the PID integral's stiffness in K. */
+void rover_drive_at_limit(const Model *m, Eval *ev, int side, double sign);
 
 /* The part of an evaluation that does not depend on the inputs (what
  * m->eval keeps between steps, rover_step.c): kinematics, the bodies' M

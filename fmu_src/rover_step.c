@@ -388,45 +388,75 @@ void rover_advance_soil_memory(Model *m, const Eval *ev, const double sinkage[NU
     }
 }
 
-/* One internal step of length h from m->eval, the evaluation of the
- * current state with its input terms (rover_evaluate_passive and
- * rover_evaluate_inputs, with matrices); m->eval is only read. */
-static int advance(Model *m, double h, char *err, size_t errlen)
+/* The linearly implicit Euler step's matrix and right-hand side from ev
+ * (with its input terms, the drive's as ev->drive_limit says) over h. */
+static void euler_system(const Model *m, const Eval *ev, double h, double A[NU][NU], double b[NU])
 {
-    State *s = &m->s;
-    const Eval *ev = &m->eval;
     const double (*K)[NU] = (const double (*)[NU])ev->K;
-    DenseLU lu;
-    double (*A)[NU] = lu.a, b[NU], Ku[NU];
+    double Ku[NU];
     step_matrix(ev, h, A);
-    k_times(K, s->u, Ku);
+    k_times(K, m->s.u, Ku);
     for (int i = 0; i < NU; ++i) b[i] = h * (ev->Q[i] - h * Ku[i]);
     if (m->p.drive_mode == DRIVE_PID)   /* the reference's share of the implicit PID integral */
         for (int k = 0; k < 2; ++k)
-            if (ev->torque_slope[k] != 0) {
+            if (ev->drive_limit[k] == 0) {
                 const double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
                 b[U_SPIN_L + k] += h * h * (1.0 - m->p.drive_lossFraction) * m->p.drive_Ki * ref;
             }
-    if (dense_lu_factor(&lu) != 0)
-        return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
-    dense_lu_solve(&lu, b);
+}
 
-    for (int k = 0; k < 2; ++k) s->torque_applied[k] = ev->torque[k];
-    for (int i = 0; i < NU; ++i) s->u[i] += b[i];
-    /* PID integral with anti-windup: integrate only while not saturated,
-     * or while the error would bring the torque back inside the limit.  The
-     * error is the end-of-step one, as the implicit stiffness above assumes. */
-    if (m->p.drive_mode == DRIVE_PID) {
+/* The PID integral's increment over a step of h ending at the spin
+ * omega, with anti-windup: it integrates the end-of-step error (as the
+ * implicit stiffness of rover_evaluate_inputs assumes) while the step
+ * takes the linear law, and while at the limit only where the error would
+ * bring the torque back inside it. */
+static double integral_increment(const Model *m, int side, double limit, double omega, double h)
+{
+    const double ref = side == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
+    const double e = ref - omega;
+    return limit == 0 || e * limit < 0 ? e * h : 0.0;
+}
+
+/* One internal step of length h from m->eval, the evaluation of the
+ * current state with its input terms (rover_evaluate_passive and
+ * rover_evaluate_inputs, with matrices); m->eval's drive terms are set to
+ * the limit where the step takes it (rover_drive_at_limit), the rest is
+ * only read.  The drive's limit is decided per side (rover_internal.h):
+ * the step with the linear law, then, for a side whose end demand lies
+ * beyond the limit, again with that side at the limit, until each side's
+ * choice is consistent (the set at the limit only grows: at most three
+ * solves). */
+static int advance(Model *m, double h, char *err, size_t errlen)
+{
+    State *s = &m->s;
+    Eval *ev = &m->eval;
+    DenseLU lu;
+    double (*A)[NU] = lu.a, b[NU];
+    for (int pass = 0;; ++pass) {
+        euler_system(m, ev, h, A, b);
+        if (dense_lu_factor(&lu) != 0)
+            return snprintf(err, errlen, "singular mass matrix at t = %.4f s", s->time), -1;
+        dense_lu_solve(&lu, b);
+        if (m->p.drive_mode == DRIVE_TORQUE || pass == 2) break;
+        int changed = 0;
         for (int k = 0; k < 2; ++k) {
-            double ref = k == SIDE_LEFT ? m->in.omegaRefLeft : m->in.omegaRefRight;
-            double e = ref - s->u[U_SPIN_L + k];
-            int saturated = fabs(ev->torque[k]) >= m->p.drive_torqueMax;
-            if (!saturated || e * ev->torque[k] < 0) s->pid_integral[k] += e * h;
+            if (ev->drive_limit[k] != 0) continue;
+            const double omega = s->u[U_SPIN_L + k] + b[U_SPIN_L + k];
+            const double integral = s->pid_integral[k] + integral_increment(m, k, 0, omega, h);
+            double slope;
+            const double demand = rover_drive_law(m, k, omega, integral, &slope);
+            if (fabs(demand) > m->p.drive_torqueMax) rover_drive_at_limit(m, ev, k, demand > 0 ? 1 : -1), changed = 1;
         }
-        /* What the wheels got over the step is the end-of-step PID torque. */
-        double slope[2];
-        rover_drive_torques(m, s->torque_applied, slope);
+        if (!changed) break;
     }
+
+    for (int i = 0; i < NU; ++i) s->u[i] += b[i];
+    if (m->p.drive_mode == DRIVE_PID)
+        for (int k = 0; k < 2; ++k) s->pid_integral[k] += integral_increment(m, k, ev->drive_limit[k], s->u[U_SPIN_L + k], h);
+    /* What the wheels got over the step: the limit where the step took it, else the law's end torque. */
+    rover_drive_torques(m, s->torque_applied);
+    for (int k = 0; k < 2; ++k)
+        if (ev->drive_limit[k] != 0) s->torque_applied[k] = ev->drive_limit[k] * m->p.drive_torqueMax;
     for (int i = 0; i < 3; ++i) s->pos[i] += h * s->u[U_VX + i];
     quat_integrate_world(s->quat, &s->u[U_WX], h);
     s->beta += h * s->u[U_BETA];
