@@ -169,6 +169,24 @@ def test_at_the_designs_sensors_the_floor_is_the_calibrated_fraction_of_their_no
         assert materiality_floor(sensor.column, 0.0) > 0.0
 
 
+def test_the_floors_lie_above_every_right_model_of_the_calibration():
+    """The calibration's campaigns with nothing hidden (docs/results/structure-calibration.json,
+    written by scripts/structure_calibration.py): at the designs' noise every signal's structure
+    stays under its fraction of the noise, and on exact measurements under REPLAY_FIDELITY, the
+    replay's fidelity the floors are never below; the calibration covers both."""
+    import json
+    from juno.residual_structure import REPLAY_FIDELITY, material_fraction
+    path = Path(__file__).resolve().parents[2] / "docs" / "results" / "structure-calibration.json"
+    cases = json.loads(path.read_text())["cases"]
+    noisy = [c for c in cases if c["noise"] > 0]
+    exact = [c for c in cases if c["noise"] == 0]
+    assert {c["design"] for c in noisy} == {c["design"] for c in exact} == {"default", "alt"}
+    for c in noisy:
+        assert all(r < material_fraction(s) for s, r in c["ratios"].items()), c
+    for c in exact:
+        assert all(rms <= REPLAY_FIDELITY[s] for s, rms in c["structure_rms"].items()), c
+
+
 # ------------------------------------------------------------ the joint identification's doubts
 
 def test_a_joint_fit_of_the_models_own_data_has_no_doubts(noisy_campaign, harness_fmu):
