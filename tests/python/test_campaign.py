@@ -327,6 +327,33 @@ def test_a_steady_window_off_its_run_names_the_likely_mistake(campaign_dir: Path
     assert_refused(campaign_dir, file="campaign.json", line=line, says=says)
 
 
+@pytest.mark.parametrize("keep, says", [
+    (lambda t: t <= 4.0, "reaches past the run's end: the run spans 0.0 to 4.0 s"),
+    (lambda t: t >= 3.0, "starts before the run: the run spans 3.0 to 5.99 s")])
+def test_a_steady_window_reaching_beyond_its_run_is_refused(campaign_dir: Path, keep, says: str) -> None:
+    """A run whose file was cut short (or starts late) holds only part of its steady window
+    [2, 5] s: the window's averages and the replays over its length would cover less than the
+    manifest says, so the manifest's run entry is refused with the window and the run's span."""
+    p = campaign_dir / "runs/dbp1.csv"
+    header, *rows = p.read_text().splitlines()
+    rows = [r for r in rows if keep(float(r.split(",", 1)[0]))]
+    p.write_text("\n".join([header, *rows]) + "\n")
+    line = 1 + next(i for i, l in enumerate((campaign_dir / "campaign.json").read_text().splitlines()) if '"dbp1"' in l)
+    assert_refused(campaign_dir, file="campaign.json", line=line, says="run 'dbp1': steady_window [2.0, 5.0] s")
+    assert_refused(campaign_dir, file="campaign.json", line=line, says=says)
+
+
+def test_a_steady_window_may_end_within_one_row_interval_of_the_last_row(campaign_dir: Path) -> None:
+    """A window whose end lies between the last row and where the logger's next row would come
+    (5.0 s after a last row at 4.995 s, rows every 10 ms) holds the run's steady part as the
+    manifest means it."""
+    p = campaign_dir / "runs/dbp1.csv"
+    header, *rows = p.read_text().splitlines()
+    rows = [r for r in rows if float(r.split(",", 1)[0]) <= 4.995]
+    p.write_text("\n".join([header, *rows]) + "\n")
+    load_and_read_all(campaign_dir)
+
+
 def test_duplicate_column_name(campaign_dir: Path) -> None:
     p = campaign_dir / "runs/dbp1.csv"
     p.write_text(p.read_text().replace("battery_volts", "pos_x", 1))

@@ -260,7 +260,8 @@ def _check_time(path: Path, t: FloatArray, lines: NDArray[np.int64]) -> None:
 def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
     """Read a run of a loaded campaign (by :class:`RunSpec` or id) and check it.
 
-    Besides :func:`read_run_csv`'s checks, a ``steady_window`` must overlap the run's time.
+    Besides :func:`read_run_csv`'s checks, a ``steady_window`` must hold samples and lie within the
+    run's time (:func:`_steady_window_beyond_run`).
     A wheel_rig run is a table, not a time series: an InputError says so (:func:`read_rig`).
     """
     spec = campaign.run(run) if isinstance(run, str) else run
@@ -280,7 +281,29 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                 campaign.manifest_path,
                 _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
             )
+        beyond = _steady_window_beyond_run(a, b, t)
+        if beyond:
+            raise InputError(
+                f"run {spec.id!r}: steady_window [{a}, {b}] s {beyond}: the run spans {float(t[0])!r} to "
+                f"{float(t[-1])!r} s; was the file cut short, or is the window another run's?",
+                campaign.manifest_path,
+                _line_of_run(decode_input_text(campaign.manifest_path, read_input_bytes(campaign.manifest_path)), spec.id),
+            )
     return data
+
+
+def _steady_window_beyond_run(a: float, b: float, t: NDArray[np.float64]) -> str:
+    """What part of a steady window [a, b] (s) lies beyond the rows ``t`` (s) of its run, or "".
+
+    The steady averages and the replays over a window's length take it as measured throughout:
+    a window reaching further than one typical row interval beyond the first or last row (where
+    the logger's next row would have come) covers time the file does not hold."""
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if b > float(t[-1]) + step:
+        return "reaches past the run's end"
+    if a < float(t[0]) - step:
+        return "starts before the run"
+    return ""
 
 
 def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str) -> RunData:
