@@ -629,7 +629,7 @@ def test_implausible_values_are_named_by_file_column_and_evidence(tmp_path: Path
 
     runs = make_runs()
     runs["dbp2"]["omega_right"] = runs["dbp2"]["omega_right"] * 60 / (2 * math.pi)
-    runs["t3d"]["pitch"] = np.full(len(runs["t3d"]["time"]), 12.5)
+    runs["t3d"]["pitch"] = np.where(runs["t3d"]["time"] < 3.0, 12.5, 12.0)
     root = tmp_path / "camp"
     write_campaign(root, make_manifest(), runs, {"scan": wide_terrain()})
     found = {(f.severity, f.file, f.column): f.message for f in check_campaign(load_campaign(root))}

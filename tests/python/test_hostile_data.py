@@ -101,6 +101,16 @@ def zero_torque(run: str) -> Callable[[Path], None]:
     return apply
 
 
+def disconnect_imu(run: str) -> Callable[[Path], None]:
+    """A disconnected IMU: the logger writes 0.0 in every sample of roll, pitch and yaw."""
+    def apply(root: Path) -> None:
+        def change(c):
+            for name in ("roll", "pitch", "yaw"):
+                c[name] = np.where(np.isnan(c[name]), np.nan, 0.0)
+        edit_run(root, run, change)
+    return apply
+
+
 def freeze_position(run: str, after: float) -> Callable[[Path], None]:
     """The total station repeats its last reading before ``after`` (s) to the end of the run."""
     def apply(root: Path) -> None:
@@ -176,6 +186,8 @@ ERRORS = [
          ("milliseconds",)),
     Case("all-zero torque while pulling", zero_torque("dbp3"), "error", "runs/dbp3.csv", "torque_left",
          ("zero in every sample", "drawbar")),
+    Case("a disconnected IMU writing 0.0", disconnect_imu("dbp2"), "error", "runs/dbp2.csv", "pitch",
+         ("0 rad in every sample", "while the wheels turn", "IMU")),
     Case("one absurd torque sample", set_sample("dbp3", "torque_right", 100, 1e300), "error", "runs/dbp3.csv",
          "torque_right", ("1e+300", "electrical maximum")),
     Case("one absurd yaw sample", set_sample("dbp1", "yaw", 200, 1e300), "error", "runs/dbp1.csv", "yaw",

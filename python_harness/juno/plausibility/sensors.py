@@ -12,7 +12,10 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
   an error: such angles are degrees.
 * **Dead sensors.** A torque equal in every sample while the wheels turn is an error in a
-  drawbar run (pulling a load takes drive torque), a warning otherwise. A position (pos_x and
+  drawbar run (pulling a load takes drive torque), a warning otherwise. A roll or pitch equal in
+  every sample while the wheels turn is an error in any run: the fits and the scan test compare
+  them with the model's, and an IMU that measures has noise in its last digits (a disconnected
+  one writes 0.0, which on flat ground bends the soil fitted to the pitch). A position (pos_x and
   pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
   total station that updates has noise in its last digits.
 * **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
@@ -128,7 +131,7 @@ def check_time(run: RunData, file: str) -> list[Finding]:
 
 
 def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
-    """Roll and pitch: degrees (> ANGLE_ERROR rad) or beyond the tip-over angle."""
+    """Roll and pitch: degrees (> ANGLE_ERROR rad), beyond the tip-over angle, or a dead IMU."""
     out = []
     for name, tip in (("roll", limits.roll_tip), ("pitch", limits.pitch_tip)):
         if not run.has(name):
@@ -143,6 +146,12 @@ def check_angles(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
         elif peak > tip:
             out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad at line {int(lines[i])}, "
                                f"beyond the rover's static tip-over angle of {_g(tip)} rad"))
+        spinning = _turning(run)
+        if len(vs) > 1 and np.all(vs == vs[0]) and spinning > TURNING:
+            out.append(Finding("error", file, name, f"is {_g(vs[0])} rad in every sample ({len(vs)} samples) while "
+                               f"the wheels turn (median spin {_g(spinning)} rad/s): an IMU that measures has noise in "
+                               "its last digits and the rover rocks as it drives; is the IMU connected? The analysis "
+                               f"compares {name} with the model's: leave the column out if there is no IMU"))
     return out
 
 
