@@ -433,6 +433,25 @@ def test_a_rover_that_turns_against_its_wheels_is_refused(turning_campaign, tmp_
     assert "turns against its wheels" in errors[0].message and "swapped" in errors[0].message
 
 
+def test_spin_differences_too_small_to_steer_are_not_judged_whatever_the_yaw_does(turning_campaign, tmp_path) -> None:
+    """On a slope the load shifts between the sides, their spins differ by a few percent, and the
+    slope itself turns the rover, either way: differences under a tenth of the mean spin say
+    nothing about which way the rover steers, so a yaw that turns against them is no error
+    (the same run's spins differing as they do, swapped, is: the test above)."""
+    root = tmp_path / "campaign"
+    shutil.copytree(turning_campaign, root)
+
+    def change(c):
+        mean = 0.5 * (c["omega_left"] + c["omega_right"])
+        difference = c["omega_right"] - c["omega_left"]
+        # at most 6 % of the spin, and turned against the measured yaw as a swap would turn it
+        small = -0.06 * np.abs(mean) * np.tanh(difference / 0.05)
+        c["omega_left"], c["omega_right"] = mean - 0.5 * small, mean + 0.5 * small
+    edit_run(root, "t3d", change)
+    findings = check_campaign(load_campaign(root))
+    assert not any("turns against its wheels" in f.message for f in findings), findings
+
+
 def test_a_yaw_in_degrees_is_refused_where_the_rover_turns(turning_campaign, tmp_path) -> None:
     """A yaw logged in degrees turns the rover 57 times faster than its wheels' spin difference
     can: the error names the run's file, the yaw column and the unit it suspects."""
