@@ -590,3 +590,34 @@ def test_a_swing_a_few_samples_wide_is_motion_and_a_glitch_on_it_is_not(tmp_path
     assert len(found) == 1 and found[0].column == "pitch"
     lines = [int(row) + 2 for row in flagged]     # a header line, then 1-based rows
     assert any(f"line {line} " in found[0].message for line in lines), found[0].message
+
+
+def yaw_wrapped_as_an_imu_logs_it(tmp_path: Path, glitch: dict[int, float]) -> object:
+    """A terrain run's yaw logged at 100 Hz (10 s) by an IMU that reports it in (-pi, pi]: the
+    rover turns at 0.15 rad/s from 2.8 rad, through pi at about 2.3 s (where the column jumps by
+    -2 pi), with 5 mrad of noise; the samples at the rows in ``glitch`` are moved by their values."""
+    rng = np.random.default_rng(12)
+    t = np.arange(0.0, 10.0, 0.01)
+    yaw = 2.8 + 0.15 * t + rng.normal(0, 0.005, len(t))
+    for row, jump in glitch.items():
+        yaw[row] += jump
+    from juno.campaign import RunData
+    return RunData(tmp_path / "t3d.csv", "terrain", {"time": t, "yaw": np.angle(np.exp(1j * yaw))},
+                   lines=np.arange(2, len(t) + 2))
+
+
+@pytest.mark.parametrize("glitch, flagged", [({}, []), ({600: 0.6}, [600]), ({229: 0.6}, [229])],
+                         ids=["the turn alone", "a glitch after the wrap", "a glitch at the wrap"])
+def test_a_heading_wrapping_through_pi_is_motion_and_a_glitch_on_it_is_not(tmp_path, glitch, flagged) -> None:
+    """A heading that passes +-pi jumps by 2 pi in the column, the same angle on either side: the
+    samples beside the jump are where the rover pointed, not outliers. A glitch on the heading,
+    at the wrap or away from it, is still reported (at its row)."""
+    from juno.plausibility.outliers import check_outliers
+
+    run = yaw_wrapped_as_an_imu_logs_it(tmp_path, glitch)
+    found = check_outliers(run, "runs/t3d.csv", ["yaw"], rover_limits())
+    if not flagged:
+        assert found == [], "\n".join(f"{f.severity}: {f}" for f in found)
+        return
+    assert len(found) == 1 and found[0].column == "yaw", found
+    assert f"line {flagged[0] + 2} " in found[0].message, found[0].message

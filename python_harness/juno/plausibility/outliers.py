@@ -28,6 +28,12 @@
   not an outlier. With fewer than ``NEIGHBOURS + 1`` clean neighbours (the ends of a column, a
   burst of glitches) the median's verdict stands.
 
+* **Angles that wrap.** An instrument that reports an angle within one turn (a heading in
+  (-pi, pi]) jumps by 2 pi where the angle passes the wrap; the samples on either side are the same
+  direction, not outliers. An angle column (``roll``, ``pitch``, ``yaw``) whose samples all lie
+  within one turn is tested as the continuous angle (``np.unwrap``), so a glitch is judged by how
+  far it turns from its neighbours the short way round, at the wrap as anywhere else.
+
 An outlier is an error when its residual exceeds ten times the column's span (nothing the run
 measured), else a warning.
 """
@@ -40,7 +46,7 @@ from typing import Iterable, Optional
 
 import numpy as np
 
-from ..campaign import RunData
+from ..campaign import ANGLE_COLUMNS, RunData
 from .findings import FloatArray, Finding, _at, _g, _own
 from .limits import RoverLimits
 
@@ -127,6 +133,18 @@ def _off_the_quadratic(ts: FloatArray, vs: FloatArray, i: int, near: list[int], 
     return bool(abs(vs[i] - coef[0]) > max(k * math.sqrt(1.0 + variance) * sigma, floor))
 
 
+def _continuous(name: str, vs: FloatArray) -> tuple[FloatArray, bool]:
+    """The samples of column ``name`` as tested (module docstring, "Angles that wrap"): an angle
+    column whose finite samples all lie within one turn made continuous, and True; any other
+    column as it is, and False."""
+    if name not in ANGLE_COLUMNS or vs.size < 2 or not np.all(np.isfinite(vs)):
+        return vs, False
+    if float(np.max(vs) - np.min(vs)) > 2.0 * math.pi * (1.0 + 1e-9):
+        return vs, False
+    unwrapped = np.unwrap(vs)
+    return unwrapped, bool(np.any(unwrapped != vs))
+
+
 def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: RoverLimits) -> list[Finding]:
     """Single absurd samples, column by column (robust test of the module docstring).
 
@@ -138,9 +156,10 @@ def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: Rove
     for name in columns:
         if not run.has(name):
             continue
-        ts, vs, lines = _own(run, name)
-        if len(vs) < 5:
+        ts, measured, lines = _own(run, name)
+        if len(measured) < 5:
             continue
+        vs, unwrapped = _continuous(name, measured)
         with np.errstate(over="ignore", invalid="ignore"):
             smooth = _median_of_five(vs)
             r = vs - smooth
@@ -165,11 +184,12 @@ def check_outliers(run: RunData, file: str, columns: Iterable[str], limits: Rove
             continue
         worst = int(bad[np.argmax(np.abs(r[bad]))])
         absurd = bool(np.abs(r[worst]) > ABSURD_SPAN * max(span, scale))
-        listed = ", ".join(_at(ts, vs, lines, int(i)) for i in bad[:3])
+        listed = ", ".join(_at(ts, measured, lines, int(i)) for i in bad[:3])
         if bad.size > 3:
             listed += f" and {bad.size - 3} more"
         what = f"{bad.size} samples far from their" if bad.size > 1 else "1 sample far from its"
         out.append(Finding("error" if absurd else "warning", file, name,
-                           f"{what} neighbours: {listed} (the column's other samples span {_g(lo)} to {_g(hi)}; "
+                           f"{what} neighbours: {listed} (the column's other samples span {_g(lo)} to {_g(hi)}"
+                           f"{' as a continuous angle' if unwrapped else ''}; "
                            f"a sample more than {_g(limit)} from the median of the five around it is an outlier)"))
     return out
