@@ -134,3 +134,18 @@ def test_the_cli_refuses_a_segment_shorter_than_the_settling(misregistered, tmp_
                          "--quiet")
     assert proc.returncode == 2, proc.stderr
     assert "longer than" in proc.stderr and not out.exists()
+
+
+def test_a_segment_starting_where_the_logged_heading_wraps_restarts_at_the_measured_heading():
+    """An IMU logs the heading in (-pi, pi]: a rover turning through pi jumps from about pi to
+    about -pi between two samples. A segment starting between them restarts at the heading the
+    rover had (near pi, either sign), not at the mean of the two numbers (near 0, backwards)."""
+    t = np.r_[0.0, np.arange(0.03, 30.0, 0.05)]       # samples at 5.98 and 6.03 s straddle its start
+    heading = np.pi + 0.01 * (t - 6.0)                 # passes pi at 6 s, the second segment's start
+    columns = {"time": t, "pos_x": np.cumsum(0.015 * np.cos(heading)), "pos_y": np.cumsum(0.015 * np.sin(heading)),
+               "yaw": np.angle(np.exp(1j * heading))}
+    data = RunData(Path("t3d.csv"), "terrain", columns, run_id="t3d")
+    segment = restart_segments(data, 30.0, LENGTH)[1]
+    assert segment.start == 6.0
+    off = np.angle(np.exp(1j * (segment.init["init.yaw"] - np.pi)))
+    assert abs(off) < 0.01, segment.init["init.yaw"]

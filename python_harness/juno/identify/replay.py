@@ -128,6 +128,7 @@ def restart_segments(data: RunData, duration: float, length: float) -> list[Segm
     tx, x = data.samples("pos_x")
     ty, y = data.samples("pos_y")
     tw, yaw = data.samples("yaw")
+    yaw = np.unwrap(yaw)     # an IMU's heading wraps at +-pi: interpolated across the jump it would point anywhere
     tx, ty, tw = tx - t0, ty - t0, tw - t0
     starts = [0.0]
     while starts[-1] + length + SEGMENT_SETTLE + 1.0 < duration:
