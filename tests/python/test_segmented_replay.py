@@ -2,11 +2,9 @@
 --terrain-segments`): each piece after the first restarts the rover at the measured pose and
 speed, and the SEGMENT_SETTLE seconds after each restart are not compared.
 
-Why it exists: over a mound the spin-following replay drifts in heading, and a few degrees put
-the rover on another part of the mound.  On the synthetic campaign this file builds
-(terrain_offset, seed 4005) the whole 30 s replay at the true parameters ends far off the
-measured path, so the true registration looks worse than the scan as it is
-(docs/diagnosis.md, ``--terrain-segments``).
+Why it exists: over a mound the spin-following replay can drift in heading, and a few degrees
+put the rover on another part of the mound; restarted at the measured pose, a heading error
+cannot grow (docs/diagnosis.md, ``--terrain-segments``).
 """
 
 from __future__ import annotations
@@ -109,9 +107,11 @@ def test_the_first_segment_replays_exactly_as_the_whole_run(misregistered, harne
 
 
 def test_in_segments_the_true_registration_beats_the_scan_as_it_is(misregistered, harness_fmu):
-    """Measured at the true soil: the whole replay's terrain residuals favour the scan as it is
-    (mean square 24.3 against 7.7, the replay having lost the rover); in 6 s segments the truth
-    fits to the noise (0.92) and the scan as it is does not (2.97)."""
+    """Measured at the true soil, on the synthetic campaign this file builds (terrain_offset,
+    seed 4005): in 6 s segments the truth fits to the noise (mean square 0.92) and the scan as it
+    is does not (2.97); the whole 30 s replay tells them apart too (1.07 against 2.03), its
+    stiff spin tracker never swinging between its torque limits at the start (where it did, the
+    whole replay at the truth lost the rover)."""
     truth = misregistered[3]
     true_registration = {**truth["soil"], **truth["extension"]}
     as_scanned = dict(truth["soil"])
@@ -121,7 +121,7 @@ def test_in_segments_the_true_registration_beats_the_scan_as_it_is(misregistered
         mse[label] = [float(np.mean(_residuals(harness_fmu, prepared, p) ** 2)) for p in (true_registration, as_scanned)]
     print(f"\nterrain mean squared residual, true registration / scan as it is: whole {mse['whole']}, "
           f"segments {mse['segments']}")
-    assert mse["whole"][0] > mse["whole"][1]           # the drift the segments are for
+    assert mse["whole"][0] < mse["whole"][1]
     assert mse["segments"][0] < 1.5                    # noise is 1
     assert mse["segments"][1] > 2.0 * mse["segments"][0]
 
