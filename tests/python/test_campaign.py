@@ -655,11 +655,13 @@ def test_a_reversed_sign_on_a_drawbar_run_is_an_error(tmp_path: Path, column: st
 
 def test_a_drawbar_run_without_a_load_is_no_sign_error(tmp_path: Path) -> None:
     """A load cell reading a few newtons below zero on a run without a load is its offset, not a
-    reversed sign."""
+    reversed sign.  (It reads its noise about the offset: one reading in every sample is a
+    frozen cell, an error of its own.)"""
     from juno.plausibility import check_campaign
 
     runs = make_runs()
-    runs["dbp1"]["drawbar_force"] = np.full(len(runs["dbp1"]["time"]), -8.0)
+    noise = np.random.default_rng(7).normal(0.0, 0.5, len(runs["dbp1"]["time"]))
+    runs["dbp1"]["drawbar_force"] = -8.0 + noise
     root = tmp_path / "camp"
     write_campaign(root, make_manifest(), runs, {"scan": wide_terrain()})
     assert check_campaign(load_campaign(root)) == []

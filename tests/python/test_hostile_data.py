@@ -111,6 +111,15 @@ def disconnect_imu(run: str) -> Callable[[Path], None]:
     return apply
 
 
+def constant(run: str, name: str, value: float) -> Callable[[Path], None]:
+    """A dead sensor: the logger writes ``value`` in every sample of ``name``."""
+    def apply(root: Path) -> None:
+        def change(c):
+            c[name] = np.where(np.isnan(c[name]), np.nan, value)
+        edit_run(root, run, change)
+    return apply
+
+
 def freeze_position(run: str, after: float) -> Callable[[Path], None]:
     """The total station repeats its last reading before ``after`` (s) to the end of the run."""
     def apply(root: Path) -> None:
@@ -188,6 +197,8 @@ ERRORS = [
          ("zero in every sample", "drawbar")),
     Case("a disconnected IMU writing 0.0", disconnect_imu("dbp2"), "error", "runs/dbp2.csv", "pitch",
          ("0 rad in every sample", "while the wheels turn", "IMU")),
+    Case("a load cell stuck at one reading", constant("dbp1", "drawbar_force", 412.0), "error", "runs/dbp1.csv",
+         "drawbar_force", ("412 N in every sample", "while the wheels turn", "load cell")),
     Case("one absurd torque sample", set_sample("dbp3", "torque_right", 100, 1e300), "error", "runs/dbp3.csv",
          "torque_right", ("1e+300", "electrical maximum")),
     Case("one absurd yaw sample", set_sample("dbp1", "yaw", 200, 1e300), "error", "runs/dbp1.csv", "yaw",
@@ -464,6 +475,18 @@ def test_a_yaw_in_degrees_is_refused_where_the_rover_turns(turning_campaign, tmp
     errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
     assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "yaw")], errors
     assert "looks like degrees" in errors[0].message
+
+
+def test_a_yaw_that_never_moves_while_the_wheels_steer_is_refused(turning_campaign, tmp_path) -> None:
+    """A disconnected IMU writing 0.0 in every yaw sample, on a run whose spins steer the rover:
+    the error names the run's file and the yaw column.  (A yaw holding still on a straight run
+    is plausible: the format's example campaign, above.)"""
+    root = tmp_path / "campaign"
+    shutil.copytree(turning_campaign, root)
+    constant("t3d", "yaw", 0.0)(root)
+    errors = [f for f in check_campaign(load_campaign(root)) if f.severity == "error"]
+    assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "yaw")], errors
+    assert "0 rad in every sample" in errors[0].message and "IMU" in errors[0].message
 
 
 # ----------------------------------------------------- a heading against the path it drove

@@ -13,7 +13,11 @@ a yaw in degrees, a heading that is not the direction of travel.
   every run with ten or more windows of a tenth or more (14) followed the steering sign
   (correlation 0.94-0.99). At least ``TURN_WINDOWS`` (10) windows with a correlation below
   ``-TURN_CORRELATION`` (-0.7) is an error: the spin columns swapped, or a clockwise yaw. A
-  run that hardly turns is not judged (swapped torque columns cannot be told at all).
+  run that hardly turns is not judged (swapped torque columns cannot be told at all). A yaw equal
+  in every sample over those ten or more windows is an error: the spins steered the rover and the
+  yaw never moved (a disconnected IMU writing 0.0). On a straight run a yaw may hold still (a
+  heading logged in hundredths of a degree); the heading check below sees a dead one there if the
+  rover travels another way.
 * **Yaw units.** Over the same windows, where the yaw rate follows the spin difference
   (correlation above ``YAW_CORRELATION``, 0.3), the least-squares slope of the yaw rate against
   the kinematic rate ``wheel.radius * (omega_right - omega_left) / rover.track`` says how fast
@@ -93,7 +97,14 @@ def check_turning(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     with np.errstate(invalid="ignore"):
         material = np.isfinite(difference) & (np.abs(difference) >= np.maximum(TURN_SPIN_DIFFERENCE,
                                                                                 TURN_SPIN_SHARE * mean_spin))
-    if int(np.sum(material)) < TURN_WINDOWS or np.std(rate[material]) == 0 or np.std(difference[material]) == 0:
+    steering = int(np.sum(material))
+    if steering >= TURN_WINDOWS and np.all(yaw == yaw[0]):
+        return [Finding("error", file, "yaw", f"is {_g(yaw[0])} rad in every sample ({len(yaw)} samples) while the "
+                        f"sides' spins differ by {_g(TURN_SPIN_DIFFERENCE)} rad/s and {TURN_SPIN_SHARE:.0%} of their "
+                        f"mean or more over {steering} {_g(TURN_WINDOW)} s windows, which turn a skid-steered rover: "
+                        "is the IMU connected? The analysis compares yaw with the model's: leave the column out "
+                        "if there is no IMU")]
+    if steering < TURN_WINDOWS or np.std(rate[material]) == 0 or np.std(difference[material]) == 0:
         return []
     correlation = float(np.corrcoef(rate[material], difference[material])[0, 1])
     if correlation > YAW_CORRELATION:

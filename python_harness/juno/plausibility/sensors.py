@@ -15,7 +15,12 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   drawbar run (pulling a load takes drive torque), a warning otherwise. A roll or pitch equal in
   every sample while the wheels turn is an error in any run: the fits and the scan test compare
   them with the model's, and an IMU that measures has noise in its last digits (a disconnected
-  one writes 0.0, which on flat ground bends the soil fitted to the pitch). A position (pos_x and
+  one writes 0.0, which on flat ground bends the soil fitted to the pitch). A yaw may hold still
+  on a straight run (a heading logged in hundredths of a degree): :mod:`.motion` judges it
+  against the steering and the direction of travel. A
+  ``drawbar_force`` equal in every sample while the wheels turn is an error in a drawbar run (a
+  load cell that measures has noise, and a pulled load varies; a frozen one would be fitted as
+  a constant pull), a warning otherwise. A position (pos_x and
   pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
   total station that updates has noise in its last digits.
 * **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
@@ -246,16 +251,26 @@ def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     name = "drawbar_force"
     if not run.has(name):
         return []
-    peak, where, _, _, _ = _largest(run, name)
+    peak, where, vs, _, _ = _largest(run, name)
     warn = 2.0 * TORQUE_MARGIN * limits.drive_torque / limits.wheel_radius
     error = 2.0 * limits.plugging_torque / limits.wheel_radius
+    out = []
     if peak > error:
-        return [Finding("error", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond the {_g(error)} N "
-                        "the wheels could push at the motors' electrical maximum")]
-    if peak > warn:
-        return [Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond {TORQUE_MARGIN:g} "
-                        f"times the {_g(warn / TORQUE_MARGIN)} N the drive's torque limit pushes")]
-    return []
+        out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond the {_g(error)} N "
+                           "the wheels could push at the motors' electrical maximum"))
+    elif peak > warn:
+        out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} N at {where}, beyond "
+                           f"{TORQUE_MARGIN:g} times the {_g(warn / TORQUE_MARGIN)} N the drive's torque limit pushes"))
+    spinning = _turning(run)
+    if len(vs) > 1 and np.all(vs == vs[0]) and spinning > TURNING:
+        what = f"is {_g(vs[0])} N in every sample ({len(vs)} samples) while the wheels turn (median spin {_g(spinning)} rad/s)"
+        if run.kind == "drawbar":
+            out.append(Finding("error", file, name, f"{what}: a load cell that measures has noise in its last digits "
+                               "and a drawbar load varies as the rover pulls it; is the load cell connected or frozen? "
+                               "The drawbar fits compare the force with the model's"))
+        else:
+            out.append(Finding("warning", file, name, f"{what}: is the load cell connected?"))
+    return out
 
 
 def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
