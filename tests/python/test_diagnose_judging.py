@@ -96,6 +96,59 @@ def test_a_gain_does_not_count_if_another_kind_of_run_gets_significantly_worse()
     assert verdict.significant
 
 
+class _Replicas:
+    """Terrain replicas (diagnose/terrain_replicas.py) whose held-out terrain loss of each model
+    (by its extension's parameters) is given: its per-replica losses."""
+
+    def __init__(self, losses_by_model: dict[str, np.ndarray]):
+        self.losses_by_model = losses_by_model
+
+    def losses(self, params):
+        return self.losses_by_model["grouser" if "grouser.thrustGain" in params else "base"]
+
+
+def _worse_on_terrain(spread_over_worsening: float):
+    """The judged grouser of the test above (terrain 10 % worse in every held-out unit) and that
+    worsening of the terrain runs' held-out loss, with replicas whose loss difference between the
+    two models scatters by ``spread_over_worsening`` times the worsening."""
+    problem, run_kind = _problem()
+    reference = _reference(run_kind, 2.0, np.random.default_rng(7))
+    extended = np.where(run_kind == "drawbar", 0.6 * reference, np.sqrt(1.1) * reference)
+    held_out_terrain = ~problem.train & (run_kind == "terrain")
+    worse = float(np.mean(capped_square(extended[held_out_terrain])) - np.mean(capped_square(reference[held_out_terrain])))
+    scatter = np.random.default_rng(3).standard_normal(20)
+    scatter = spread_over_worsening * worse * (scatter - scatter.mean()) / scatter.std(ddof=1)
+    problem.terrain_replicas = _Replicas({"base": np.full(20, 4.0), "grouser": 4.0 + worse + scatter})
+    judged = judge(problem, run_kind, _fit("base", reference), _fit("grouser", extended, **{"grouser.thrustGain": 0.3}))
+    return judged, worse
+
+
+def test_a_terrain_worsening_within_the_replays_sensitivity_to_noise_is_no_veto():
+    """The terrain runs are replayed open loop, and which model drifts less is partly the luck of
+    the noise in the inputs that drive it: the same worsening, where replays with fresh sensor
+    noise move the two models' loss difference by three times as much, is no evidence against the
+    candidate, and its clear drawbar gain makes it a cause."""
+    judged, _worse = _worse_on_terrain(spread_over_worsening=3.0)
+    assert judged.z_by_kind["terrain"] == pytest.approx(-1.0 / 3.0)
+    assert judged.significant
+
+
+def test_a_terrain_worsening_beyond_the_replays_sensitivity_to_noise_still_vetoes():
+    """Where the replicas move the loss difference by a tenth of it, the paired test's verdict
+    stands: the terrain runs got significantly worse."""
+    judged, _worse = _worse_on_terrain(spread_over_worsening=0.1)
+    assert judged.z_by_kind["terrain"] < -2.5
+    assert not judged.significant
+
+
+def test_terrain_evidence_is_the_weaker_of_the_two_tests_and_none_where_they_disagree():
+    from juno.diagnose.judging import terrain_evidence
+    assert terrain_evidence(4.0, 1.5) == 1.5 and terrain_evidence(-4.0, -6.0) == -4.0
+    assert terrain_evidence(3.0, -1.0) == 0.0
+    assert terrain_evidence(-np.inf, 0.3) == -np.inf, "a model that fails on a terrain run stays failed"
+    assert terrain_evidence(2.0, None) == 2.0, "replicas that do not move the difference leave the paired test"
+
+
 def test_a_significant_but_small_gain_per_parameter_is_not_enough(setting):
     """A soil patch has 5 parameters, so it must buy 15 % of the held-out mean squared residual
     over all runs; 10 % everywhere (significant by the rank test) is not enough."""

@@ -34,7 +34,11 @@
    a paired test over held-out units (run, block, signal; on the units' mean
    squared-residual change, so time correlation inside a block is respected;
    changes under NEGLIGIBLE_CHANGE are ties; the Wilcoxon signed-rank test and the
-   sign-flip test of the summed change, each at half the level: paired_z) gives z > Z_MIN
+   sign-flip test of the summed change, each at half the level: paired_z; on the
+   terrain runs, whose open-loop replay drifts so that their blocks are not independent, the
+   weaker of that and the replicas' test, the loss difference over its spread when every model
+   is replayed on the same REPLICAS copies of the terrain runs with fresh sensor noise:
+   terrain_replicas, judging.terrain_evidence) gives z > Z_MIN
    (Bonferroni-corrected over the kinds of run) on some kind of run and
    z > -Z_MIN on every kind, the relative gain over all held-out data
    exceeds GAIN_MIN per parameter the extension adds, the fitted
@@ -81,7 +85,8 @@ It never reads ``truth.json``.
 The modules, one concept each: ``candidates`` (the catalogue of extensions), ``problem`` (the data
 and a model's residuals on it), ``fitting`` (one model's fit, the fit loss, two fits compared),
 ``starts`` (where a candidate's search starts), ``terrain_drive`` (how the terrain runs are
-replayed), ``references`` (what a candidate is judged against), ``judging`` (the paired test, the
+replayed), ``terrain_replicas`` (the terrain runs with fresh sensor noise, the spread their
+evidence is judged against), ``references`` (what a candidate is judged against), ``judging`` (the paired test, the
 thresholds, the judge, ranking and head to head), ``search`` (the rounds and branches, and
 diagnose()), ``assemble`` (the result's numbers), ``results`` (the typed results and their JSON)
 and ``render`` (text, figures, the report's section).

@@ -3,7 +3,8 @@ held-out units (paired_z: a rank test and a sign-flip test of the sum), the gain
 ranking by penalised gain, the head-to-head test of a runner-up with more parameters, the lead a
 lug ripple gives the cause that makes it (ripple_maker_leads), and the judge itself (judge).
 
-Everything here works on residuals already computed: no simulation."""
+Everything here works on residuals already computed, with one exception: the terrain runs'
+replicas (terrain_replicas.py) replay each model judged on them once, the first time it is."""
 
 from __future__ import annotations
 
@@ -158,10 +159,43 @@ def gain_by_kind(problem: Problem, run_kind: np.ndarray, before_r: np.ndarray, a
     return {k: relative_gain(problem, before_r, after_r, run_kind == k) for k in kinds_of(run_kind)}
 
 
-def z_by_kind(problem: Problem, run_kind: np.ndarray, before_r: np.ndarray, after_r: np.ndarray
-              ) -> dict[str, float]:
-    """paired_z on each kind of run."""
-    return {k: paired_z(problem, before_r, after_r, run_kind == k) for k in kinds_of(run_kind)}
+def z_by_kind(problem: Problem, run_kind: np.ndarray, before: FitResult, after: FitResult) -> dict[str, float]:
+    """The evidence on each kind of run that ``after`` explains the held-out data better than
+    ``before`` (signed z): paired_z on the drawbar runs; on the terrain runs, terrain_evidence of
+    the paired test and the replicas' test (replica_z), when the problem carries the terrain runs'
+    replicas (terrain_replicas.py), else the paired test alone."""
+    zs = {k: paired_z(problem, before.residuals, after.residuals, run_kind == k) for k in kinds_of(run_kind)}
+    if "terrain" in zs and problem.terrain_replicas is not None:
+        zs["terrain"] = terrain_evidence(zs["terrain"], replica_z(problem, run_kind, before, after))
+    return zs
+
+
+def replica_z(problem: Problem, run_kind: np.ndarray, before: FitResult, after: FitResult) -> float | None:
+    """The held-out improvement on the terrain runs from ``before`` to ``after`` (the drop of
+    their capped mean squared residual) over its standard error, the spread of that drop over
+    the problem's terrain replicas (terrain_replicas.py: every model replayed with the same fresh
+    sensor noise); None where the replicas do not move it (both models alike there) or the drop
+    is not finite."""
+    replicas = problem.terrain_replicas
+    test = ~problem.train & (run_kind == "terrain")
+    observed = float(np.mean(capped_square(before.residuals[test])) - np.mean(capped_square(after.residuals[test])))
+    if not np.isfinite(observed):
+        return None
+    spread = float(np.std(replicas.losses(before.params) - replicas.losses(after.params), ddof=1))
+    return observed / spread if spread > 0 else None
+
+
+def terrain_evidence(paired: float, replicas: float | None) -> float:
+    """The terrain runs' z from the paired test's (``paired``) and the replicas' (``replicas``):
+    evidence must exceed both the block-to-block scatter the paired test measures and the
+    replay's sensitivity to its sensors' noise the replicas measure, so the smaller of the two in
+    size when they agree in sign, and 0 when they disagree.  A model that fails on a terrain run
+    (paired -inf) keeps that; without replicas' evidence, the paired test's."""
+    if replicas is None or not np.isfinite(paired):
+        return paired
+    if paired * replicas <= 0:
+        return 0.0
+    return float(np.sign(paired) * min(abs(paired), abs(replicas)))
 
 
 # ------------------------------------------------------------------ the judge
@@ -183,7 +217,7 @@ def passes(n_params: int, gain: float, zs: dict[str, float]) -> bool:
 
 def ablation(problem: Problem, run_kind: np.ndarray, switched_off: FitResult, res: FitResult) -> Ablation:
     """The held-out gain and paired z of ``res`` over its own fit with the extension switched off."""
-    z_off = z_by_kind(problem, run_kind, switched_off.residuals, res.residuals)
+    z_off = z_by_kind(problem, run_kind, switched_off, res)
     everywhere = np.isin(run_kind, kinds_of(run_kind))
     return Ablation(relative_gain(problem, switched_off.residuals, res.residuals, everywhere),
                     float(max(z_off.values())), z_off,
@@ -304,7 +338,7 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
     kinds = kinds_of(run_kind)
     everywhere = np.isin(run_kind, kinds)
     gain = relative_gain(problem, reference.residuals, res.residuals, everywhere)
-    zs = z_by_kind(problem, run_kind, reference.residuals, res.residuals)
+    zs = z_by_kind(problem, run_kind, reference, res)
     acts = candidate.acts(res.params)
     off = None if switched_off is None else ablation(problem, run_kind, switched_off, res)
     use_pose = registration is not None and candidate.is_registration
@@ -353,7 +387,7 @@ def head_to_head(problem: Problem, run_kind: np.ndarray, leader: FitResult, chal
     two explain the data alike; it should not keep it out when the held-out data prefer it
     unit by unit: a model whose raw held-out gain beats the leader's by a point or two, with a
     parameter more, loses the penalised ranking even where every held-out block prefers it."""
-    zs = z_by_kind(problem, run_kind, leader.residuals, challenger.residuals)
+    zs = z_by_kind(problem, run_kind, leader, challenger)
     gain = relative_gain(problem, leader.residuals, challenger.residuals, np.ones(len(run_kind), bool))
     better = bool(max(zs.values()) > z_threshold(len(zs)) and min(zs.values()) > -Z_MIN and gain > 0)
     return Duel(leader.name, challenger.name, zs, gain, better)

@@ -5,6 +5,7 @@ model on it."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +37,17 @@ class Problem:
     ripple_lugs: int | None = None
     #: that ripple's bases over these runs' residuals, made once (ripple_nuisance._bases)
     ripple_bases: list | None = field(default=None, repr=False)
+    #: how the terrain runs are replayed (build_problem's ``terrain_drive``, ``terrain_segment``)
+    terrain_drive: str = "spin"
+    terrain_segment: float | None = None
+    #: the terrain runs replayed with fresh sensor noise, for judging (terrain_replicas.py); made
+    #: in the process that judges, and not sent to the processes that fit
+    terrain_replicas: Any = field(default=None, repr=False, compare=False)
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["terrain_replicas"] = None
+        return state
 
 
 def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, str] | None,
@@ -58,7 +70,8 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, 
         p.params["solver.tolerance"] = 0.0
     t = np.concatenate(times) if times else np.zeros(0)
     block = np.floor(t / BLOCK).astype(int)
-    problem = Problem(str(campaign.root), grid_file, fmu_path, prepared)
+    problem = Problem(str(campaign.root), grid_file, fmu_path, prepared, terrain_drive=terrain_drive,
+                      terrain_segment=terrain_segment)
     problem.train = (block % 2) == 0
     problem.meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
     return problem

@@ -228,8 +228,9 @@ class Criteria:
     """The thresholds the diagnosis judged by and how the terrain runs were replayed: block
     length (s), z and gain thresholds, tie ratio, terrain segment (s or None), the terrain drive
     and each drive's training loss (at the base model, and the lowest over every fitted model
-    with that model's name), the negligible change of the paired test and the registration's
-    held-out ratio."""
+    with that model's name), the negligible change of the paired test, the registration's
+    held-out ratio, and how many replicas with fresh sensor noise each terrain run's evidence is
+    judged against (0 without a terrain run; terrain_replicas.py)."""
 
     block_s: float
     z_min: float
@@ -241,6 +242,7 @@ class Criteria:
     terrain_drive_settled: dict[str, dict[str, Any]]
     negligible_change: float
     registration_held_out_ratio: float
+    terrain_replicas: int = 0
 
     def to_json(self) -> dict[str, Any]:
         return _fields_json(self)

@@ -38,6 +38,7 @@ from ..periodic_structure import PeriodicBases, PeriodicStructure, periodic_stru
 from ..residual_structure import UNITS, ResidualStructure, residual_structure
 from ..scan_consistency import ScanTests, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
+from .terrain_replicas import terrain_replicas
 from .verdict import verdict
 
 #: The fits of a first cause on a longer budget than a candidate's (search.second_round): a
@@ -176,13 +177,15 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
                         registering[0] if registering else None, periodic_bases=bases)
+        stack.callback(lambda: search.problem.terrain_replicas and search.problem.terrain_replicas.close())
         first = first_round(search, setting)
         outcome = further_causes(search, first)
         *structures, untested = what_the_models_leave(campaign, fmu_path, search.problem, first.base, outcome, say,
                                                       workers if scheduler is None else None, search.periodic_bases)
         scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
-                        first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO)
+                        first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO,
+                        len(search.problem.terrain_replicas.problems) if search.problem.terrain_replicas else 0)
     judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan, candidates=first.candidates)
     result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                               judged, (structures[0], structures[1]), untested)
@@ -354,6 +357,7 @@ def first_round(search: Search, setting: Setting) -> FirstRound:
                    "training fit loss: " + ", ".join(f"{d} {v['loss']:.3g} ({v['model']})"
                                                      for d, v in settled_losses.items()) + ")")
     problem, run_kind = search.problem, search.run_kind
+    terrain_replicas(problem, search.campaign)
     results = fitted[:len(names)]
     for n, again in zip(restarts, fitted[len(names):]):
         i = names.index(n)
