@@ -191,11 +191,16 @@ def _joint_section(joint: JointResult) -> list[str]:
              "measured wheel spins and is compared on drive torque, 1 s position increments, height and "
              "pitch; parameters searched as log/logit; trust-region Gauss-Newton on the scaled residuals; "
              "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
-             "time-correlated residuals.", "",
-             "| Parameter | Estimate | 1 sigma | relative | identifiability |", "|---|---|---|---|---|"]
+             "time-correlated residuals" + (", and the replay's own bias (a refit of the runs simulated with the "
+                                            "fitted soil, noise-free) added in quadrature" if joint.replay_bias else
+                                            "; the replay's own bias was not estimated") + ".", "",
+             "| Parameter | Estimate | 1 sigma | relative | of it: noise | of it: replay bias | identifiability |",
+             "|---|---|---|---|---|---|---|"]
     for k in SOIL_PARAMETERS:
+        stat = joint.std_statistical.get(k, joint.std[k])
+        bias = f"{joint.replay_bias[k]:+.3g}" if k in joint.replay_bias else "-"
         lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
-                     f"{joint.relative_std[k]:.2%} | {joint.identifiability[k]} |")
+                     f"{joint.relative_std[k]:.2%} | {_fmt(stat)} | {bias} | {joint.identifiability[k]} |")
     corr = np.asarray(joint.correlation)
     lines += ["", f"Mean squared scaled residual {joint.cost:.4g}; {joint.evaluations} model evaluations; "
               f"{joint.wall_time:.1f} s.", "", "Correlation of the estimates:", "",
@@ -321,6 +326,9 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         summary = {"campaign": campaign.name,
                    "paper": [{"run": p.run_id, "final": p.final, "cost": p.cost} for p in paper],
                    "joint": None if joint is None else {"params": joint.params, "std": joint.std,
+                                                        "std_statistical": joint.std_statistical,
+                                                        "std_systematic": joint.std_systematic,
+                                                        "replay_bias": joint.replay_bias,
                                                         "doubts": list(joint.doubts)},
                    "missing_columns": [m.to_json() for m in missing],
                    # run id -> parameter set -> RMS errors: one entry per terrain run

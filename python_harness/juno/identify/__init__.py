@@ -13,8 +13,10 @@ Two ways:
   in transformed parameters that keep the search physical (log for
   positive values, logit for gamma), a trust-region Gauss-Newton fit of the
   scaled residuals (or Nelder-Mead then that polish), with the parameter
-  covariance from the Jacobian (inflated for time-correlated residuals)
-  and an identifiability report.
+  covariance from the Jacobian (inflated for time-correlated residuals),
+  the replay's own bias measured by a parametric bootstrap at the fit
+  (a refit of the runs simulated with the fitted soil) as the systematic
+  part of each uncertainty, and an identifiability report.
 
 A failed fit is an error, never a result.  Every objective evaluation is logged
 (:class:`EvaluationLog`: how many, how many failed, the first failure's run, file, time
@@ -33,7 +35,8 @@ Dask distributed cluster instead.
 
 Where each part lives: ``base`` (the constants, failures, search space and scans every fit
 shares), ``paper`` (the paper's per-run fit), ``replay`` (a measured run made ready to replay,
-and its residuals), ``joint`` (the joint fit and its doubts), ``multistart`` (joint fits from
+and its residuals), ``joint`` (the joint fit and its doubts), ``replay_bias`` (the bootstrap of the replay's own
+bias), ``multistart`` (joint fits from
 several starts).  Everything public is imported from ``juno.identify``.
 """
 
@@ -49,6 +52,7 @@ from .replay import (INCREMENT_SIGNALS, JOINT_SIGNALS, POSITION_LAG, REPLAY_DRIV
 from .joint import (EVALUATION_LIMIT, STRUCTURE_BLOCK, JointResiduals, JointResult, classify, correlation_inflation,
                     fit_doubts, identify_joint)
 from .multistart import MultiStartResult, identify_multistart, multistart_points
+from .replay_bias import MEASURED_OUTPUTS, WORLD_STEP, ReplayBias, replay_bias, synthetic_run
 
 __all__ = [
     "EVALUATION_LIMIT", "AT_LIMIT", "FAILED_COST", "FAILED_RESIDUAL", "IDENTIFY_STEP", "MAX_FAILED_FRACTION", "PAPER_INITIAL",
@@ -60,5 +64,5 @@ __all__ = [
     "SPIN_TRACKER", "TERRAIN_SIGNALS", "PreparedRun", "Segment", "prepare_run", "restart_segments",
     "run_residuals", "torque_replay_throttle", "STRUCTURE_BLOCK", "JointResiduals", "JointResult", "classify",
     "correlation_inflation", "fit_doubts", "identify_joint", "MultiStartResult", "identify_multistart",
-    "multistart_points",
+    "multistart_points", "MEASURED_OUTPUTS", "WORLD_STEP", "ReplayBias", "replay_bias", "synthetic_run",
 ]

@@ -21,11 +21,21 @@ from .base import (FAILED_RESIDUAL, MAX_FAILED_FRACTION, PAPER_INITIAL, SOIL_SEA
                    EvaluationLog, _jacobian_of_transform, from_search, require_runs, soil_at_search_bounds, to_search)
 from .paper import _soil_text
 from .replay import PreparedRun, prepare_run, run_residuals
+from .replay_bias import ReplayBias, replay_bias
 
 
 @dataclass
 class JointResult:
     """A joint identification with uncertainty and identifiability.
+
+    ``std`` is the total 1 sigma: the statistical part (``std_statistical``, the sensors' noise
+    through the Jacobian) and the systematic part (``std_systematic``, the size of the replay's
+    own bias ``replay_bias`` measured by a parametric bootstrap at the fit, juno.identify.replay_bias)
+    added in quadrature, so that it is the root mean square error of the estimate;
+    ``relative_std``, ``identifiability`` and ``correlation`` are the total's.  Where the bias
+    was not estimated (``replay_bias`` empty: not asked for, or its simulations failed, which a
+    doubt says), ``std`` is the statistical part alone.  ``bias_refit``: the bootstrap's refit
+    (its status, evaluations, seconds), None without one.
 
     ``status``: "ok", EVALUATION_LIMIT when the search used its budget (``max_evaluations``)
     without meeting a convergence test, or "not identified" when the fit did not move from its start or the data
@@ -58,6 +68,15 @@ class JointResult:
     #: Parameters in which the residuals are not differentiable where the fit stopped (status
     #: "not converged"): their Jacobian columns at two steps disagree.
     rough_parameters: list[str] = field(default_factory=list)
+    #: The 1 sigma of the sensors' noise alone (the Jacobian's covariance); ``std`` adds the
+    #: replay's bias to it.
+    std_statistical: dict[str, float] = field(default_factory=dict)
+    #: The size of the replay's own bias, |replay_bias| (empty where not estimated).
+    std_systematic: dict[str, float] = field(default_factory=dict)
+    #: The bootstrap's refit of noise-free synthetic runs at the fitted soil minus the fitted
+    #: soil: what the replay does to a soil it should recover (empty where not estimated).
+    replay_bias: dict[str, float] = field(default_factory=dict)
+    bias_refit: dict | None = None
 
 
 def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int]) -> float:
@@ -199,7 +218,7 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
                    initial: dict[str, float] | None = None, max_evaluations: int = 400,
                    extra: dict[str, object] | None = None, optimizer: str = "least-squares",
                    progress: Callable[[str], None] | None = None, workers: int | None = None,
-                   scheduler: str | None = None) -> JointResult:
+                   scheduler: str | None = None, estimate_bias: bool = True) -> JointResult:
     """Joint identification over whole time series (see module docstring).
 
     ``optimizer``: "least-squares" (trust-region Gauss-Newton from the initial guess, about 50
@@ -210,6 +229,11 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     ``fmu``); ``scheduler``: a Dask scheduler address instead.  In parallel, each residual
     evaluation simulates its runs as parallel tasks and the finite-difference Jacobian's points
     (one per parameter) are evaluated as parallel tasks; the fit is identical to the serial one.
+
+    ``estimate_bias``: estimate the replay's own bias by a parametric bootstrap at the fitted soil (one
+    more fit, of noise-free synthetic runs; juno.identify.replay_bias) and state it as the
+    systematic part of each uncertainty (JointResult); a fit that states no uncertainty
+    (status "not converged") gets none.
 
     ``terrain_file``: the gridded scan of each terrain run (run id -> file), or one file for
     all of them.  Raises InputError when the campaign lacks the runs the fit needs
@@ -242,8 +266,47 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
         result, at_optimum = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
         result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
                                                      data=data, pool=pool)
+        result.std_statistical = dict(result.std)
+        if estimate_bias and result.status != "not converged":
+            if progress:
+                progress("the replay's own bias: a refit of the runs simulated with the fitted soil")
+            terrain_files = {r.id: grid_of(r) for r in runs if r.kind == "terrain"}
+            try:
+                refit = replay_bias(fmu, campaign, runs, data, prepared, result.params, initial, max_evaluations,
+                                    optimizer, extra, terrain_files, pool)
+            except (SimulationError, ValueError) as exc:
+                result.doubts.append(f"the replay's own bias could not be estimated ({exc}): the uncertainty is "
+                                     "the sensors' noise alone, and the replay's error, which it leaves out, "
+                                     "moves the estimates by up to several of it where a campaign lacks a signal")
+            else:
+                _add_replay_bias(result, refit)
     result.wall_time = time.perf_counter() - start
     return result
+
+
+def _add_replay_bias(result: JointResult, refit: ReplayBias) -> None:
+    """States the bootstrap's bias as the systematic part of ``result``'s uncertainty: the total
+    covariance is the statistical one plus b b^T (b the bias), the mean square error of an
+    estimate off by b, whose diagonal is std_statistical^2 + bias^2; relative uncertainties,
+    identifiability and correlations follow the total."""
+    names = list(SOIL_PARAMETERS)
+    b = np.array([refit.params[k] - result.params[k] for k in names])
+    stat = np.array([result.std_statistical[k] for k in names])
+    with np.errstate(invalid="ignore"):
+        cov = np.asarray(result.correlation, float) * np.outer(stat, stat) + np.outer(b, b)
+        std = np.where(np.isfinite(stat), np.hypot(stat, b), np.inf)
+        corr = cov / np.outer(std, std)
+    result.replay_bias = dict(zip(names, b.tolist()))
+    result.std_systematic = dict(zip(names, np.abs(b).tolist()))
+    result.std = dict(zip(names, std.tolist()))
+    result.correlation = corr
+    result.relative_std = {k: float(std[i] / abs(result.params[k])) for i, k in enumerate(names)}
+    result.identifiability = {k: classify(v) for k, v in result.relative_std.items()}
+    result.bias_refit = {"status": refit.status, "evaluations": refit.evaluations, "wall_time": refit.wall_time}
+    if refit.status != "ok":
+        result.doubts.append(f"the refit that estimates the replay's own bias ended '{refit.status}': the "
+                             "systematic part of the uncertainty is where that refit stopped, not a converged "
+                             "estimate")
 
 
 def fit_doubts(fmu: JunoFMU, campaign: Campaign, prepared: Sequence[PreparedRun], result: JointResult,
