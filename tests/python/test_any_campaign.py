@@ -602,6 +602,18 @@ def test_on_exact_data_the_stated_replay_bias_is_the_fits_whole_error(exact_shor
         assert abs(result.replay_bias["soil.kh"]) > 2 * result.std_statistical["soil.kh"]
 
 
+def test_without_the_bootstrap_the_uncertainty_is_the_noise_alone(exact_short_campaign, harness_fmu):
+    """``estimate_bias=False`` (``--no-replay-bias``) fits the same soil with the same statistical
+    uncertainty, states no bias, and its ``std`` is that statistical part alone."""
+    campaign = load_campaign(exact_short_campaign)
+    plain = identify_joint(harness_fmu, campaign, workers=1, estimate_bias=False)
+    full = identify_joint(harness_fmu, campaign, workers=1)
+    assert plain.params == full.params and plain.std_statistical == full.std_statistical
+    assert plain.std == plain.std_statistical
+    assert plain.replay_bias == {} and plain.std_systematic == {} and plain.bias_refit is None
+    assert all(full.std[k] > plain.std[k] for k in SOIL_PARAMETERS)
+
+
 def test_identify_validate_and_diagnose_say_which_angles_are_missing_and_what_that_costs(no_imu_angles, tmp_path,
                                                                                         capsys):
     """Each command prints every missing column once, as a line naming the column, the runs and
