@@ -185,7 +185,7 @@ def test_the_joint_fit_recovers_the_truth_of_an_alt_design_campaign(alt_campaign
 
 def test_identify_and_validate_run_on_an_alt_design_campaign(alt_campaign, tmp_path):
     identified = tmp_path / "identify.json"
-    proc = run_juno("identify", alt_campaign, "--method", "joint", "--workers", "1", "--quiet",
+    proc = run_juno("identify", alt_campaign, "--method", "joint", "--workers", "1", "--replay-bias", "on", "--quiet",
                     "--json", identified)
     assert proc.returncode == 0, proc.stderr
     joint = json.loads(identified.read_text())["joint"]
@@ -587,7 +587,7 @@ def test_on_exact_data_the_stated_replay_bias_is_the_fits_whole_error(exact_shor
     fit's step, where motors drove the rover), and without pitch it is several statistical sigmas."""
     root = exact_short_campaign if imu_angles else variant(exact_short_campaign, tmp_path / "no-imu",
                                                            without_imu_angles)
-    result = identify_joint(harness_fmu, load_campaign(root), workers=1)
+    result = identify_joint(harness_fmu, load_campaign(root), workers=1, estimate_bias=True)
     truth = truth_soil(exact_short_campaign)
     say(f"{root}: exact data, error / replay bias / statistical sigma: " + ", ".join(
         f"{k} {result.params[k] / truth[k] - 1:+.2%} / {result.replay_bias[k] / truth[k]:+.2%} / "
@@ -602,12 +602,15 @@ def test_on_exact_data_the_stated_replay_bias_is_the_fits_whole_error(exact_shor
         assert abs(result.replay_bias["soil.kh"]) > 2 * result.std_statistical["soil.kh"]
 
 
-def test_without_the_bootstrap_the_uncertainty_is_the_noise_alone(exact_short_campaign, harness_fmu):
-    """``estimate_bias=False`` (``--no-replay-bias``) fits the same soil with the same statistical
-    uncertainty, states no bias, and its ``std`` is that statistical part alone."""
+def test_with_every_column_the_fit_states_the_noise_alone_unless_asked_for_the_bias(exact_short_campaign,
+                                                                                      harness_fmu):
+    """By default (``estimate_bias`` None, ``--replay-bias auto``) a campaign whose runs have every
+    column the fit uses gets no bootstrap: it states no bias, and its ``std`` is the statistical
+    part alone.  Asked for (``estimate_bias=True``, ``--replay-bias on``), the same soil and the
+    same statistical part, and a larger total."""
     campaign = load_campaign(exact_short_campaign)
-    plain = identify_joint(harness_fmu, campaign, workers=1, estimate_bias=False)
-    full = identify_joint(harness_fmu, campaign, workers=1)
+    plain = identify_joint(harness_fmu, campaign, workers=1)
+    full = identify_joint(harness_fmu, campaign, workers=1, estimate_bias=True)
     assert plain.params == full.params and plain.std_statistical == full.std_statistical
     assert plain.std == plain.std_statistical
     assert plain.replay_bias == {} and plain.std_systematic == {} and plain.bias_refit is None

@@ -38,10 +38,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--starts", type=positive_int, default=1,
                    help="joint fit from N starting points (the paper's guess and N-1 scattered around it), "
                         "one parallel task each; reports the best and how far the others ended (default 1)")
-    p.add_argument("--no-replay-bias", action="store_true",
-                   help="joint fit: skip the estimate of the replay's own bias (a refit of the runs simulated with "
-                        "the fitted soil, about half a fit's time more): the uncertainty is then the sensors' noise "
-                        "alone, which understates the error where the campaign lacks a signal")
+    p.add_argument("--replay-bias", choices=("auto", "on", "off"), default="auto",
+                   help="joint fit: estimate the replay's own bias (a refit of the runs simulated with the fitted "
+                        "soil, 0.5-0.9 of a fit's time more) and add it to the uncertainty: auto (default) where "
+                        "the fitted runs lack a column they use (no pitch, no yaw), on, or off (the uncertainty is "
+                        "then the sensors' noise alone, which understates the error where a signal is missing)")
     p.add_argument("--seed", type=nonnegative_int, default=0,
                    help="seed of the scattered starting points (default 0)")
     add_batch_options(p)
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
                 grid = terrain_grids(campaign, tmp, "identify --with-terrain") if args.with_terrain else None
                 joint_args = dict(include_terrain=args.with_terrain, terrain_file=grid,
                                   max_evaluations=args.max_evaluations, optimizer=args.optimizer,
-                                  estimate_bias=not args.no_replay_bias)
+                                  estimate_bias={"auto": None, "on": True, "off": False}[args.replay_bias])
                 if args.starts > 1:
                     say(f"joint identification from {args.starts} starting points (seed {args.seed})")
                     multi = identify_multistart(fmu, campaign, args.starts, seed=args.seed, progress=say,

@@ -218,7 +218,7 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
                    initial: dict[str, float] | None = None, max_evaluations: int = 400,
                    extra: dict[str, object] | None = None, optimizer: str = "least-squares",
                    progress: Callable[[str], None] | None = None, workers: int | None = None,
-                   scheduler: str | None = None, estimate_bias: bool = True) -> JointResult:
+                   scheduler: str | None = None, estimate_bias: bool | None = None) -> JointResult:
     """Joint identification over whole time series (see module docstring).
 
     ``optimizer``: "least-squares" (trust-region Gauss-Newton from the initial guess, about 50
@@ -233,7 +233,10 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     ``estimate_bias``: estimate the replay's own bias by a parametric bootstrap at the fitted soil (one
     more fit, of noise-free synthetic runs; juno.identify.replay_bias) and state it as the
     systematic part of each uncertainty (JointResult); a fit that states no uncertainty
-    (status "not converged") gets none.
+    (status "not converged") gets none.  None (the default): when a fitted run lacks an
+    optional column its kind uses (juno.campaign.missing_columns: no pitch, no yaw), where the
+    bias is up to several of the noise's sigmas; a campaign with every column gets none
+    (lacks_optional_columns says why).
 
     ``terrain_file``: the gridded scan of each terrain run (run id -> file), or one file for
     all of them.  Raises InputError when the campaign lacks the runs the fit needs
@@ -267,6 +270,8 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
         result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
                                                      data=data, pool=pool)
         result.std_statistical = dict(result.std)
+        if estimate_bias is None:
+            estimate_bias = lacks_optional_columns(campaign, runs)
         if estimate_bias and result.status != "not converged":
             if progress:
                 progress("the replay's own bias: a refit of the runs simulated with the fitted soil")
@@ -282,6 +287,19 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
                 _add_replay_bias(result, refit)
     result.wall_time = time.perf_counter() - start
     return result
+
+
+def lacks_optional_columns(campaign: Campaign, runs: Sequence[RunSpec]) -> bool:
+    """True when one of ``runs`` lacks an optional column its kind uses (missing_columns): where
+    identify_joint estimates the replay's bias by default.  Why only there: the bootstrap costs
+    one more fit, 0.5-0.9 of the fit's time (over the fits of scripts/uncertainty_coverage.py),
+    which would take the benchmark's joint fit (three full-length drawbar runs, every column)
+    past its 5 s target; with every column the bias is small beside the noise's part (median 0.3
+    of its sigma over those fits), while without pitch it is most of the error (median 0.8, up
+    to 3.7).  docs/results/uncertainty-coverage.md has the figures."""
+    from ..campaign import missing_columns
+    fitted = {r.id for r in runs}
+    return any(fitted & set(m.runs) for m in missing_columns(campaign, tuple({r.kind for r in runs})))
 
 
 def _add_replay_bias(result: JointResult, refit: ReplayBias) -> None:
