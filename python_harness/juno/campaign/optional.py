@@ -20,9 +20,9 @@ from .tables import read_run
 OPTIONAL_COLUMN_USES: dict[str, dict[str, str]] = {
     "pitch": {
         "drawbar": "the joint fit and the diagnosis compare no pitch, so k_h is determined less well (on "
-                   "full-length synthetic campaigns its uncertainty was 3-5 times larger, and the estimate up to "
-                   "5 of them below the truth; a short campaign's fit may stop without converging), and the "
-                   "residual structure test leaves the pitch out",
+                   "full-length synthetic campaigns its stated uncertainty is 4-9 times larger, most of it the "
+                   "replay's own bias, which the fit measures; a short campaign's fit may stop without "
+                   "converging), and the residual structure test leaves the pitch out",
         "terrain": "the diagnosis registers the scan and tests the run's pose against it without the pitch "
                    "(on the height and any roll)",
     },
