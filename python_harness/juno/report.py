@@ -193,7 +193,8 @@ def _joint_section(joint: JointResult) -> list[str]:
              "1-sigma uncertainty from the Jacobian, scaled by the residual variance and inflated for "
              "time-correlated residuals" + (", and the replay's own bias (a refit of the runs simulated with the "
                                             "fitted soil, noise-free) added in quadrature" if joint.replay_bias else
-                                            "; the replay's own bias was not estimated") + ".", "",
+                                            "; the replay's own bias is not included (it is estimated where the "
+                                            "runs lack a column the fit uses)") + ".", "",
              "| Parameter | Estimate | 1 sigma | relative | of it: noise | of it: replay bias | identifiability |",
              "|---|---|---|---|---|---|---|"]
     for k in SOIL_PARAMETERS:
