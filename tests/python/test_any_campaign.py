@@ -192,7 +192,8 @@ def test_identify_and_validate_run_on_an_alt_design_campaign(alt_campaign, tmp_p
     assert set(joint["params"]) == set(SOIL_PARAMETERS)
     assert json.loads(identified.read_text())["missing_columns"] == []
     for k in SOIL_PARAMETERS:    # the uncertainty's two parts, apart, and printed
-        assert joint["std"][k] == pytest.approx(float(np.hypot(joint["std_statistical"][k], joint["std_systematic"][k])))
+        parts = (joint["std_statistical"][k], joint["std_systematic"][k])
+        assert joint["std"][k] == pytest.approx(float(np.hypot(*parts)))
         assert joint["std_systematic"][k] == abs(joint["replay_bias"][k])
         assert f"joint: {k} = " in proc.stdout and (f"(noise {joint['std_statistical'][k]:.2g}, replay bias "
                                                       f"{joint['replay_bias'][k]:+.2g})") in proc.stdout

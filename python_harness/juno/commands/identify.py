@@ -40,7 +40,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "one parallel task each; reports the best and how far the others ended (default 1)")
     p.add_argument("--replay-bias", choices=("auto", "on", "off"), default="auto",
                    help="joint fit: estimate the replay's own bias (a refit of the runs simulated with the fitted "
-                        "soil, 0.5-0.9 of a fit's time more) and add it to the uncertainty: auto (default) where "
+                        "soil, about 0.8 of a fit's time more) and add it to the uncertainty: auto (default) where "
                         "the fitted runs lack a column they use (no pitch, no yaw), on, or off (the uncertainty is "
                         "then the sensors' noise alone, which understates the error where a signal is missing)")
     p.add_argument("--seed", type=nonnegative_int, default=0,

@@ -292,9 +292,9 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
 def lacks_optional_columns(campaign: Campaign, runs: Sequence[RunSpec]) -> bool:
     """True when one of ``runs`` lacks an optional column its kind uses (missing_columns): where
     identify_joint estimates the replay's bias by default.  Why only there: the bootstrap costs
-    one more fit, 0.5-0.9 of the fit's time (over the fits of scripts/uncertainty_coverage.py),
-    which would take the benchmark's joint fit (three full-length drawbar runs, every column)
-    past its 5 s target; with every column the bias is small beside the noise's part (median 0.3
+    one more fit, 0.5-1.3 of the fit's time (median 0.8 over the fits of
+    scripts/uncertainty_coverage.py), which would take the benchmark's joint fit (three
+    full-length drawbar runs, every column) past its 5 s target; with every column the bias is small beside the noise's part (median 0.3
     of its sigma over those fits), while without pitch it is most of the error (median 0.8, up
     to 3.7).  docs/results/uncertainty-coverage.md has the figures."""
     from ..campaign import missing_columns
