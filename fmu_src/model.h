@@ -55,6 +55,7 @@ typedef struct {
     double slipSinkage_exponent, grouser_thrustSlip, multipass_compactionDepth;
     int grouser_lugCount;                        /* lugs per wheel (lug ripple), 0: none */
     double grouser_rippleAmplitude;              /* lug ripple of the traction limit, off at 0 */
+    double grouser_lugPhaseLeft, grouser_lugPhaseRight;   /* the front lugs' ripple phase at each side's angle 0 */
 } Params;
 
 /* Multi-pass: each side remembers the residual rut its front wheel leaves,

@@ -540,12 +540,15 @@ void rover_wheel_contacts_on_ground(const Model *m, Eval *ev, int matrices)
         const int w = wheel[k];
         in[k].spin = wheel_spin(m, ev, ev->Jw[BODY_WHEEL0 + w], U_SPIN_L + side_of(w), &cf[k]);
         /* Lug ripple: the lugs' angle is the side's encoder angle (the rocker's
-         * and chassis' pitch, a few degrees, shift the phase a little); the rear
-         * wheel's lugs sit half a lug pitch behind the front's (phase pi).  The
-         * ripple's dependence on the angle is explicit in the step (not in K):
-         * N omega h is small at the steps that resolve the ripple. */
+         * and chassis' pitch, a few degrees, shift the phase a little), which
+         * counts from 0 where the run starts, wherever the lugs then are: the
+         * side's lug phase says where; the rear wheel's lugs sit half a lug
+         * pitch behind the front's (pi more).  The ripple's dependence on the
+         * angle is explicit in the step (not in K): N omega h is small at the
+         * steps that resolve the ripple. */
         in[k].spin_angle = m->s.spin_angle[side_of(w)];
-        in[k].lug_phase = w % 2 == 1 ? M_PI : 0.0;
+        in[k].lug_phase = (side_of(w) == SIDE_LEFT ? p->grouser_lugPhaseLeft : p->grouser_lugPhaseRight) +
+                          (w % 2 == 1 ? M_PI : 0.0);
         wheel_soil_slip(&ws, &in[k], &sc[k]);
         ev->wheel[w].slip = sc[k].slip;
     }

@@ -106,7 +106,9 @@
     REAL(506, "soilStrip.strengthFactor", PARAM, "1", 1.0, 0.05, 20, p.strip_strengthFactor, "Shear strength (C, tan phi) inside the soil strip relative to outside (1 = off)") \
     REAL(509, "multipass.compactionDepth", PARAM, "m", 0.002, 1e-4, 0.5, p.multipass_compactionDepth, "Rut depth d at which the compaction reaches half its effect: k_h (1 + (multipass.khFactor - 1) rut / (rut + d))") \
     INT (510, "grouser.lugCount", PARAM, 0, 0, 100, p.grouser_lugCount, "Lugs per wheel N of the lug ripple: the traction limit pulses N times per revolution (0 = no ripple)") \
-    REAL(511, "grouser.rippleAmplitude", PARAM, "1", 0.0, 0, 1, p.grouser_rippleAmplitude, "Lug ripple: F_taumax (1 + a cos(N theta + phi)), theta the side's spinAngle, phi 0 on the front wheels and pi on the rear (assumed half a lug pitch behind) (0 = off)") \
+    REAL(511, "grouser.rippleAmplitude", PARAM, "1", 0.0, 0, 1, p.grouser_rippleAmplitude, "Lug ripple: F_taumax (1 + a cos(N theta + phi)), theta the side's spinAngle, phi the side's grouser.lugPhase on the front wheels and pi more on the rear (assumed half a lug pitch behind) (0 = off)") \
+    REAL(512, "grouser.lugPhaseLeft", PARAM, "rad", 0.0, -NOLIM, NOLIM, p.grouser_lugPhaseLeft, "Lug ripple phase phi of the left front wheel at spinAngleLeft 0: where its lugs are when the run starts") \
+    REAL(513, "grouser.lugPhaseRight", PARAM, "rad", 0.0, -NOLIM, NOLIM, p.grouser_lugPhaseRight, "Lug ripple phase phi of the right front wheel at spinAngleRight 0: where its lugs are when the run starts") \
     /* ---- inputs ---- */ \
     REAL(200, "drawbarForce",  INPUT, "N",   400.0, -NOLIM, NOLIM, in.drawbarForce,  "Resisting force at the rear hitch, horizontal, backwards along the heading") \
     REAL(201, "torqueLeft",    INPUT, "N.m", 0.0,   -NOLIM, NOLIM, in.torqueLeft,    "Total drive torque of the left wheels (drive.mode 0)") \

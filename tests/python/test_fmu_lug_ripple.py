@@ -3,8 +3,10 @@
 Each side's wheel angle relative to its rocker (``spinAngleLeft``, ``spinAngleRight``, rad) is
 integrated in the FMU state from 0 at initialisation, as an encoder would count it.  With
 ``grouser.lugCount`` N and ``grouser.rippleAmplitude`` a, the traction limit of a wheel pulses
-with its lugs, F_taumax (1 + a cos(N theta + phi)), theta the side's spin angle and phi 0 on the
-front wheels, pi on the rear ones (half a lug pitch behind); a = 0 (the default) is no ripple.
+with its lugs, F_taumax (1 + a cos(N theta + phi)), theta the side's spin angle and phi the
+side's ``grouser.lugPhaseLeft`` or ``grouser.lugPhaseRight`` (0 by default: where the lugs are
+when the run starts) on the front wheels, pi more on the rear ones (half a lug pitch behind);
+a = 0 (the default) is no ripple.
 """
 
 from __future__ import annotations
@@ -21,9 +23,12 @@ STEP = 0.01          # s, communication step: 100 Hz, well above the lug-passing
 STEADY_FROM = 6.0    # s, the drawbar run has settled by then
 
 
-def _drawbar_run(fmu_unzipped, amplitude: float) -> dict[str, np.ndarray]:
-    """A 12 s drawbar run at 400 N on DC motors (45 % throttle), lugs rippling at ``amplitude``."""
-    params = {"drive.mode": 2, "grouser.lugCount": N_LUGS, "grouser.rippleAmplitude": amplitude}
+def _drawbar_run(fmu_unzipped, amplitude: float, phase_left: float = 0.0, phase_right: float = 0.0
+                 ) -> dict[str, np.ndarray]:
+    """A 12 s drawbar run at 400 N on DC motors (45 % throttle), lugs rippling at ``amplitude``,
+    each side's lugs at its phase."""
+    params = {"drive.mode": 2, "grouser.lugCount": N_LUGS, "grouser.rippleAmplitude": amplitude,
+              "grouser.lugPhaseLeft": phase_left, "grouser.lugPhaseRight": phase_right}
     return run(fmu_unzipped, params, DRAWBAR, stop_time=12.0, step=STEP, outputs=OUTPUTS)
 
 
@@ -79,6 +84,22 @@ def test_the_ripple_grows_with_its_amplitude_in_phase_with_the_lugs(drawbar_runs
         assert abs(parts[0.0, wheel][1]) < 0.002 * mean
         assert 0.5 * 0.3 * mean < parts[0.3, wheel][1] < 2.0 * 0.3 * mean
         assert parts[0.3, wheel][1] / parts[0.15, wheel][1] == pytest.approx(2.0, rel=0.1)
+
+
+def test_a_sides_lug_phase_moves_its_ripple_by_that_phase(drawbar_runs, fmu_unzipped):
+    """With the left side's lug phase at 1 rad, the traction's ripple is in phase with
+    cos(N theta + 1) on the left front wheel and with cos(N theta + 1 + pi) on the left rear one,
+    as large as at phase 0 (within 10 %); its part in phase with cos(N theta) is cos(1) of that
+    (within 15 %): the whole ripple moved by the phase."""
+    shifted = _drawbar_run(fmu_unzipped, 0.3, phase_left=1.0)
+    for wheel, rear in (("FL", 0.0), ("RL", np.pi)):
+        _mean, at_zero = _ripple(drawbar_runs[0.3], wheel, rear)
+        _mean, moved = _ripple(shifted, wheel, rear + 1.0)
+        _mean, unmoved = _ripple(shifted, wheel, rear)
+        print(f"\n{wheel}: ripple {at_zero:.1f} N at phase 0, {moved:.1f} N at phase 1 in phase with it, "
+              f"{unmoved:.1f} N in phase with phase 0's")
+        assert moved == pytest.approx(at_zero, rel=0.1)
+        assert unmoved == pytest.approx(np.cos(1.0) * at_zero, rel=0.15)
 
 
 def test_the_drive_torque_ripples_with_the_traction(drawbar_runs):
