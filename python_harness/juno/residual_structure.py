@@ -499,7 +499,9 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
             run_noise = {c: noise[(p.run_id, c)] for c in columns if (p.run_id, c) in noise}
             noisy = _noisy_inputs(rng, p, data[p.run_id], run_noise)
             draws.append((noisy, _output_noise(rng, p, data[p.run_id], run_noise)))
-    tasks = [(FMUHandle(fmu), noisy, soil, extra) for noisy, _e in draws]
+    # A parameter applied to some runs only (NAME@RUN,RUN: a run's lug phase) goes to those runs.
+    from .diagnose.candidates import run_parameters
+    tasks = [(FMUHandle(fmu), noisy, soil, run_parameters(extra, noisy.run_id)) for noisy, _e in draws]
     replays = pool.map(_replica_task, tasks) if pool is not None else \
         map_tasks(_replica_task, tasks, workers=resolve_workers(workers, len(draws)))
     failure = next((f for _r, f in replays if f is not None), None)

@@ -39,6 +39,13 @@ def run_parameters(params: dict[str, object], run_id: str) -> dict[str, object]:
     return fmu_parameters({**out, **own})
 
 
+def parameters_of_a_new_run(params: dict[str, object]) -> dict[str, object]:
+    """The FMU parameters a run outside the campaign is simulated with: those applied to every
+    run, without those applied to some of the campaign's runs only (for_runs: a run's lug phase),
+    ties given as the FMU variables they set (fmu_parameters)."""
+    return fmu_parameters({k: v for k, v in params.items() if RUNS_MARK not in k})
+
+
 def fmu_parameters(params: dict[str, object]) -> dict[str, object]:
     """``params`` as the FMU takes them: each tied extension parameter (ExtParam.sets) replaced
     by the FMU variables it sets, every one given its value (keeping the runs it is applied to,
@@ -125,9 +132,13 @@ class Candidate:
     def parameters_in(self, params: dict[str, float]) -> int:
         """How many parameters the extension adds in the fit ``params``: each of its parameters
         once for every group of runs ``params`` applies it to (for_runs), and once where it is
-        applied to every run (or not set)."""
+        applied to every run (or not set); a parameter the extension fits only where the campaign
+        calls for it (named in ``active`` alone: the lugs' ripple, ripple_nuisance.with_lug_ripple)
+        once for every group of runs ``params`` gives it to, and not at all where it gives none."""
         names = {unqualified(e.name) for e in self.params}
-        return sum(max(1, sum(1 for k in params if unqualified(k) == n)) for n in names)
+        optional = {n for n, _v, _tol in self.active} - names
+        count = {n: sum(1 for k in params if unqualified(k) == n) for n in names | optional}
+        return sum(max(1, count[n]) for n in names) + sum(count[n] for n in optional)
 
     def owns(self, name: str) -> bool:
         """Whether ``name`` (an FMU name, or one applied to some runs) is one of the extension's."""
@@ -172,9 +183,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # campaign whose lugs pulse the thrust, the true grouser's drawbar training objective was
     # 3.46; the fit from no gain stopped at 3.72, with a gain of 0.02 and lugs 5 mm too high; from
     # the grid it reached 3.51, with the lugs' height within 1 mm of the truth).
+    # When the drive torques ripple at a lug count, the candidate also carries that ripple, its
+    # amplitude fitted (ripple_nuisance.with_lug_ripple): lugs make it, and the soil absorbs their
+    # mean thrust so well that on some campaigns the ripple is the lugs' only mark.
     Candidate("grouser", "lugs shear the soil at a larger radius and add thrust beyond the Mohr-Coulomb limit",
               (ExtParam("grouser.thrustGain", 0.0, 0.0, 3.0), ExtParam("grouser.lugHeight", 0.0, 0.0, 0.1)),
-              active=(("grouser.thrustGain", 0.0, 0.01), ("grouser.lugHeight", 0.0, 0.001)), soil_restart=True,
+              active=(("grouser.thrustGain", 0.0, 0.01), ("grouser.lugHeight", 0.0, 0.001),
+                      ("grouser.rippleAmplitude", 0.0, 0.01)), soil_restart=True,
               grid=((("grouser.thrustGain", 0.5),), (("grouser.thrustGain", 1.0),)),
               ripples_with_wheel_angle=True),
     # A drivetrain's losses in their standard form: a load-dependent part, a fraction of the

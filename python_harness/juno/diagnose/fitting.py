@@ -163,8 +163,9 @@ class _FitSession:
         infinite if a run fails)."""
         self.evaluations += 1
         part = self.training_problem(kinds)
-        r = residuals_for(self.fmu, part, self.space.params(x), kinds, self.replays)
-        return np.inf if r is None else fit_loss(nuisance_free(part, r)[part.train])
+        params = self.space.params(x)
+        r = residuals_for(self.fmu, part, params, kinds, self.replays)
+        return np.inf if r is None else fit_loss(nuisance_free(part, r, params)[part.train])
 
 
 def fit_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
@@ -243,7 +244,8 @@ class _TrainingResiduals:
             r, failure = residuals_or_failure(session.fmu, self.problem, self.space.params(x), self.kinds,
                                               session.replays)
             session.log.record(failure)
-        out = np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None else nuisance_free(self.problem, r)[self.train]
+        out = (np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None
+               else nuisance_free(self.problem, r, self.space.params(x))[self.train])
         if session is not None and not self._in_jacobian:
             self.steps += 1
             self._last = out
@@ -608,10 +610,11 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
 
 def loss_on(problem: Problem, res: FitResult, mask: np.ndarray) -> float:
     """The mean fit_loss of a fit's residuals on ``problem`` where ``mask`` holds, a ripple the
-    fits take as a nuisance removed (ripple_nuisance.nuisance_free); infinite for a failed fit."""
+    fits take as a nuisance removed unless the fit makes it (ripple_nuisance.nuisance_free);
+    infinite for a failed fit."""
     if res.error or res.residuals.size == 0:
         return np.inf
-    value = fit_loss(nuisance_free(problem, res.residuals)[mask])
+    value = fit_loss(nuisance_free(problem, res.residuals, res.params)[mask])
     return value if np.isfinite(value) else np.inf
 
 

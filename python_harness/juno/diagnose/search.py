@@ -22,7 +22,7 @@ from ..registration import HELD_OUT_RATIO, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 from ..telling_apart import heaviest_drawbar_load, telling_apart
 from .assemble import diagnosis_result
-from .candidates import CANDIDATES, Candidate, combined, fmu_parameters
+from .candidates import CANDIDATES, Candidate, combined, fmu_parameters, parameters_of_a_new_run
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, head_to_head, judge,
@@ -31,6 +31,7 @@ from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, h
 from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
+from .ripple_nuisance import with_lug_ripple
 from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_candidate, registration_evidence,
                      registration_start)
 from ..parallel import BackgroundTask, TaskPool
@@ -88,6 +89,10 @@ class Search:
             self.say(f"registration of scan {scan.scan} fitted on the training blocks of {runs}: held-out pose "
                      f"{scan.evidence.ratio:.3g} times better than the scan as it is"
                      + (" (misregistered)" if scan.significant else ""))
+
+    def candidate(self, name: str) -> Candidate:
+        """The candidate ``name`` as this campaign searches it (``searched``, else the catalog's)."""
+        return self.searched.get(name, CANDIDATES[name])
 
     def fits(self, jobs: list[FitJob]) -> list[FitResult]:
         """The fits of ``jobs``, in order (fitting.run_jobs, where this search's fits run)."""
@@ -174,7 +179,9 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         bases = PeriodicBases()
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration,
                           periodic_bases=bases)
-        searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign))}
+        searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign)),
+                    "grouser": with_lug_ripple(CANDIDATES["grouser"], setting.problem, setting.base.params,
+                                               setting.base.residuals)}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
                         registering[0] if registering else None, periodic_bases=bases)
         stack.callback(lambda: search.problem.terrain_replicas and search.problem.terrain_replicas.close())
@@ -424,7 +431,7 @@ def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list
         first_starts["terrain_offset"] = registration_start(search.registration)
     now = [n for n in names if n not in later]
     restarts = [n for n in names if CANDIDATES[n].soil_restart]
-    fitted = search.fits([job(n) for n in now] + [(problem, CANDIDATES[n], dict(PAPER_INITIAL), None)
+    fitted = search.fits([job(n) for n in now] + [(problem, search.candidate(n), dict(PAPER_INITIAL), None)
                                                   for n in restarts])
     search.registration_known()
     first_starts["terrain_offset"] = registration_start(search.registration)
@@ -585,8 +592,8 @@ def tied_models_apart(campaign: Campaign, problem: Problem, named: FitResult, ti
         return []
     fixed = dict(campaign.rover)
     with JunoFMU(problem.fmu_path) as fmu:
-        found = telling_apart(fmu, (named.name, fmu_parameters({**fixed, **named.params})),
-                              {r.name: fmu_parameters({**fixed, **r.params}) for r in tied},
+        found = telling_apart(fmu, (named.name, parameters_of_a_new_run({**fixed, **named.params})),
+                              {r.name: parameters_of_a_new_run({**fixed, **r.params}) for r in tied},
                               heaviest_drawbar_load(campaign))
     return [TiedPair.from_telling_apart(f) for f in found]
 
@@ -645,7 +652,7 @@ def _second_fits(search: Search, first_res: FitResult, more: list[str]) -> tuple
              {**start_ext, **second_starts.get(n, {})}) for n in more]
     jobs.append((problem, replace(first, grid=()), start_soil, start_ext, LONG_FIT))
     restarts = [n for n in more if first.soil_restart and CANDIDATES[n].soil_restart]
-    jobs += [(problem, combined(first, CANDIDATES[n]), dict(PAPER_INITIAL), None) for n in restarts]
+    jobs += [(problem, combined(first, search.candidate(n)), dict(PAPER_INITIAL), None) for n in restarts]
     fitted = search.fits(jobs)
     results, continued, from_paper = fitted[:len(more)], fitted[len(more)], fitted[len(more) + 1:]
     for n, again in zip(restarts, from_paper):
@@ -699,7 +706,7 @@ def refit_from_paper_soil(search: Search, first: Candidate, both_fit: FitResult)
     absorb the second cause too, and the joint fit can stay in that basin, as a single
     candidate's can (Candidate.soil_restart).  Only for two causes that both restart from the
     paper's soil (a soil patch needs its own search to be found at all)."""
-    second = CANDIDATES[both_fit.name]
+    second = search.candidate(both_fit.name)
     if not (first.soil_restart and second.soil_restart):
         return both_fit
     search.say(f"refitting {first.name} + {second.name} from the paper's initial soil")
