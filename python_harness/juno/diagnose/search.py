@@ -180,8 +180,8 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration,
                           periodic_bases=bases)
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign)),
-                    "grouser": with_lug_ripple(CANDIDATES["grouser"], setting.problem, setting.base.params,
-                                               setting.base.residuals)}
+                    **({"grouser": with_lug_ripple(CANDIDATES["grouser"], setting.problem, setting.base.params,
+                                                   setting.base.residuals)} if "grouser" in setting.names else {})}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,
                         registering[0] if registering else None, periodic_bases=bases)
         stack.callback(lambda: search.problem.terrain_replicas and search.problem.terrain_replicas.close())
@@ -417,7 +417,9 @@ def _first_fits(search: Search, setting: Setting) -> tuple[list[FitResult], list
 
     Starting at the base optimum with the extension at (or next to) its neutral setting is
     starting at the base model: least squares accepts only improving steps, so a nested
-    extension can never end worse than the base on the training data."""
+    extension can never end worse than the base on the training data (the grouser carrying a lug
+    ripple is the exception: it starts with the ripple on and is fitted on a loss that keeps the
+    ripple, ripple_nuisance.with_lug_ripple)."""
     names, base, problem = setting.names, setting.base, setting.problem
     start_soil = {k: base.params[k] for k in SOIL_PARAMETERS}
     first_starts = {"soil_patch": patch_start(search.campaign, problem, base.residuals)}
