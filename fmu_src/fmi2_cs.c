@@ -498,9 +498,9 @@ typedef struct {
 /* Raised with every change of ModelState's layout (2: the wheels' spin angles; 3: the automatic
  * step's last step; 4: the side bodies in the derived data; 5: the terrain's tilt; 6: the
  * automatic step's last correction; 7: the terrain's fingerprint; 8: the drive terms of the automatic
- * step's last step), so that a state saved by another version of the FMU is refused as such, even at
+ * step's last step; 9: the grouser's lug phases), so that a state saved by another version of the FMU is refused as such, even at
  * an equal size. */
-#define SNAPSHOT_VERSION 8u
+#define SNAPSHOT_VERSION 9u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)
 {
