@@ -495,11 +495,13 @@ typedef struct {
 } Snapshot;
 
 #define SNAPSHOT_MAGIC 0x54534f4e554a4d46ull /* "FMJUNOST" */
-/* Raised with every change of ModelState's layout (2: the wheels' spin angles; 3: the automatic
- * step's last step; 4: the side bodies in the derived data; 5: the terrain's tilt; 6: the
- * automatic step's last correction; 7: the terrain's fingerprint; 8: the drive terms of the automatic
- * step's last step; 9: the grouser's lug phases), so that a state saved by another version of the FMU is refused as such, even at
- * an equal size. */
+/* Raised with every change of ModelState's layout or of what its fields mean (2: the wheels' spin
+ * angles; 3: the automatic step's last step; 4: the side bodies in the derived data; 5: the
+ * terrain's tilt; 6: the automatic step's last correction; 7: the terrain's fingerprint; 8: the
+ * drive terms of the automatic step's last step; 9: the grouser's lug phases, and the
+ * fingerprint's hash of the elevations a word at a time), so that a state saved by another
+ * version of the FMU is refused as such, even at an equal size, and not as one taken on other
+ * ground. */
 #define SNAPSHOT_VERSION 9u
 
 static void take_snapshot(const Instance *inst, Snapshot *snap)

@@ -41,9 +41,9 @@ int terrain_read(Terrain *t, FILE *f, const char *name, char *err, size_t errlen
 
 void terrain_free(Terrain *t);
 
-/* A 64-bit hash (FNV-1a) of the grid's size, placement and elevations: equal for the same ground
- * read from any path, different (but for a hash collision) for other ground; flat ground has its
- * own. */
+/* A 64-bit hash (FNV-1a; the elevations a 64-bit word at a time) of the grid's size, placement
+ * and elevations: equal for the same ground read from any path, different (but for a hash
+ * collision) for other ground; flat ground has its own. */
 uint64_t terrain_fingerprint(const Terrain *t);
 
 /* Elevation (m) and unit upward surface normal at (x, y).  Inside the

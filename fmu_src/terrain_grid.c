@@ -9,6 +9,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 void terrain_init_flat(Terrain *t)
 {
@@ -26,14 +27,42 @@ void terrain_free(Terrain *t)
     terrain_init_flat(t);
 }
 
+#define FNV_PRIME 1099511628211ull
+
 static uint64_t fnv1a_more(uint64_t h, const void *data, size_t n)
 {
     const unsigned char *bytes = (const unsigned char *)data;
     for (size_t i = 0; i < n; ++i) {
         h ^= bytes[i];
-        h *= 1099511628211ull;
+        h *= FNV_PRIME;
     }
     return h;
+}
+
+/* The elevations' share of the fingerprint: FNV-1a's step (xor, multiply by its prime) on whole
+ * 64-bit words, each word then folded down (h ^= h >> 29) so that its high bits reach the low
+ * bits of the next product, in four lanes side by side.  A byte at a time, one multiplication
+ * waits for the one before: about 1.9 ms of CPU for a 901 x 231 grid, against 0.15 ms. */
+static uint64_t words_fingerprint(uint64_t h, const double *z, size_t n)
+{
+    enum { LANES = 4 };
+    uint64_t lane[LANES];
+    for (int l = 0; l < LANES; ++l) lane[l] = h ^ (uint64_t)(l + 1);
+    size_t k = 0;
+    for (; k + LANES <= n; k += LANES)
+        for (int l = 0; l < LANES; ++l) {
+            uint64_t w;
+            memcpy(&w, &z[k + (size_t)l], sizeof w);
+            lane[l] = (lane[l] ^ w) * FNV_PRIME;
+            lane[l] ^= lane[l] >> 29;
+        }
+    for (; k < n; ++k) {
+        uint64_t w;
+        memcpy(&w, &z[k], sizeof w);
+        lane[0] = (lane[0] ^ w) * FNV_PRIME;
+        lane[0] ^= lane[0] >> 29;
+    }
+    return fnv1a_more(h, lane, sizeof lane);
 }
 
 uint64_t terrain_fingerprint(const Terrain *t)
@@ -44,7 +73,7 @@ uint64_t terrain_fingerprint(const Terrain *t)
     h = fnv1a_more(h, &t->x0, sizeof t->x0);
     h = fnv1a_more(h, &t->y0, sizeof t->y0);
     h = fnv1a_more(h, &t->cell, sizeof t->cell);
-    if (t->z) h = fnv1a_more(h, t->z, (size_t)t->ncols * (size_t)t->nrows * sizeof *t->z);
+    if (t->z) h = words_fingerprint(h, t->z, (size_t)t->ncols * (size_t)t->nrows);
     return h;
 }
 

@@ -1106,6 +1106,41 @@ static void test_several_points_at_once(void)
     }
 }
 
+/* The fingerprint tells grids apart by any one elevation: a change of any single bit of any
+ * elevation, whichever of the hash's lanes the node falls in and in the tail of a grid whose node
+ * count is not a multiple of them, changes it; the same elevations and placement give the same
+ * fingerprint, and so does a copy of the grid in other memory. */
+static void test_fingerprint_sees_every_elevation(void)
+{
+    enum { NC = 7, NR = 3 };                          /* 21 nodes: five rows of four lanes and a tail */
+    double z[NC * NR], copy[NC * NR];
+    for (int k = 0; k < NC * NR; ++k) z[k] = copy[k] = urand(-0.5, 0.5);
+    Terrain t = {NC, NR, 1.0, 2.0, 0.05, z}, u = {NC, NR, 1.0, 2.0, 0.05, copy};
+    const uint64_t h = terrain_fingerprint(&t);
+    CHECK(terrain_fingerprint(&u) == h, "the same elevations in other memory: another fingerprint");
+    int unchanged = 0;
+    for (int k = 0; k < NC * NR; ++k)
+        for (int bit = 0; bit < 64; ++bit) {
+            uint64_t w;
+            memcpy(&w, &z[k], sizeof w);
+            w ^= 1ull << bit;
+            memcpy(&z[k], &w, sizeof w);
+            if (terrain_fingerprint(&t) == h) {
+                if (unchanged++ < 5) CHECK(0, "node %d, bit %d flipped: the same fingerprint", k, bit);
+            }
+            w ^= 1ull << bit;
+            memcpy(&z[k], &w, sizeof w);
+        }
+    CHECK(unchanged == 0, "%d single-bit changes of an elevation left the fingerprint as it was", unchanged);
+    CHECK(terrain_fingerprint(&t) == h, "the elevations restored: another fingerprint");
+    Terrain moved = t;
+    moved.x0 += 0.05;
+    CHECK(terrain_fingerprint(&moved) != h, "the grid moved by a cell: the same fingerprint");
+    Terrain flat;
+    terrain_init_flat(&flat);
+    CHECK(terrain_fingerprint(&flat) != h, "flat ground has the grid's fingerprint");
+}
+
 int main(int argc, char **argv)
 {
     const char *base = argc > 1 ? argv[1] : "/tmp";
@@ -1132,6 +1167,7 @@ int main(int argc, char **argv)
     test_block_boundaries();
     test_token_ends();
     test_free();
+    test_fingerprint_sees_every_elevation();
 
     remove_fixtures();
     printf("%d passed, %d failed\n", n_pass, n_fail);
