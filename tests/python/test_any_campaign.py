@@ -29,6 +29,9 @@ and diagnosed as well:
   lists no pitch among its signals;
 * a drawbar run without a steady window: the paper-style fit says it averages the whole run;
 * one diagnosis opens one snapshot of the FMU, and ``juno validate`` grids as the others do.
+* the replay's own bias (the parametric bootstrap): on exact data it is the fit's whole error,
+  it is estimated by default only where a column is missing, and a terrain run's twin rolls over
+  the run's own scan.
 
 Campaigns are short (``time_scale`` 0.25-0.3: runs of 5.5-10 s), so each test takes seconds.
 A diagnosis is run once, of one candidate, for what it says of the columns a campaign lacks; its
@@ -601,6 +604,32 @@ def test_on_exact_data_the_stated_replay_bias_is_the_fits_whole_error(exact_shor
         assert result.std[k] == pytest.approx(float(np.hypot(result.std_statistical[k], result.replay_bias[k])))
     if not imu_angles:
         assert abs(result.replay_bias["soil.kh"]) > 2 * result.std_statistical["soil.kh"]
+
+
+def test_the_bias_bootstraps_twin_of_a_terrain_run_rolls_over_the_runs_own_scan(exact_short_campaign, tmp_path,
+                                                                                 harness_fmu):
+    """With ``--with-terrain`` the bootstrap simulates each terrain run too (synthetic_run on the
+    run's gridded scan, driven by its measured torques): at the truth's soil the twin of an exact
+    campaign's terrain run reproduces its pose over the mound (height within 1 mm, roll and pitch
+    within 0.1 deg) at the measured samples' own times, and a terrain run given no grid is refused
+    rather than simulated on flat ground."""
+    from juno.identify.base import terrain_grids
+    from juno.identify.replay_bias import synthetic_run
+    campaign = load_campaign(exact_short_campaign)
+    run = next(r for r in campaign.runs if r.kind == "terrain")
+    data = read_run(campaign, run)
+    grid = terrain_grids(campaign, tmp_path, "identify --with-terrain")[run.id]
+    twin = synthetic_run(harness_fmu, campaign, run, data, truth_soil(exact_short_campaign), terrain_file=grid)
+    np.testing.assert_array_equal(twin.time, data.time)
+    for column, tolerance in (("pos_z", 1e-3), ("roll", np.radians(0.1)), ("pitch", np.radians(0.1))):
+        measured, simulated = data.columns[column], twin.columns[column]
+        sampled = np.isfinite(measured)
+        np.testing.assert_array_equal(np.isfinite(simulated), sampled)
+        error = float(np.max(np.abs(simulated[sampled] - measured[sampled])))
+        say(f"{run.id} {column}: twin minus measured at most {error:.2e}")
+        assert error <= tolerance, (column, error)
+    with pytest.raises(ValueError, match="gridded terrain"):
+        synthetic_run(harness_fmu, campaign, run, data, truth_soil(exact_short_campaign), terrain_file=None)
 
 
 def test_with_every_column_the_fit_states_the_noise_alone_unless_asked_for_the_bias(exact_short_campaign,
