@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .campaign import RunData, travel_direction
-from .sensor_noise import column_noise
+from .sensor_noise import sensor_noise
 
 #: Travel (m) over which the start heading is taken from the track.
 START_TRAVEL = 0.5
@@ -53,7 +53,7 @@ def start_heading(data: RunData, name: str = "") -> Heading:
     ValueError when there is no yaw and the rover travels less than LEAST_TRAVEL."""
     if data.has("yaw"):
         t, yaw = data.samples("yaw")
-        return Heading(float(yaw[0]), column_noise(t, yaw), "yaw")
+        return Heading(float(yaw[0]), sensor_noise(data, "yaw"), "yaw")
     tx, x = data.samples("pos_x")
     ty, y = data.samples("pos_y")
     y = np.interp(tx, ty, y)

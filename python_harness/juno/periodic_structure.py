@@ -61,7 +61,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .sensor_noise import column_noise
+from .sensor_noise import sensor_noise
 
 #: At most this many false ripple reports per campaign (Sidak over the N's, Bonferroni over signals).
 FALSE_ALARM = 0.01
@@ -382,7 +382,7 @@ def series_of_residuals(prepared: Sequence[Any], meta: Mapping[str, np.ndarray],
     (identify.PreparedRun; ``residuals`` scaled as identify.run_residuals gives them, labelled by
     ``meta``, training samples ``train``), in N m, with each side's wheel angle from the measured
     run (``data``: run id -> campaign.RunData).  ``noise``: the sensor noise of (run, column)
-    when known (sensor_noise.column_noise is used otherwise)."""
+    when known (juno.sensor_noise.sensor_noise, stated or estimated, otherwise)."""
     out = []
     start = 0
     for p in prepared:
@@ -403,7 +403,7 @@ def series_of_residuals(prepared: Sequence[Any], meta: Mapping[str, np.ndarray],
             tw, w = d.samples(spin)
             t = meta["time"][here][mine]
             known = (noise or {}).get((p.run_id, column))
-            sensor = known if known is not None else column_noise(*d.samples(column))
+            sensor = known if known is not None else sensor_noise(d, column)
             out.append(PeriodicSeries(p.run_id, column, t, residuals[here][mine] * sigma, meta["block"][here][mine],
                                       wheel_angle(tw - t0, w, t), float(sensor), float(np.median(np.diff(ts))),
                                       float(np.percentile(w[np.isfinite(w)], 95))))

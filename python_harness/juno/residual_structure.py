@@ -16,10 +16,12 @@ Method (docs/diagnosis.md, "What no candidate explains"):
 2. **Noise from the data.** Each measured column's sensor noise (1 sigma) is estimated from the
    column itself, by the median absolute second difference of its samples (a smooth signal's
    second differences are near zero at the sensor rates; white noise's have variance
-   6 sigma^2).  No scale is assumed.
+   6 sigma^2).  No scale is assumed; where the campaign's manifest states a column's noise
+   (a filtered column's, which the second differences underestimate), that value is used
+   (juno.sensor_noise.sensor_noise).
 3. **The null distribution by simulation** (a parametric bootstrap): REPLICAS times, the
    measured inputs and the measured start pose the replay begins from get fresh white noise at
-   their estimated sigma (a start heading taken from the track, without a yaw column, at its own
+   their sigma (a start heading taken from the track, without a yaw column, at its own
    standard error: juno.heading) and the run is replayed with
    the same parameters; the measured outputs get fresh white noise, processed as the
    comparison processes them (position increments).  The replicas' block means give, for each
@@ -68,7 +70,7 @@ from .identify import PreparedRun, run_residuals
 from .periodic_structure import (PeriodicBases, PeriodicSignal, PeriodicStructure, periodic_structure,
                                  series_of_residuals)
 from .rover_model import SOIL_PARAMETERS
-from .sensor_noise import column_noise
+from .sensor_noise import sensor_noise
 from .timing_structure import SignalOffset, TimingStructure, regressors, timing_structure
 from .parallel import FMUHandle, TaskPool, map_tasks, resolve_workers
 from .simulator import JunoFMU, SimulationError
@@ -174,7 +176,7 @@ class SignalStructure:
     signal: str
     unit: str
     blocks: int
-    noise: float                  # sensor noise, 1 sigma, signal units (estimated from the data)
+    noise: float                  # sensor noise, 1 sigma, signal units (stated or estimated: sensor_noise)
     structure_rms: float          # RMS of the block means beyond the null, signal units
     ratio: float                  # structure_rms / noise
     p_value: float
@@ -473,7 +475,7 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     given = data or {}
     data = {p.run_id: given[p.run_id] if p.run_id in given else read_run(campaign, p.run_id) for p in tested}
     columns = set(INPUT_COLUMNS) | set(START_POSE_COLUMNS) | {c for p in tested for c in p.targets}
-    noise = {(p.run_id, c): column_noise(*data[p.run_id].samples(c)) for p in tested for c in columns
+    noise = {(p.run_id, c): sensor_noise(data[p.run_id], c) for p in tested for c in columns
              if data[p.run_id].has(c)}
     for p in tested:     # a start heading taken from the track has its own error (juno.heading)
         if not data[p.run_id].has("yaw"):

@@ -15,8 +15,8 @@ registration's held-out evidence fits them.  On each held-out 4 s block the mean
 each signal is taken: sensor noise mostly averages away (4 mm over 40 samples is 0.6 mm), what
 is left is the kinematic model's own error (the rover does not rest exactly as posed: its
 sinkage follows the load, and it pitches as it climbs) plus any disagreement between scan and
-ground.  What the noise leaves (each block's sigma^2 / n, sigma estimated from the measured
-column: juno.sensor_noise) is taken off the block means' mean square.
+ground.  What the noise leaves (each block's sigma^2 / n, sigma stated in the manifest or estimated
+from the measured column: juno.sensor_noise) is taken off the block means' mean square.
 
 A signal disagrees when the RMS of its held-out block means beyond the sensor's noise exceeds
 its floor.  A signal whose block means carry as much noise as its floor is not judged: a
@@ -58,7 +58,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .sensor_noise import column_noise
+from .sensor_noise import sensor_noise
 
 #: The floors of the RMS of the held-out block means, per signal (m for the height, rad for the
 #: angles): about twice the largest a scan with nothing wrong left on synthetic campaigns with
@@ -275,7 +275,7 @@ def terrain_run_scan_consistency(campaign, run, grid, block_s: float, h0: float 
     train = block % 2 == 0
     if train.all() or not train.any():
         return None
-    noise = {signal: column_noise(*data.samples(column)) for signal, column in SIGNAL_COLUMNS.items()
+    noise = {signal: sensor_noise(data, column) for signal, column in SIGNAL_COLUMNS.items()
              if data.has(column)}
     return scan_consistency(grid, traverse, h0, train, block, run.id, noise)
 

@@ -19,7 +19,7 @@ from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_p
 from .heading import start_heading
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
-from .sensor_noise import column_noise
+from .sensor_noise import sensor_noise
 from .simulator import InputSignals, JunoFMU, SimulationError
 
 #: Default terrain grid resolution (m).
@@ -69,8 +69,9 @@ class ValidationResult:
     measured: dict[str, np.ndarray]
     simulated: dict[str, np.ndarray]
     rms: dict[str, float] = field(default_factory=dict)
-    #: Each measured column's sensor noise (1 sigma, SI units) estimated from the column itself
-    #: (:func:`juno.sensor_noise.column_noise`); NaN for a derived signal (speed).  An RMS
+    #: Each measured column's sensor noise (1 sigma, SI units), stated in the campaign's manifest or
+    #: estimated from the column itself (:func:`juno.sensor_noise.sensor_noise`); NaN for a
+    #: derived signal (speed).  An RMS
     #: error near it is agreement to within the sensor's noise; many times it is model error.
     noise: dict[str, float] = field(default_factory=dict)
 
@@ -133,7 +134,7 @@ def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dic
         else:
             ts, vs = data.samples(name)
             m = np.interp(times, ts - t0, vs)
-            noise[name] = column_noise(ts, vs)
+            noise[name] = sensor_noise(data, name)
         s = np.interp(times, sim["time"], sim[output])
         measured[name], simulated[name] = m, s
         # The first SETTLING s are the PID catching the measured spins (the paper's settling

@@ -21,6 +21,7 @@ from juno.campaign import (
     write_campaign,
 )
 from juno.errors import InputError
+from juno.sensor_noise import column_noise, sensor_noise
 
 RNG_SEED = 20130815
 
@@ -474,6 +475,58 @@ def test_manifest_checks(campaign_dir: Path, edit, says: str) -> None:
     (campaign_dir.parent / "outside.csv").write_text("x")
     rewrite_manifest(campaign_dir, edit)
     assert_refused(campaign_dir, file="campaign.json", says=says)
+
+
+def test_a_stated_sensor_noise_holds_for_every_run_and_a_run_may_state_its_own(campaign_dir: Path) -> None:
+    """``sensor_noise`` of the campaign holds for each drawbar and terrain run; a run's own
+    ``sensor_noise`` replaces it column by column.  A stated column's noise is the stated value,
+    every other column's is estimated from its samples."""
+    def edit(d: dict) -> None:
+        d["sensor_noise"] = {"torque_left": 0.5, "pos_z": 0.003}
+        d["runs"][1]["sensor_noise"] = {"torque_left": 0.8, "drawbar_force": 2}
+
+    rewrite_manifest(campaign_dir, edit)
+    c = load_campaign(campaign_dir)
+    assert c.sensor_noise == {"torque_left": 0.5, "pos_z": 0.003}
+    assert "sensor_noise" not in c.extra and "sensor_noise" not in c.run("dbp2").extra
+    assert read_run(c, "dbp1").stated_noise == {"torque_left": 0.5, "pos_z": 0.003}
+    assert read_run(c, "t3d").stated_noise == {"torque_left": 0.5, "pos_z": 0.003}
+    dbp2 = read_run(c, "dbp2")
+    assert dbp2.stated_noise == {"torque_left": 0.8, "pos_z": 0.003, "drawbar_force": 2.0}
+    assert sensor_noise(dbp2, "torque_left") == 0.8
+    assert sensor_noise(dbp2, "torque_right") == column_noise(*dbp2.samples("torque_right"))
+    assert sensor_noise(dbp2, "torque_right") == pytest.approx(0.5, rel=0.1)   # make_run's noise
+
+
+@pytest.mark.parametrize(
+    "edit, says",
+    [
+        (lambda d: d.update(sensor_noise={"torque_lft": 3.2}),
+         "'sensor_noise' has no column 'torque_lft': a sensor noise is stated for a measured column"),
+        (lambda d: d["runs"][1].update(sensor_noise={"time": 0.001}),
+         "runs[1] (id 'dbp2'): 'sensor_noise' has no column 'time'"),
+        (lambda d: d.update(sensor_noise={"torque_left": 0}),
+         "'sensor_noise.torque_left' must be a finite number > 0 (1 sigma, in N m), got 0"),
+        (lambda d: d["runs"][0].update(sensor_noise={"pitch": -0.003}),
+         "runs[0] (id 'dbp1'): 'sensor_noise.pitch' must be a finite number > 0 (1 sigma, in rad), got -0.003"),
+        (lambda d: d.update(sensor_noise={"pos_x": "2 mm"}), "'sensor_noise.pos_x' must be a finite number > 0"),
+        (lambda d: d.update(sensor_noise={"pos_x": True}), "'sensor_noise.pos_x' must be a finite number > 0"),
+        (lambda d: d.update(sensor_noise=3.2), "'sensor_noise' must be an object of measured columns"),
+        (lambda d: d["runs"][1].update(kind="wheel_rig", wheel={"radius": 0.1, "width": 0.1},
+                                       sensor_noise={"torque": 0.1}),
+         "runs[1] (id 'dbp2'): a wheel_rig table takes no 'sensor_noise'"),
+    ],
+)
+def test_a_stated_sensor_noise_is_checked_when_the_manifest_is_loaded(campaign_dir: Path, edit, says: str) -> None:
+    rewrite_manifest(campaign_dir, edit)
+    assert_refused(campaign_dir, file="campaign.json", says=says)
+
+
+def test_a_stated_sensor_noise_beyond_a_double_is_refused_as_not_finite(campaign_dir: Path) -> None:
+    rewrite_manifest(campaign_dir, lambda d: d.update(sensor_noise={"drawbar_force": 12345}))
+    path = campaign_dir / "campaign.json"
+    path.write_text(path.read_text().replace("12345", "1e999"))
+    assert_refused(campaign_dir, file="campaign.json", says="'sensor_noise.drawbar_force' must be a finite number > 0")
 
 
 @pytest.mark.parametrize("text, says", [('{"runs": [], "runs": []}', "twice"), ('{"name": NaN}', "NaN"), ("[1, 2]", "object")])

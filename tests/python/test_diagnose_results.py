@@ -24,7 +24,7 @@ JUDGED_KEYS = ["name", "cause", "gain", "z", "gain_by_kind", "z_by_kind", "acts"
                "extension", "soil_at_bounds", "evaluations", "failed_evaluations", "status", "wall_time"]
 RESULT_KEYS = ["cause", "causes", "explanation", "equally_good", "telling_apart", "head_to_head", "candidates",
                "second_round", "baseline", "criteria", "residual_analysis", "extended", "gain", "wall_time",
-               "unexplained", "structure", "missing_columns"]
+               "unexplained", "structure", "missing_columns", "sensor_noise"]
 
 
 def _problem() -> tuple[Problem, np.ndarray]:
@@ -125,6 +125,25 @@ def test_the_columns_a_campaign_lacks_close_the_printout_and_are_typed_in_the_js
     assert to_jsonable(public_json(result))["missing_columns"] == [
         {"column": "pitch", "kind": "drawbar", "runs": ["dbp1", "dbp2"],
          "consequence": OPTIONAL_COLUMN_USES["pitch"]["drawbar"]}]
+
+
+def test_a_stated_sensor_noise_closes_the_printout_and_every_column_s_noise_is_in_the_json():
+    """The JSON's ``sensor_noise`` gives each run's columns their noise and whether it was stated
+    or estimated; the printout names the stated columns, and warns of one far from its estimate."""
+    from juno.sensor_noise import NoiseStatement, far_from_estimate
+    assert public_json(_no_cause_result())["sensor_noise"] == []
+    statements = [NoiseStatement("dbp1", "torque_left", 3.2, "stated", 0.25, 3.2, far_from_estimate(3.2, 0.25)),
+                  NoiseStatement("dbp1", "omega_left", 0.005, "estimated", 0.005, None, None)]
+    result = replace(_no_cause_result(), sensor_noise=statements)
+    assert summary_lines(result)[-2:] == [
+        "sensor noise stated in the manifest: torque_left 3.2 in run dbp1 (estimated 0.25); every other column's is "
+        "estimated from its samples",
+        "warning: column 'torque_left' of run dbp1: " + far_from_estimate(3.2, 0.25)]
+    assert to_jsonable(public_json(result))["sensor_noise"] == [
+        {"run": "dbp1", "column": "torque_left", "noise": 3.2, "source": "stated", "estimated": 0.25, "stated": 3.2,
+         "warning": far_from_estimate(3.2, 0.25)},
+        {"run": "dbp1", "column": "omega_left", "noise": 0.005, "source": "estimated", "estimated": 0.005,
+         "stated": None, "warning": None}]
 
 
 def test_a_branch_contender_ranks_like_a_judged_candidate():

@@ -9,6 +9,9 @@
   signal's nominal scale.
 * A campaign whose total station is ten times noisier than the paper's gets its positions
   weighed down accordingly, and the joint fit's uncertainty still covers the truth.
+* A filtered column's noise is estimated at a fraction of the truth; the manifest may state it
+  (``sensor_noise``): the stated value is then used, the outputs say which noise was stated and
+  which estimated, and a stated value far from the estimate is reported, naming the column.
 """
 
 from __future__ import annotations
@@ -22,7 +25,9 @@ import pytest
 from harness_fixtures import say
 from juno.campaign import load_campaign
 from juno.identify import INCREMENT_SIGNALS, JOINT_SIGNALS, identify_joint, prepare_run
-from juno.sensor_noise import column_noise, quantisation_step, residual_scale
+from juno.campaign import write_campaign
+from juno.sensor_noise import (FAR_FACTOR, column_noise, far_from_estimate, noise_statements, quantisation_step,
+                               residual_scale, stated_noise_lines)
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -90,6 +95,66 @@ def test_a_residual_is_scaled_by_the_sensor_noise_and_never_below_the_nominal_sc
     assert residual_scale(t, v, nominal=3.0, increment=True) == pytest.approx(6.0 * np.sqrt(2.0), rel=0.08)
     assert residual_scale(t, v, nominal=20.0, increment=False) == 20.0
     assert residual_scale(t[:4], v[:4], nominal=3.0, increment=False) == 3.0   # too few samples to tell
+
+
+def test_a_stated_noise_scales_a_residual_in_place_of_the_estimate_and_never_below_the_nominal_scale():
+    t, v = _signal(2, 6.0)
+    assert residual_scale(t, v, nominal=3.0, increment=False, stated=10.0) == 10.0
+    assert residual_scale(t, v, nominal=3.0, increment=True, stated=10.0) == pytest.approx(10.0 * np.sqrt(2.0))
+    assert residual_scale(t, v, nominal=3.0, increment=False, stated=1.0) == 3.0
+    assert residual_scale(t[:4], v[:4], nominal=3.0, increment=False, stated=10.0) == 10.0
+
+
+def _low_pass(v: np.ndarray, dt: float, tau: float) -> np.ndarray:
+    keep = np.exp(-dt / tau)
+    out, state = np.empty_like(v), v[0]
+    for i, x in enumerate(v):
+        state = keep * state + (1.0 - keep) * x
+        out[i] = state
+    return out
+
+
+def test_a_filtered_column_is_estimated_at_a_fraction_of_its_noise_and_its_stated_noise_is_flagged_as_far():
+    t, v = _signal(3, 3.0)
+    filtered = _low_pass(v, 0.02, 0.15)
+    estimate = column_noise(t, filtered)
+    assert estimate < 3.0 / FAR_FACTOR, f"a 0.15 s low-pass at 50 Hz leaves {estimate:.3f} of a 3.0 noise"
+    assert "filtered" in far_from_estimate(3.0, estimate, "N m")
+    assert f"({estimate:.3g} N m) is under 1/3 of the stated 3 N m" in far_from_estimate(3.0, estimate, "N m")
+    assert far_from_estimate(3.0, column_noise(t, v)) is None          # white noise: the two agree
+    assert "noisier than stated" in far_from_estimate(0.5, column_noise(t, v))
+    assert far_from_estimate(3.0, float("nan")) is None                 # too short to estimate
+
+
+def test_the_noise_statements_say_which_noise_is_stated_and_which_estimated(tmp_path):
+    t = np.arange(0.0, 20.0, 0.02)
+    runs = {}
+    for k, run in enumerate(("dbp1", "dbp2")):
+        rng = np.random.default_rng(k)
+        torque = 150.0 + 20.0 * np.sin(0.4 * t) + 3.0 * rng.standard_normal(len(t))
+        runs[run] = {"time": t, "torque_left": _low_pass(torque, 0.02, 0.15),
+                     "torque_right": torque + 1.0, "omega_left": 1.2 + 0.005 * rng.standard_normal(len(t)),
+                     "omega_right": 1.2 + 0.005 * rng.standard_normal(len(t)), "pos_x": 0.3 * t, "pos_y": 0 * t,
+                     "pos_z": 0.4 + 0 * t, "drawbar_force": 200.0 + 4.0 * rng.standard_normal(len(t))}
+    manifest = {"runs": [{"id": r, "kind": "drawbar", "file": f"runs/{r}.csv"} for r in runs],
+                "sensor_noise": {"torque_left": 3.0, "torque_right": 3.0}}
+    write_campaign(tmp_path / "c", manifest, runs)
+    statements = noise_statements(load_campaign(tmp_path / "c"))
+    by = {(s.run, s.column): s for s in statements}
+    assert by[("dbp1", "torque_left")].source == "stated" and by[("dbp1", "torque_left")].noise == 3.0
+    assert by[("dbp1", "torque_left")].estimated < 1.0 and "filtered" in by[("dbp1", "torque_left")].warning
+    assert by[("dbp2", "torque_right")].source == "stated" and by[("dbp2", "torque_right")].warning is None
+    assert by[("dbp2", "drawbar_force")].source == "estimated" and by[("dbp2", "drawbar_force")].stated is None
+    assert by[("dbp2", "drawbar_force")].noise == pytest.approx(4.0, rel=0.1)
+    assert by[("dbp2", "drawbar_force")].to_json()["source"] == "estimated"
+    lines = stated_noise_lines(statements)
+    assert lines[0].startswith("sensor noise stated in the manifest: torque_left 3 in runs dbp1, dbp2 (estimated ")
+    assert lines[0].endswith("every other column's is estimated from its samples")
+    assert len(lines) == 2, lines     # one warning for the runs alike; torque_right agrees with its estimate
+    assert lines[1].startswith("warning: column 'torque_left' of runs dbp1, dbp2: the noise estimated from its samples (")
+    assert "under 1/3 of the stated 3: the column is filtered" in lines[1]
+    assert stated_noise_lines([s for s in statements if s.source == "estimated"]) == []
+    assert noise_statements(load_campaign(tmp_path / "c"), ()) == []
 
 
 def _with_station_noise(src, dst, sigma: float, seed: int):

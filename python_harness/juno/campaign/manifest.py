@@ -10,8 +10,8 @@ from pathlib import Path, PurePosixPath
 from typing import Any, Optional, Union
 
 from ..errors import InputError, decode_input_text, read_input_bytes
-from .records import (_ID_RE, KINDS, MANIFEST_NAME, RIG_WHEEL_KEYS, Campaign, PathLike, RigSetup,
-                      RunSpec)
+from .records import (_ID_RE, COLUMN_UNITS, KINDS, MANIFEST_NAME, NOISE_COLUMNS, RIG_WHEEL_KEYS, Campaign,
+                      PathLike, RigSetup, RunSpec)
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -93,7 +93,28 @@ def _check_relative_file(root: Path, manifest: Path, value: Any, where: str, lin
     return value
 
 
-def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: dict[str, int]) -> RunSpec:
+def _parse_sensor_noise(manifest: Path, value: Any, label: str, line: Optional[int]) -> dict[str, float]:
+    """A ``sensor_noise`` object (of the run ``label`` names, "" for the campaign's): measured
+    column -> its sensor noise, 1 sigma in the column's units, a finite number > 0."""
+    if not isinstance(value, dict):
+        raise InputError(f"{label}'sensor_noise' must be an object of measured columns and their sensor noise "
+                         f"(1 sigma, in the column's units), e.g. {{\"torque_left\": 3.2}}; got {json.dumps(value)}",
+                         manifest, line)
+    out: dict[str, float] = {}
+    for column, sigma in value.items():
+        if column not in NOISE_COLUMNS:
+            raise InputError(f"{label}'sensor_noise' has no column {column!r}: a sensor noise is stated for a "
+                             f"measured column of the run CSVs ({', '.join(NOISE_COLUMNS)})", manifest, line)
+        f = _finite_number(sigma)
+        if f is None or f <= 0:
+            raise InputError(f"{label}'sensor_noise.{column}' must be a finite number > 0 (1 sigma, in "
+                             f"{COLUMN_UNITS[column]}), got {json.dumps(sigma)}", manifest, line)
+        out[column] = f
+    return out
+
+
+def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: dict[str, int],
+               campaign_noise: dict[str, float]) -> RunSpec:
     if not isinstance(entry, dict):
         raise InputError(f"runs[{i}] must be an object, got {type(entry).__name__}", manifest)
     run_id = entry.get("id")
@@ -144,9 +165,17 @@ def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: 
             if key in entry:
                 raise InputError(f"{label}: {key!r} describes a wheel_rig run's testbed; a {kind} run uses the "
                                  "campaign's 'rover'", manifest, line)
-    known = ("id", "kind", "file", "steady_window", "terrain", "wheel", "carriage_speed")
+    noise: dict[str, float] = {}
+    if kind == "wheel_rig":
+        if "sensor_noise" in entry:
+            raise InputError(f"{label}: a wheel_rig table takes no 'sensor_noise': give each value's standard "
+                             "deviation in its column's '_std' column", manifest, line)
+    else:
+        noise = {**campaign_noise, **_parse_sensor_noise(manifest, entry.get("sensor_noise", {}), f"{label}: ", line)}
+    known = ("id", "kind", "file", "steady_window", "terrain", "wheel", "carriage_speed", "sensor_noise")
     extra = {k: v for k, v in entry.items() if k not in known}
-    return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra, rig=rig)
+    return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra, rig=rig,
+                   sensor_noise=noise)
 
 
 def _check_one_file_per_run(root: Path, manifest: Path, text: str, specs: tuple[RunSpec, ...]) -> None:
@@ -233,7 +262,8 @@ def load_campaign(path: PathLike) -> Campaign:
     ``terrain`` file (the others none); ``steady_window`` is two increasing finite numbers (not
     for wheel_rig runs); a wheel_rig run has a ``wheel`` object (radius, width > 0 m; lug_height
     >= 0 m and lug_count >= 0, both 0 or both > 0) and optionally ``carriage_speed`` > 0 m/s;
-    ``rover`` maps names to finite numbers or strings; ``name`` is a string.
+    ``rover`` maps names to finite numbers or strings; ``name`` is a string; ``sensor_noise``, of
+    the campaign and of a drawbar or terrain run, maps measured columns to finite numbers > 0.
     Run CSV contents are checked by :func:`read_run`.
 
     Raises:
@@ -256,9 +286,10 @@ def load_campaign(path: PathLike) -> Campaign:
     runs = doc["runs"]
     if not isinstance(runs, list) or not runs:
         raise InputError("'runs' must be a non-empty list of run objects", manifest)
+    noise = _parse_sensor_noise(manifest, doc.get("sensor_noise", {}), "", None)
     seen: dict[str, int] = {}
-    specs = tuple(_parse_run(root, manifest, text, i, entry, seen) for i, entry in enumerate(runs))
+    specs = tuple(_parse_run(root, manifest, text, i, entry, seen, noise) for i, entry in enumerate(runs))
     _check_one_file_per_run(root, manifest, text, specs)
     rover = _parse_rover(manifest, doc.get("rover", {}))
-    extra = {k: v for k, v in doc.items() if k not in ("name", "runs", "rover")}
-    return Campaign(root=root, name=name, runs=specs, rover=rover, extra=extra)
+    extra = {k: v for k, v in doc.items() if k not in ("name", "runs", "rover", "sensor_noise")}
+    return Campaign(root=root, name=name, runs=specs, rover=rover, extra=extra, sensor_noise=noise)

@@ -34,6 +34,13 @@ OPTIONAL_COLUMNS = (
 KNOWN_COLUMNS = BASE_REQUIRED + ("drawbar_force",) + OPTIONAL_COLUMNS
 ANGLE_COLUMNS = ("roll", "pitch", "yaw")
 """Columns unwrapped (made continuous) before interpolation by :func:`aligned`."""
+#: The unit of each measured column of a run CSV (what a stated sensor noise is in).
+COLUMN_UNITS = {"torque_left": "N m", "torque_right": "N m", "omega_left": "rad/s", "omega_right": "rad/s",
+                "pos_x": "m", "pos_y": "m", "pos_z": "m", "drawbar_force": "N", "roll": "rad", "pitch": "rad",
+                "yaw": "rad", "acc_x": "m/s^2", "acc_y": "m/s^2", "acc_z": "m/s^2", "gyro_x": "rad/s",
+                "gyro_y": "rad/s", "gyro_z": "rad/s"}
+#: The columns whose sensor noise a manifest may state (``sensor_noise``): every measured column.
+NOISE_COLUMNS = tuple(COLUMN_UNITS)
 
 #: A wheel_rig table: the testbed's set point of each row (inputs of the simulation, a value in
 #: every row) and the measured columns (an empty cell: not measured at that point), each of which
@@ -85,6 +92,9 @@ class RunSpec:
         terrain: LIDAR file relative to the campaign folder (terrain runs), else None.
         extra: any other keys of the run's manifest entry, kept as read.
         rig: the testbed's wheel and carriage (wheel_rig runs), else None.
+        sensor_noise: the sensor noise stated in the manifest for this run's columns (column ->
+            1 sigma in the column's units): the campaign's ``sensor_noise``, with the run's own
+            ``sensor_noise`` in its place for the columns that states; {} when none is stated.
     """
 
     id: str
@@ -94,6 +104,7 @@ class RunSpec:
     terrain: Optional[str] = None
     extra: dict[str, Any] = field(default_factory=dict)
     rig: Optional[RigSetup] = None
+    sensor_noise: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -107,6 +118,8 @@ class Campaign:
         rover: FMU parameter overrides by FMU name (``{"wheel.width": 0.254}``); numbers stay
             int or float as written, strings stay strings.
         extra: other top-level manifest keys, kept as read.
+        sensor_noise: the sensor noise the manifest states for every time-series run (column ->
+            1 sigma in the column's units); a run's own statement is in its RunSpec.
 
     A loaded campaign is a snapshot of its folder: :func:`~juno.campaign.read_run` keeps every
     run it has read and checked here (keyed by the file and its size and modification time, so a
@@ -120,6 +133,7 @@ class Campaign:
     runs: tuple[RunSpec, ...]
     rover: dict[str, Union[float, int, str]] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    sensor_noise: dict[str, float] = field(default_factory=dict)
     #: the runs read so far: (file, kind, run id) -> (file's size and modification time, RunData)
     _runs_read: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -183,6 +197,9 @@ class RunData(_ColumnTable):
         extra: unknown columns, kept as read (float arrays, or str arrays if not all numeric).
         lines: 1-based line number of each row in the file (for messages).
         run_id: the manifest id, when read through :func:`read_run`.
+        stated_noise: the sensor noise the manifest states for the run's columns (column -> 1
+            sigma, the column's units; RunSpec.sensor_noise), when read through :func:`read_run`;
+            every other column's is estimated from its samples (juno.sensor_noise.sensor_noise).
     """
 
     path: Path
@@ -191,6 +208,7 @@ class RunData(_ColumnTable):
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     lines: Optional[NDArray[np.int64]] = None
     run_id: Optional[str] = None
+    stated_noise: dict[str, float] = field(default_factory=dict)
 
     @property
     def time(self) -> FloatArray:

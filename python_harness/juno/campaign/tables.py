@@ -270,7 +270,7 @@ def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:
                          "'juno identify' fits it", campaign.manifest_path,
                          _line_of_run(decode_input_text(campaign.manifest_path,
                                                         read_input_bytes(campaign.manifest_path)), spec.id))
-    data = _read_once(campaign, campaign.run_path(spec), spec.kind, spec.id)
+    data = _read_once(campaign, campaign.run_path(spec), spec.kind, spec.id, spec.sensor_noise)
     if spec.steady_window is not None:
         a, b = spec.steady_window
         t = data.time
@@ -306,11 +306,12 @@ def _steady_window_beyond_run(a: float, b: float, t: NDArray[np.float64]) -> str
     return ""
 
 
-def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str) -> RunData:
+def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str, stated_noise: dict[str, float]) -> RunData:
     """:func:`read_run_csv` of a run of ``campaign``, read once for as long as its file is unchanged
     (the same size and modification time): every phase of an analysis reads the runs it needs, and
     a run's file is parsed and checked once.  The arrays of a run kept so are read-only, so that no
-    reader changes what the next one is given."""
+    reader changes what the next one is given.  ``stated_noise``: the manifest's sensor noise of
+    the run's columns (RunData.stated_noise)."""
     try:
         st = path.stat()
         stamp: Optional[tuple[int, int, int]] = (st.st_size, st.st_mtime_ns, st.st_ino)
@@ -321,6 +322,7 @@ def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str) -> RunDat
     if stamp is not None and kept is not None and kept[0] == stamp:
         return kept[1]
     data = read_run_csv(path, kind, run_id=run_id)
+    data.stated_noise = dict(stated_noise)
     for array in (*data.columns.values(), *data.extra.values(), data.lines):
         if array is not None:
             array.setflags(write=False)

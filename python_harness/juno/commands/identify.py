@@ -52,13 +52,15 @@ def run(args: argparse.Namespace) -> int:
     from ..campaign import load_campaign, missing_columns
     from ..identify import identify_joint, identify_multistart, identify_paper_runs, terrain_grids
     from ..plausibility import enforce_plausibility
+    from ..sensor_noise import noise_statements, stated_noise_lines
     from ..simulator import JunoFMU
     say = progress_printer(args.quiet)
     campaign = load_campaign(args.campaign)
     enforce_plausibility(campaign, force=args.force, fmu=args.fmu)
     batch = {"workers": args.workers, "scheduler": args.scheduler}
     missing = missing_columns(campaign, joint_fit_kinds(args))
-    out: dict[str, Any] = {"campaign": campaign.name, "missing_columns": missing}
+    noise = noise_statements(campaign, joint_fit_kinds(args))
+    out: dict[str, Any] = {"campaign": campaign.name, "missing_columns": missing, "sensor_noise": noise}
     has_rig = bool(campaign.runs_of_kind("wheel_rig"))
     if args.method == "rig" or (has_rig and args.method == "both"):
         out["rig"] = _rig_fits(campaign, args, say)
@@ -107,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"joint: doubtful: {doubt}")
     for m in missing:
         print(m.sentence())
+    for line in stated_noise_lines(noise):
+        print(line)
     write_json(args.json, out, "identify")
     return 0
 

@@ -64,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from ..campaign import load_campaign, missing_columns
     from ..identify import identify_joint, require_runs
     from ..plausibility import enforce_plausibility
+    from ..sensor_noise import noise_statements, stated_noise_lines
     from ..simulator import JunoFMU
     from ..validate import GRID_CELL, validate_run
     say = progress_printer(args.quiet)
@@ -74,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
     require_runs(campaign, "validate")
     # the terrain runs are replayed; the drawbar runs too when the soil is identified here first
     missing = missing_columns(campaign, ("terrain",) if soil is not None else ("drawbar", "terrain"))
+    statements = noise_statements(campaign, ("terrain",) if soil is not None else ("drawbar", "terrain"))
     soil_doubts: list[str] = []   # why the soil identified here should not be trusted (fit_doubts)
     with JunoFMU(args.fmu) as fmu:
         if soil is None:
@@ -91,8 +93,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"the soil validated comes from a doubtful joint fit: {doubt}")
     for m in missing:
         print(m.sentence())
+    for line in stated_noise_lines(statements):
+        print(line)
     write_json(args.json, {"soil": soil, "soil_doubts": soil_doubts, "rms": results, "noise": noise,
-                           "missing_columns": missing}, "validate")
+                           "missing_columns": missing, "sensor_noise": statements}, "validate")
     return 0
 
 

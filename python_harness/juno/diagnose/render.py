@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..registration import OFFSET_NAMES
+from ..sensor_noise import stated_noise_lines
 from .candidates import CANDIDATES
 from .results import DiagnosisResult, Duel, JudgedCandidate, TiedPair
 from .verdict import Unexplained
@@ -36,6 +37,7 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
     if len(result.causes) > 1:
         lines.append("causes, strongest first: " + ", ".join(result.causes))
     lines += [m.sentence() for m in result.missing_columns]
+    lines += stated_noise_lines(result.sensor_noise)
     return lines
 
 

@@ -11,6 +11,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..campaign import MissingColumn
+from ..sensor_noise import NoiseStatement
 from .verdict import Unexplained
 
 
@@ -359,8 +360,9 @@ class DiagnosisResult:
     the candidates reported equally good and the runs that would tell them apart, every
     head-to-head comparison, every candidate judged (ranked) and the second round, the base
     model, the criteria, where the base model is wrong, the extended model and its gain, the
-    wall time (s), and the optional columns the campaign's runs lack with what that costs
-    (juno.campaign.missing_columns; [] when none is missing)."""
+    wall time (s), the optional columns the campaign's runs lack with what that costs
+    (juno.campaign.missing_columns; [] when none is missing), and each measured column's sensor
+    noise, stated in the manifest or estimated from its samples (juno.sensor_noise.noise_statements)."""
 
     cause: str
     causes: list[str]
@@ -380,6 +382,7 @@ class DiagnosisResult:
     unexplained: Unexplained | None = None        # structure the named causes (or none) leave
     structure: dict[str, Any] | None = None       # residual structure tests: "base", "extended"
     missing_columns: list[MissingColumn] = field(default_factory=list)
+    sensor_noise: list[NoiseStatement] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``juno diagnose --json`` (everything but the figures' data)."""

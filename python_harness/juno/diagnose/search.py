@@ -37,6 +37,7 @@ from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_
 from ..parallel import BackgroundTask, TaskPool
 from ..periodic_structure import PeriodicBases, PeriodicStructure, periodic_structure, series_of_residuals
 from ..residual_structure import UNITS, ResidualStructure, residual_structure
+from ..sensor_noise import noise_statements
 from ..scan_consistency import ScanTests, campaign_scan_consistency
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive
 from .terrain_replicas import terrain_replicas
@@ -167,6 +168,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
     names = list(candidates or CANDIDATES)
     require_runs(campaign, "diagnose")
     missing = missing_columns(campaign)
+    noise = noise_statements(campaign)
     with tempfile.TemporaryDirectory(prefix="juno-diagnose-") as tmp, contextlib.ExitStack() as stack:
         fmu_path = fmu_snapshot(fmu_path, tmp, scheduler)
         registering: list[BackgroundTask] = []
@@ -198,7 +200,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
                               judged, (structures[0], structures[1]), untested)
     if result.structure is not None:
         result.structure["scan"] = scan.to_json() if scan is not None else None
-    return replace(result, missing_columns=missing)
+    return replace(result, missing_columns=missing, sensor_noise=noise)
 
 
 def scan_against_pose(campaign: Campaign, grids: dict[str, Any], say: Callable[[str], None]) -> ScanTests | None:
@@ -392,7 +394,7 @@ def first_round(search: Search, setting: Setting) -> FirstRound:
 def wheel_angle_ripple(search: Search, model: FitResult) -> PeriodicStructure | None:
     """The periodic test (juno.periodic_structure) of ``model``'s held-out drive torques on the
     drawbar runs: whether they ripple with the wheel angle at a lug count.  No simulation: the
-    residuals are the model's, the sensor noise is estimated from the data, and the ripple is in
+    residuals are the model's, the sensor noise is stated or estimated from the data, and the ripple is in
     every catalog model's residuals alike (none makes one).  None without a drawbar run that
     measures a drive torque and its side's spin."""
     found = ripple_of(search.campaign, search.problem, model, search.periodic_bases)

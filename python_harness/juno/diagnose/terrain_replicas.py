@@ -14,9 +14,9 @@ fresh sensor noise put the candidate's difference from the base model at 0.9 of 
 
 Method (a parametric bootstrap, as the structure test's, juno.residual_structure): REPLICAS
 times, every column of each terrain run's measurements gets fresh white noise at its sensor
-noise estimated from the column (juno.sensor_noise), and the run is prepared from those samples
-exactly as the measured run is (the replay's inputs and start pose from the noisy inputs, the
-compared outputs noisy too).  Every model is replayed on the same replicas, so two models'
+noise, stated in the manifest or estimated from the column (juno.sensor_noise), and the run is
+prepared from those samples exactly as the measured run is (the replay's inputs and start pose
+from the noisy inputs, the compared outputs noisy too).  Every model is replayed on the same replicas, so two models'
 replica losses are paired.  A model's replica loss is its held-out terrain mean square (capped
 as the judging caps it, judging.capped_square).  For a reference and a candidate, the standard
 deviation of their loss difference over the replicas is the standard error of the observed
@@ -36,7 +36,7 @@ import numpy as np
 
 from ..campaign import Campaign, RunData, load_campaign, read_run
 from ..identify import prepare_run
-from ..sensor_noise import column_noise
+from ..sensor_noise import sensor_noise
 from ..simulator import JunoFMU
 from .judging import capped_square
 from .problem import Problem, residuals_or_failure, run_kinds
@@ -53,19 +53,19 @@ NOISY_COLUMNS = ("torque_left", "torque_right", "omega_left", "omega_right", "dr
 
 
 def _noisy(rng: np.random.Generator, data: RunData) -> RunData:
-    """A copy of ``data`` whose noisy columns carry fresh white noise at each one's estimated
-    sensor noise, on their own samples (empty cells stay empty)."""
+    """A copy of ``data`` whose noisy columns carry fresh white noise at each one's sensor noise
+    (stated in the manifest or estimated, juno.sensor_noise.sensor_noise), on their own samples (empty cells stay empty)."""
     columns = dict(data.columns)
     for name in NOISY_COLUMNS:
         if not data.has(name):
             continue
         t, v = data.samples(name)
-        sigma = column_noise(t, v)
+        sigma = sensor_noise(data, name)
         values = columns[name].copy()
         own = ~np.isnan(values)
         values[own] = values[own] + sigma * rng.standard_normal(int(own.sum()))
         columns[name] = values
-    return RunData(data.path, data.kind, columns, data.extra, data.lines, data.run_id)
+    return RunData(data.path, data.kind, columns, data.extra, data.lines, data.run_id, dict(data.stated_noise))
 
 
 @dataclass

@@ -240,9 +240,9 @@ def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Seq
     """The comparison targets of a run: measured column -> (times s from the run's start, values,
     FMU output, sigma, lag s), every ``stride``-th sample after SETTLING_TIME, leaving out
     SEGMENT_SETTLE s after each restart of a segmented replay; a position column becomes its
-    increments over POSITION_LAG.  sigma is the compared quantity's sensor noise estimated from
-    the run, never below the signal's nominal scale (sensor_noise.residual_scale); the nominal
-    scale alone unless ``from_data``."""
+    increments over POSITION_LAG.  sigma is the compared quantity's sensor noise, stated in the
+    manifest or estimated from the run, never below the signal's nominal scale
+    (sensor_noise.residual_scale); the nominal scale alone unless ``from_data``."""
     targets = {}
     for column, (output, nominal) in signals.items():
         if not data.has(column):
@@ -250,7 +250,8 @@ def _targets(data: RunData, signals: dict[str, tuple[str, float]], segments: Seq
         ts, vs = data.samples(column)
         ts = ts - data.time[0]
         lag = POSITION_LAG if column in INCREMENT_SIGNALS else 0.0
-        sigma = residual_scale(ts, vs, nominal, increment=lag > 0) if from_data else nominal
+        sigma = (residual_scale(ts, vs, nominal, increment=lag > 0, stated=data.stated_noise.get(column))
+                 if from_data else nominal)
         if lag > 0:
             vs = vs - np.interp(ts - lag, ts, vs)
         keep = ts >= max(SETTLING_TIME, lag + ts[0])
