@@ -10,6 +10,7 @@ by ``juno synthesize`` (every hidden effect, with and without sensor noise) rais
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import shutil
 import time
@@ -26,6 +27,7 @@ from juno.effects import ALTERNATIVE_FORMS, EFFECTS
 from juno.plausibility import (Finding, PlausibilityError, check_campaign, enforce_plausibility,
                                outlier_threshold_k, rover_limits)
 from juno.pointcloud import GRID_MARGIN, format_xyz, gross_outliers, read_xyz
+from juno.sensor_noise import column_noise
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -136,6 +138,36 @@ def freeze_position(run: str, after: float) -> Callable[[Path], None]:
     return apply
 
 
+def state_noise(noise: dict[str, float], run: str | None = None) -> Callable[[Path], None]:
+    """The manifest states ``noise`` (column -> 1 sigma) for ``run``, or for the campaign (None)."""
+    def apply(root: Path) -> None:
+        path = root / "campaign.json"
+        doc = json.loads(path.read_text())
+        entry = doc if run is None else next(r for r in doc["runs"] if r["id"] == run)
+        entry["sensor_noise"] = noise
+        path.write_text(json.dumps(doc, indent=2))
+    return apply
+
+
+def low_pass_with_stated_noise(run: str, name: str, tau: float) -> Callable[[Path], None]:
+    """The column passes through a first-order low-pass of ``tau`` s, and the manifest states
+    the noise it had before (its estimate from the unfiltered samples)."""
+    def apply(root: Path) -> None:
+        def change(c):
+            own = ~np.isnan(c[name])
+            t, v = c["time"][own], c[name][own]
+            keep = np.exp(-float(np.median(np.diff(t))) / tau)
+            out, state = np.empty_like(v), v[0]
+            for i, x in enumerate(v):
+                state = keep * state + (1.0 - keep) * x
+                out[i] = state
+            state_noise({name: float(column_noise(t, v))}, run)(root)
+            c[name] = c[name].copy()
+            c[name][own] = out
+        edit_run(root, run, change)
+    return apply
+
+
 def edit_scan(change: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path], None]:
     def apply(root: Path) -> None:
         path = root / "terrain" / "scan.xyz"
@@ -219,6 +251,9 @@ ERRORS = [
          "runs/dbp1.csv", "pos_z", ("another datum", "flat ground at z = 0", "312.")),
     Case("path far off the scan", cropped(0.5), "error", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan terrain/scan.xyz during", "s (")),
+    Case("a height noise stated in millimetres", state_noise({"pos_z": 3.0}), "error", "runs/dbp1.csv", "pos_z",
+         ("the manifest states a sensor noise of 3 m (1 sigma)", "more than the column's whole range in this run",
+          "another unit")),
 ]
 
 WARNINGS = [
@@ -238,6 +273,11 @@ WARNINGS = [
          ("gross outliers", "dropped")),
     Case("path briefly off the scan", cropped(1.0), "warning", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan")),
+    Case("a filtered motor current with its sensor's noise stated", low_pass_with_stated_noise("dbp2", "torque_left", 0.15),
+         "warning", "runs/dbp2.csv", "torque_left",
+         ("sensor noise stated in the manifest", "N m) is under 1/3 of the stated", "filtered")),
+    Case("a noise stated far below the column's", state_noise({"omega_right": 1e-5}, "dbp3"), "warning",
+         "runs/dbp3.csv", "omega_right", ("over 3 times the stated 1e-05 rad/s", "noisier than stated")),
 ]
 
 
