@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 
 from .outputs import REPORT_MARKER, OutputError, marked_directory  # noqa: E402
 from .campaign import Campaign, forward_speed, missing_columns, read_run  # noqa: E402
+from .sensor_noise import noise_statements, stated_noise_lines  # noqa: E402
 from .identify import JointResult, PaperResult  # noqa: E402
 from . import rover_model  # noqa: E402
 from .rover_model import SOIL_PARAMETERS, Rover  # noqa: E402
@@ -239,8 +240,8 @@ def _validation_section(campaign: Campaign, validations: Sequence[tuple[str, Val
         for label, v in validations:
             first_of_run.setdefault(v.run_id, (label, v))
         lines += [f"RMS errors over each run after its first {SETTLING:g} s (the PID catching the measured "
-                  "spins). In units of each column's sensor noise, estimated from the measured column itself "
-                  "(1 is agreement to within the noise; many times it is model error):", ""]
+                  "spins). In units of each column's sensor noise, stated in the manifest or else estimated from "
+                  "the measured column itself (1 is agreement to within the noise; many times it is model error):", ""]
         for label, v in validations:
             known = [name for name in v.rms if np.isfinite(v.noise_ratio(name))]
             lines.append(f"- {v.run_id}, {label}: " + ", ".join(f"{name} {v.noise_ratio(name):.2g}" for name in known))
@@ -302,6 +303,10 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
         if missing:
             lines += ["What the campaign's runs lack, and what that costs:", ""]
             lines += [f"- {m.sentence()}" for m in missing] + [""]
+        noise = noise_statements(campaign)
+        stated = stated_noise_lines(noise)
+        if stated:
+            lines += ["The campaign's sensor noise:", ""] + [f"- {line}" for line in stated] + [""]
         if paper:
             lines += _paper_section(campaign, paper, tmp)
         if joint is not None:
@@ -332,6 +337,7 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                                                         "replay_bias": joint.replay_bias,
                                                         "doubts": list(joint.doubts)},
                    "missing_columns": [m.to_json() for m in missing],
+                   "sensor_noise": [n.to_json() for n in noise],
                    # run id -> parameter set -> RMS errors: one entry per terrain run
                    "validation": _validation_summary(validations)}
         if rig is not None:

@@ -725,3 +725,27 @@ def test_validate_that_identifies_first_says_when_the_soil_it_validates_is_doubt
     assert any("structure beyond sensor noise" in d for d in doubts), doubts
     for d in doubts:
         assert f"the soil validated comes from a doubtful joint fit: {d}\n" in proc.stdout
+
+
+def _torque_noise_stated(root: Path, manifest: dict) -> None:
+    manifest["sensor_noise"] = {"torque_left": 3.0, "torque_right": 3.0}
+
+
+def test_the_report_says_which_sensor_noise_the_manifest_states(short_campaign, tmp_path):
+    """A noise stated in the manifest is what the report's noise ratios are in units of: the
+    report lists it beside the estimate from the samples (before any estimate), and summary.json
+    carries every run's columns with the noise used and where it comes from."""
+    from juno.report import write_report
+    campaign = load_campaign(variant(short_campaign, tmp_path / "stated", manifest_change=_torque_noise_stated))
+    report = write_report(tmp_path / "report", campaign, [], None, [])
+    text = report.read_text()
+    assert "The campaign's sensor noise:" in text
+    assert "- sensor noise stated in the manifest: torque_left 3 in runs " in text
+    summary = json.loads((report.parent / "summary.json").read_text())
+    by_column = {(n["run"], n["column"]): n for n in summary["sensor_noise"]}
+    for run in campaign.runs:
+        assert by_column[(run.id, "torque_left")]["source"] == "stated"
+        assert by_column[(run.id, "torque_left")]["noise"] == 3.0
+        assert by_column[(run.id, "omega_left")]["source"] == "estimated"
+    plain = write_report(tmp_path / "plain", load_campaign(short_campaign), [], None, []).read_text()
+    assert "sensor noise" not in plain
