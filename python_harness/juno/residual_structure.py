@@ -60,7 +60,7 @@ slower than a block shows as structure), and its level does not change within a 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -458,7 +458,8 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
                        params: Mapping[str, object], seed: int = 0, replicas: int = REPLICAS,
                        wheel_radius: float | None = None, workers: int | None = 1,
                        data: Mapping[str, RunData] | None = None, pool: TaskPool | None = None,
-                       periodic_bases: PeriodicBases | None = None) -> ResidualStructure:
+                       periodic_bases: PeriodicBases | None = None,
+                       for_run: Callable[[dict[str, object], str], dict[str, object]] | None = None) -> ResidualStructure:
     """The structure test (module docstring) of the model with FMU parameters ``params``, whose
     scaled residuals over ``prepared`` (labelled by ``meta``, training blocks ``train``) are
     ``residuals``.  Deterministic for a given ``seed``, whatever ``workers`` (local processes
@@ -466,7 +467,9 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
     core), or the tasks of ``pool``, already open.  ``data``: the measured runs (run id -> RunData)
     when the caller has read them already.  ``periodic_bases``: where the periodic test keeps what
     does not depend on the residuals, for the tests of other models on the same runs
-    (juno.periodic_structure.PeriodicBases).  Raises SimulationError if a replica cannot be
+    (juno.periodic_structure.PeriodicBases).  ``for_run(extra, run_id)``: the FMU parameters of
+    run ``run_id`` from the model's parameters beyond the soil (a caller whose models give some
+    parameters to some runs only, as the diagnosis's lug phases, says how); None: every run alike.  Raises SimulationError if a replica cannot be
     simulated (a model that cannot replay its own runs with noise a sensor's size)."""
     tested = [p for p in prepared if p.kind == "drawbar"]
     runs = [p.run_id for p in tested]
@@ -501,9 +504,7 @@ def residual_structure(campaign: Campaign, fmu: JunoFMU, prepared: Sequence[Prep
             run_noise = {c: noise[(p.run_id, c)] for c in columns if (p.run_id, c) in noise}
             noisy = _noisy_inputs(rng, p, data[p.run_id], run_noise)
             draws.append((noisy, _output_noise(rng, p, data[p.run_id], run_noise)))
-    # A parameter applied to some runs only (NAME@RUN,RUN: a run's lug phase) goes to those runs.
-    from .diagnose.candidates import run_parameters
-    tasks = [(FMUHandle(fmu), noisy, soil, run_parameters(extra, noisy.run_id)) for noisy, _e in draws]
+    tasks = [(FMUHandle(fmu), noisy, soil, for_run(extra, noisy.run_id) if for_run else extra) for noisy, _e in draws]
     replays = pool.map(_replica_task, tasks) if pool is not None else \
         map_tasks(_replica_task, tasks, workers=resolve_workers(workers, len(draws)))
     failure = next((f for _r, f in replays if f is not None), None)

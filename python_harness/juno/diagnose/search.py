@@ -22,7 +22,8 @@ from ..registration import HELD_OUT_RATIO, ScanRegistrations
 from ..simulator import SOIL_PARAMETERS, JunoFMU, SimulationError
 from ..telling_apart import heaviest_drawbar_load, telling_apart
 from .assemble import diagnosis_result
-from .candidates import CANDIDATES, Candidate, combined, fmu_parameters, parameters_of_a_new_run
+from .candidates import (CANDIDATES, Candidate, combined, fmu_parameters, parameters_of_a_new_run,
+                         run_parameters)
 from .fitting import (BASE_ITERATIONS, CANDIDATE_ITERATIONS, FitJob, FitResult, better_of_two_fits, fit_candidate,
                       fit_objective, run_jobs, training_objective)
 from .judging import (GAIN_MIN, NEAR_TIE, NEGLIGIBLE_CHANGE, TIE_RATIO, Z_MIN, head_to_head, judge,
@@ -266,7 +267,7 @@ def what_the_models_leave(campaign: Campaign, fmu_path: str, problem: Problem, b
             try:
                 tests.append(residual_structure(campaign, fmu, problem.prepared, problem.meta, problem.train,
                                                 m.residuals, fmu_parameters(m.params), data=data, pool=pool,
-                                                periodic_bases=bases))
+                                                periodic_bases=bases, for_run=run_parameters))
             except SimulationError as exc:
                 if not outcome.chosen:
                     raise
