@@ -749,3 +749,33 @@ def test_the_report_says_which_sensor_noise_the_manifest_states(short_campaign, 
         assert by_column[(run.id, "omega_left")]["source"] == "estimated"
     plain = write_report(tmp_path / "plain", load_campaign(short_campaign), [], None, []).read_text()
     assert "sensor noise" not in plain
+
+
+@pytest.mark.parametrize("status", ["not converged", "not identified"])
+def test_a_bias_refit_that_did_not_converge_states_no_bias(status):
+    """The bootstrap's refit is a fit like any other: one that did not converge, or did not move
+    from its start, is no estimate of the synthetic world's soil, so its offset from the fit is
+    no bias. The fit then states the noise's part alone, records the refit's status, and a doubt
+    says the bias could not be estimated; a refit stopped at its evaluation limit is stated, with
+    a doubt."""
+    from juno.identify import JointResult
+    from juno.identify.joint import EVALUATION_LIMIT, _add_replay_bias
+    from juno.identify.replay_bias import ReplayBias
+
+    def fit() -> JointResult:
+        n = len(SOIL_PARAMETERS)
+        return JointResult(params={k: 1.0 for k in SOIL_PARAMETERS}, std={k: 0.01 for k in SOIL_PARAMETERS},
+                           relative_std={k: 0.01 for k in SOIL_PARAMETERS}, correlation=np.eye(n),
+                           identifiability={k: "pinned" for k in SOIL_PARAMETERS}, cost=1.0, evaluations=20,
+                           wall_time=1.0, runs=["dbp1"], std_statistical={k: 0.01 for k in SOIL_PARAMETERS})
+    far = {k: 1.5 for k in SOIL_PARAMETERS}
+    failed = fit()
+    _add_replay_bias(failed, ReplayBias(params=far, status=status, evaluations=30, wall_time=1.0))
+    assert failed.replay_bias == {} and failed.std_systematic == {}
+    assert failed.std == failed.std_statistical
+    assert failed.bias_refit["status"] == status
+    assert any("could not be estimated" in d and status in d for d in failed.doubts), failed.doubts
+    stopped = fit()
+    _add_replay_bias(stopped, ReplayBias(params=far, status=EVALUATION_LIMIT, evaluations=30, wall_time=1.0))
+    assert stopped.replay_bias == pytest.approx({k: 0.5 for k in SOIL_PARAMETERS})
+    assert any("where that refit stopped" in d for d in stopped.doubts), stopped.doubts

@@ -33,8 +33,8 @@ class JointResult:
     own bias ``replay_bias`` measured by a parametric bootstrap at the fit, juno.identify.replay_bias)
     added in quadrature, so that it is the root mean square error of the estimate;
     ``relative_std``, ``identifiability`` and ``correlation`` are the total's.  Where the bias
-    was not estimated (``replay_bias`` empty: not asked for, or its simulations failed, which a
-    doubt says), ``std`` is the statistical part alone.  ``bias_refit``: the bootstrap's refit
+    was not estimated (``replay_bias`` empty: not asked for, its simulations failed or its refit
+    did not converge, which a doubt says), ``std`` is the statistical part alone.  ``bias_refit``: the bootstrap's refit
     (its status, evaluations, seconds), None without one.
 
     ``status``: "ok", EVALUATION_LIMIT when the search used its budget (``max_evaluations``)
@@ -306,7 +306,17 @@ def _add_replay_bias(result: JointResult, refit: ReplayBias) -> None:
     """States the bootstrap's bias as the systematic part of ``result``'s uncertainty: the total
     covariance is the statistical one plus b b^T (b the bias), the mean square error of an
     estimate off by b, whose diagonal is std_statistical^2 + bias^2; relative uncertainties,
-    identifiability and correlations follow the total."""
+    identifiability and correlations follow the total.  A refit that did not converge (its
+    residuals not differentiable where it stopped) or did not identify the soil (it did not move,
+    or the data does not see a parameter) estimates no bias: its point is not an estimate of the
+    synthetic world's soil, so its offset is no bias.  The result then states none, and a doubt
+    says why; a refit stopped at its evaluation limit is stated with a doubt."""
+    result.bias_refit = {"status": refit.status, "evaluations": refit.evaluations, "wall_time": refit.wall_time}
+    if refit.status in NO_BIAS_FROM_REFIT:
+        result.doubts.append(f"the replay's own bias could not be estimated (its refit ended '{refit.status}'): "
+                             "the uncertainty is the sensors' noise alone, and the replay's error, which it leaves "
+                             "out, moves the estimates by up to several of it where a campaign lacks a signal")
+        return
     names = list(SOIL_PARAMETERS)
     b = np.array([refit.params[k] - result.params[k] for k in names])
     stat = np.array([result.std_statistical[k] for k in names])
@@ -320,7 +330,6 @@ def _add_replay_bias(result: JointResult, refit: ReplayBias) -> None:
     result.correlation = corr
     result.relative_std = {k: float(std[i] / abs(result.params[k])) for i, k in enumerate(names)}
     result.identifiability = {k: classify(v) for k, v in result.relative_std.items()}
-    result.bias_refit = {"status": refit.status, "evaluations": refit.evaluations, "wall_time": refit.wall_time}
     if refit.status != "ok":
         result.doubts.append(f"the refit that estimates the replay's own bias ended '{refit.status}': the "
                              "systematic part of the uncertainty is where that refit stopped, not a converged "
@@ -465,6 +474,9 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
 
 #: The status of a joint fit that used its whole budget of evaluations without converging.
 EVALUATION_LIMIT = "stopped at the evaluation limit"
+#: The statuses of a bias refit (replay_bias) whose point is no estimate, so that no bias is
+#: stated from it (_add_replay_bias).
+NO_BIAS_FROM_REFIT = ("not converged", "not identified")
 #: Relative step of the fit's forward-difference Jacobian in the search space (log, logit).
 JACOBIAN_STEP = 1e-4
 #: The step of the second Jacobian that checks the first, ten times larger: where the residuals
