@@ -17,6 +17,11 @@
    up to about FIT_LOSS_SCALE sigma, linear beyond, so that the few seconds
    where a spin-following replay is on a knife edge (a rear wheel dropping
    into the rut, a wheel digging in at high slip) do not bend the soil.
+   Every fit, and every comparison below, takes the IMU's mounting as a
+   nuisance (sensor_offset.offset_free): the pitch residuals' mean over the
+   drawbar runs' training blocks, one constant for the campaign, is taken off
+   every pitch residual, so no cause is credited with what a mounting bias
+   explains; what the models report, and the structure test reads, keep it.
 4. Compare candidates on the held-out blocks of every run (the same data for
    all): the gain is the drop of the mean squared scaled residual (each
    capped at RESIDUAL_CAP^2: a replay that loses the rover says only that).  Physical
@@ -84,7 +89,8 @@ It never reads ``truth.json``.
 
 The modules, one concept each: ``candidates`` (the catalogue of extensions), ``problem`` (the data
 and a model's residuals on it), ``fitting`` (one model's fit, the fit loss, two fits compared),
-``starts`` (where a candidate's search starts), ``terrain_drive`` (how the terrain runs are
+``sensor_offset`` (the IMU's mounting, a nuisance of every fit and judgement), ``starts`` (where a
+candidate's search starts), ``terrain_drive`` (how the terrain runs are
 replayed), ``terrain_replicas`` (the terrain runs with fresh sensor noise, the spread their
 evidence is judged against), ``references`` (what a candidate is judged against), ``judging`` (the paired test, the
 thresholds, the judge, ranking and head to head), ``search`` (the rounds and branches, and
@@ -113,5 +119,6 @@ from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, Diagno
                       ScanRegistration, SignalGain, TiedPair, public_json)
 from .search import (branches_with_real_soil, choose_branch, diagnose, first_cause_branches, refit_from_paper_soil,
                      second_round, tie_settled, tied_models_apart, wheel_angle_ripple)
+from .sensor_offset import MOUNTED_SIGNALS, campaign_offsets, offset_free
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

@@ -16,6 +16,7 @@ from .problem import Problem
 from ..residual_structure import ResidualStructure
 from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
                       NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
+from .sensor_offset import offset_free
 from .verdict import Verdict, explanation, ripple_between_tied
 
 if TYPE_CHECKING:
@@ -70,15 +71,17 @@ def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], re
 def cause_gain(problem: Problem, run_kind: np.ndarray, base: FitResult, outcome: Outcome) -> CauseGain:
     """What the model with every named cause gains over ``base`` on the held-out blocks of every
     run, as each cause was judged (judging.judge): overall, per step (each cause against its
-    reference) and per signal; with the registration's pose evidence when it is a cause."""
+    reference) and per signal, the IMU's pitch offset taken off (sensor_offset.offset_free); with
+    the registration's pose evidence when it is a cause."""
     res, causes = outcome.chosen[-1], [r.name for r in outcome.chosen]
+    base_r, res_r = offset_free(problem, base.residuals), offset_free(problem, res.residuals)
     judged_on = sorted(set(run_kind.tolist()))
     judged = np.isin(run_kind, judged_on)
     test = ~problem.train
-    before = float(np.nanmean(capped_square(base.residuals[test & judged])))
-    after_mse = float(np.mean(capped_square(res.residuals[test & judged])))
-    after = per_signal_rms(problem, res.residuals, mask=judged)
-    before_judged = per_signal_rms(problem, base.residuals, mask=judged)
+    before = float(np.nanmean(capped_square(base_r[test & judged])))
+    after_mse = float(np.mean(capped_square(res_r[test & judged])))
+    after = per_signal_rms(problem, res_r, mask=judged)
+    before_judged = per_signal_rms(problem, base_r, mask=judged)
     steps = [outcome.best] + ([outcome.second_round[0]] if len(outcome.chosen) > 1 else [])
     per_signal = {k: SignalGain(before_judged[k], after.get(k, float("nan")),
                                 1 - after.get(k, np.nan) / before_judged[k] if before_judged[k] > 0 else 0.0)

@@ -20,6 +20,7 @@ from .candidates import Candidate, ExtParam
 from .problem import (Problem, ReplayCache, residuals_by_run, residuals_for, residuals_or_failure, run_kinds,
                       training_run)
 from .ripple_nuisance import nuisance_free
+from .sensor_offset import offset_free
 
 FIT_LOSS_SCALE = 3.0  # fits weigh scaled residuals beyond this less (soft L1); None: plain squares
 #: Trust-region iterations (each costs one evaluation plus one per parameter for the Jacobian).
@@ -165,7 +166,7 @@ class _FitSession:
         part = self.training_problem(kinds)
         params = self.space.params(x)
         r = residuals_for(self.fmu, part, params, kinds, self.replays)
-        return np.inf if r is None else fit_loss(nuisance_free(part, r, params)[part.train])
+        return np.inf if r is None else fit_loss(offset_free(part, nuisance_free(part, r, params))[part.train])
 
 
 def fit_part(problem: Problem, kinds: tuple[str, ...]) -> Problem:
@@ -245,7 +246,7 @@ class _TrainingResiduals:
                                               session.replays)
             session.log.record(failure)
         out = (np.full(self.n_train, FAILED_TRIAL_RESIDUAL) if r is None
-               else nuisance_free(self.problem, r, self.space.params(x))[self.train])
+               else offset_free(self.problem, nuisance_free(self.problem, r, self.space.params(x)))[self.train])
         if session is not None and not self._in_jacobian:
             self.steps += 1
             self._last = out
@@ -610,11 +611,12 @@ def fit_objective(problem: Problem, run_kind: np.ndarray, res: FitResult) -> flo
 
 def loss_on(problem: Problem, res: FitResult, mask: np.ndarray) -> float:
     """The mean fit_loss of a fit's residuals on ``problem`` where ``mask`` holds, a ripple the
-    fits take as a nuisance removed unless the fit makes it (ripple_nuisance.nuisance_free);
+    fits take as a nuisance removed unless the fit makes it (ripple_nuisance.nuisance_free) and
+    the IMU's pitch offset taken off (sensor_offset.offset_free), as every fit takes them;
     infinite for a failed fit."""
     if res.error or res.residuals.size == 0:
         return np.inf
-    value = fit_loss(nuisance_free(problem, res.residuals, res.params)[mask])
+    value = fit_loss(offset_free(problem, nuisance_free(problem, res.residuals, res.params))[mask])
     return value if np.isfinite(value) else np.inf
 
 

@@ -20,6 +20,7 @@ from .candidates import CANDIDATES, Candidate, makes_ripple
 from .fitting import FitResult
 from .problem import Problem
 from .results import Ablation, Duel, JudgedCandidate, KinematicEvidence, Ranked, ScanRegistration
+from .sensor_offset import offset_free
 
 Z_MIN = 2.5          # paired-test threshold for a significant held-out gain
 GAIN_MIN = 0.03      # and at least 3 % less held-out mean squared residual (per parameter added)
@@ -114,6 +115,7 @@ def paired_z(problem: Problem, base: np.ndarray, ext: np.ndarray, mask: np.ndarr
     (NaN residuals)."""
     from scipy.stats import norm
     test = ~problem.train if mask is None else (~problem.train & mask)
+    base, ext = offset_free(problem, base), offset_free(problem, ext)
     keys = np.char.add(np.char.add(problem.meta["run"][test], problem.meta["block"][test].astype(str)),
                        problem.meta["signal"][test])
     d = capped_square(base[test]) - capped_square(ext[test])
@@ -133,14 +135,17 @@ def paired_z(problem: Problem, base: np.ndarray, ext: np.ndarray, mask: np.ndarr
 
 def held_out_mse(problem: Problem, r: np.ndarray, where: np.ndarray) -> float:
     """The capped mean squared scaled residual of ``r`` on the held-out blocks within ``where``
-    (NaN residuals, of runs the model could not simulate, left out)."""
-    return float(np.nanmean(capped_square(r[~problem.train & where])))
+    (NaN residuals, of runs the model could not simulate, left out), the IMU's pitch offset taken
+    off (sensor_offset.offset_free)."""
+    return float(np.nanmean(capped_square(offset_free(problem, r)[~problem.train & where])))
 
 
 def relative_gain(problem: Problem, before_r: np.ndarray, after_r: np.ndarray, where: np.ndarray) -> float:
     """Relative drop of the held-out capped mean squared residual over ``where``, from the
-    residuals ``before_r`` to ``after_r``; -inf if the model behind ``after_r`` failed on a run."""
+    residuals ``before_r`` to ``after_r``, the IMU's pitch offset taken off both
+    (sensor_offset.offset_free); -inf if the model behind ``after_r`` failed on a run."""
     test = ~problem.train
+    before_r, after_r = offset_free(problem, before_r), offset_free(problem, after_r)
     b = float(np.nanmean(capped_square(before_r[test & where])))
     a = float(np.mean(capped_square(after_r[test & where])))
     if not np.isfinite(a):
@@ -352,7 +357,8 @@ def judge(problem: Problem, run_kind: np.ndarray, reference: FitResult, res: Fit
         gain_by_kind=gain_by_kind(problem, run_kind, reference.residuals, res.residuals), z_by_kind=zs,
         ablation=off, kinematic=kinematic_evidence(registration) if use_pose else None, judged_on=list(kinds),
         held_out_mse_before=held_out_mse(problem, reference.residuals, everywhere),
-        held_out_mse_after=float(np.mean(capped_square(res.residuals[~problem.train & everywhere]))),
+        held_out_mse_after=float(np.mean(capped_square(offset_free(problem, res.residuals)
+                                                        [~problem.train & everywhere]))),
         test_mse=res.test_mse, train_mse=res.train_mse, n_params=n_params,
         soil={k: res.params[k] for k in SOIL_PARAMETERS},
         extension={k: v for k, v in res.params.items() if candidate.owns(k)}, soil_at_bounds=at_bounds,
