@@ -119,6 +119,6 @@ from .results import (Ablation, Baseline, CauseGain, Contender, Criteria, Diagno
                       ScanRegistration, SignalGain, TiedPair, public_json)
 from .search import (branches_with_real_soil, choose_branch, diagnose, first_cause_branches, refit_from_paper_soil,
                      second_round, tie_settled, tied_models_apart, wheel_angle_ripple)
-from .sensor_offset import MOUNTED_SIGNALS, campaign_offsets, offset_free
+from .sensor_offset import MOUNTED_SIGNALS, offset_free
 from .starts import patch_grid, patch_start, registration_candidate, registration_evidence, registration_start
 from .terrain_drive import choose_terrain_drive, drive_problems, settle_terrain_drive

@@ -264,7 +264,8 @@ def is_significant(candidate: Candidate, acts: bool, gain: float, zs: dict[str, 
     reports, so a fit that ends at one is a model the data push beyond any real soil, the optimum
     of the model lying outside it.  A model with the right cause does not need that: with the
     cause in it the soil comes back to a real soil.  A discrepancy no candidate describes (a
-    pitch sensor's bias) is absorbed instead by bending the soil as far as the search allows and
+    pitch sensor's bias, with the pitch's offset held at none instead of free as sensor_offset.py
+    leaves it) is absorbed instead by bending the soil as far as the search allows and
     letting the extension repair what the bent soil spoils elsewhere (the torque, for a
     drivetrain loss): the gain is then the soil's, carried by signals the extension does not act
     on, and the ablation, which switches the extension off on that same bent soil, cannot see it."""

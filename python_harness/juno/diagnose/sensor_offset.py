@@ -16,10 +16,11 @@ taken off (:func:`offset_free`): the mean of the model's pitch residuals over th
 training blocks, one value for the campaign (one IMU, one mounting), taken off every pitch
 residual.  It is least squares' own answer for a free offset (the mean, projected out), and it
 is estimated on the training blocks alone, so the held-out blocks judge it as they judge a
-fitted parameter.  Without it, a base model bends the soil to pitch the rover, and a candidate
-that pitches it better (a multi-pass rut of 80 % of the front wheels' sinkage on soil softened
-to a quarter, on an alternative-design campaign with a pitch bias of 1.3 degrees) was credited
-with 41 % of the held-out error and named.
+fitted parameter.  With the offset held at none instead, a base model bends the soil to pitch
+the rover, and a candidate that pitches it otherwise is credited with repairing what the bent
+soil spoils: on an alternative-design campaign with a pitch bias of 1.3 degrees, a multi-pass
+rut of 80 % of the front wheels' sinkage on soil softened to a quarter gained 41 % of the
+held-out error and was named.
 
 What the models report, and what the residual structure test reads, keep the offset: a pitch
 bias stays in every model's pitch residuals alike, where the structure test finds it as pitch
@@ -50,18 +51,6 @@ def offset_free(problem: Problem, r: np.ndarray) -> np.ndarray:
         if values.size:
             out[every] -= values.mean()
     return out
-
-
-def campaign_offsets(problem: Problem, r: np.ndarray) -> dict[str, float]:
-    """Each mounted signal's campaign offset in the residuals ``r`` (scaled, as ``r``): what
-    offset_free takes off; signals with no drawbar training residual are left out."""
-    found = {}
-    for signal, (_every, training) in zip(_signals(problem), _indices(problem)):
-        values = r[training]
-        values = values[np.isfinite(values)]
-        if values.size:
-            found[signal] = float(values.mean())
-    return found
 
 
 def _signals(problem: Problem) -> list[str]:
