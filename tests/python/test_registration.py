@@ -256,6 +256,29 @@ def test_a_tilted_scan_is_registered_level_again():
     assert evidence.significant, evidence
 
 
+@pytest.mark.parametrize("as_scanned, untilted, tilted, judged, misregistered", [
+    (10.0, 2.0, 1.0, "untilted", True),   # the untilted one supported; the tilt only 2 times better than it
+    (10.0, 3.0, 0.9, "tilted", True),     # the untilted one supported; the tilt over 3 times better than it
+    (3.0, 1.6, 0.9, "tilted", True),      # the untilted one halfway (1.9 times); the tilted 3.3 times
+    (2.0, 1.5, 1.0, "tilted", False),     # no registration 3 times better than the scan as it is
+    (1.0, 1.2, 0.4, "tilted", False),     # the tilt 3 times the untilted one, only 2.5 times the scan
+], ids=["untilted supported, tilt not", "untilted supported, tilt too", "untilted halfway, tilted supported",
+        "nothing supported", "tilt against an unsupported untilted one"])
+def test_the_tilt_is_judged_against_the_best_simpler_registration_the_data_support(as_scanned, untilted, tilted,
+                                                                                    judged, misregistered):
+    """The registrations are nested (the scan as it is; shifted, raised and turned; and also
+    tilted), and at a ratio of 3 the tilt must explain the measurements 3 times better than the
+    best simpler one they support: the untilted registration where it is itself 3 times better
+    than the scan as it is, else the scan as it is.  The scan is misregistered when the
+    registration judged explains them 3 times better than the scan as it is.  A shift and a turn
+    can take up part of a tilt and leave the untilted registration halfway, where neither step
+    alone reaches the ratio: the tilt is then judged against the scan as it is, not dropped; and a
+    tilt that beats an unsupported untilted registration but not the scan as it is shows nothing."""
+    is_tilted = reg.tilt_judged(as_scanned, untilted, tilted, 3.0)
+    assert ("tilted" if is_tilted else "untilted") == judged
+    assert (as_scanned >= 3.0 * (tilted if is_tilted else untilted)) is misregistered
+
+
 def _alternate_blocks(n: int, block: int = 20) -> np.ndarray:
     """Training mask of alternating blocks of ``block`` samples, as the diagnosis splits a run."""
     return (np.arange(n) // block) % 2 == 0
@@ -351,3 +374,38 @@ def test_posed_rover_follows_the_fmu_over_the_mound(fmu_path, tmp_path, seed):
     roll_gain = np.sum(traverse.roll * roll) / np.sum(roll * roll)
     assert np.sqrt(np.mean((traverse.z - z) ** 2)) < 0.005
     assert np.sqrt(np.mean((traverse.roll - roll_gain * roll) ** 2)) < 0.010
+
+
+@pytest.mark.parametrize("design, seed, strength", [("alt", 139026, 0.936), ("default", 139014, 0.927)],
+                         ids=["ridge", "mound"])
+def test_a_scan_tilted_as_synthesize_hides_it_is_found_tilted(fmu_path, tmp_path, design, seed, strength):
+    """A scan tilted by 0.75-0.95 deg about a horizontal axis in a random direction (terrain_tilt,
+    as ``juno synthesize`` hides it), judged as the diagnosis judges it (fitted on the terrain
+    run's training blocks): the registration is tilted, its slopes within 0.4 deg of the true
+    tilt in each direction, and it explains the held-out pose more than HELD_OUT_RATIO times
+    better than the scan as it is.  In both campaigns the untilted registration explains the
+    held-out pose less than HELD_OUT_RATIO times better than the scan as it is (on the ridge no
+    better: its optimum is a shift and a turn far from the tilted one, which a search from there
+    alone does not leave), so the tilt is judged against the scan as it is; on the mound the tilt
+    is also less than HELD_OUT_RATIO times better than the untilted registration, which takes up
+    part of it."""
+    from juno.campaign import load_campaign
+    from juno.diagnose.starts import registration_evidence
+    from juno.identify import gridded_scans
+    from juno.synthesize import synthesize
+
+    with JunoFMU(fmu_path) as fmu:
+        root = synthesize(tmp_path / "campaign", effect="terrain_tilt", strength=strength, seed=seed, fmu=fmu,
+                          design=design)
+    hidden = json.loads((root / "truth.json").read_text())["hidden"]["distortion"]
+    slope, axis = math.tan(hidden["scan.tiltAngle"]), hidden["scan.tiltAxis"]
+    campaign = load_campaign(root)
+    grids = {run_id: grid for run_id, (_path, grid) in gridded_scans(campaign, tmp_path / "grids", "validate").items()}
+    evidence = registration_evidence(campaign, grids).scans[0].evidence
+    assert evidence.held_out_ms_as_scanned < reg.HELD_OUT_RATIO * evidence.held_out_ms_untilted, evidence
+    if design == "default":
+        assert evidence.held_out_ms_untilted < reg.HELD_OUT_RATIO * evidence.held_out_ms_tilted, evidence
+    assert evidence.significant and evidence.tilted, evidence
+    fitted = (evidence.offsets["terrain.slopeX"], evidence.offsets["terrain.slopeY"])
+    np.testing.assert_allclose(fitted, (slope * math.sin(axis), -slope * math.cos(axis)), rtol=0,
+                               atol=math.tan(math.radians(0.4)))
