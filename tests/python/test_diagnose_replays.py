@@ -63,14 +63,30 @@ def test_a_replay_asked_for_again_is_remembered_not_simulated(small_campaign, ha
 
 
 def test_a_lone_fit_is_the_same_with_its_jacobian_over_two_processes(small_campaign, fmu_path):
-    problem = build_problem(small_campaign(SEED, "drivetrain_loss").campaign, fmu_path, None)
+    synthetic = small_campaign(SEED, "drivetrain_loss")
+    problem = build_problem(synthetic.campaign, fmu_path, None)
     candidate = CANDIDATES["drivetrain_loss"]
-    here = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=3, workers=1)
-    spread = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=3, workers=2)
+    start = dict(start_ext=start_extension(synthetic, candidate))
+    here = fit_candidate(problem, candidate, start_soil(synthetic), max_nfev=3, workers=1, **start)
+    spread = fit_candidate(problem, candidate, start_soil(synthetic), max_nfev=3, workers=2, **start)
     assert not here.error and not spread.error
     assert here.params == spread.params
     np.testing.assert_array_equal(here.residuals, spread.residuals)
     assert here.evaluations == spread.evaluations > 3, "every Jacobian point counts as an evaluation"
+
+
+def start_soil(synthetic) -> dict[str, float]:
+    """Where these tests' short fits start: the campaign's true soil (with start_extension, its
+    true extension).  They specify how a fit's evaluations are made, not where it goes; from the
+    paper's soil and no loss, the first trust-region step of a drivetrain loss's fit on a 4 s
+    campaign goes to a soil the rover sinks into at initialisation, one failed simulation of a
+    budget of a few, which makes the fit an error."""
+    return {k: float(synthetic.truth["soil"][k]) for k in PAPER_INITIAL}
+
+
+def start_extension(synthetic, candidate) -> dict[str, float]:
+    """The campaign's true values of ``candidate``'s parameters (start_soil)."""
+    return {k: float(v) for k, v in synthetic.truth["extension"].items() if candidate.owns(k)}
 
 
 def same_fits(a, b) -> list[str]:
@@ -220,17 +236,19 @@ def test_the_jacobian_asked_for_with_the_budget_spent_is_not_simulated(small_cam
     four soil parameters and a drivetrain loss's fraction alone here) is never used, and the fit
     with it skipped is the fit that simulates it, bit for bit.  Here both steps of a two-evaluation budget are
     accepted: the start, its Jacobian, the step, and no second Jacobian (7 evaluations, not 12)."""
-    problem = build_problem(small_campaign(SEED, "drivetrain_loss").campaign, fmu_path, None)
+    synthetic = small_campaign(SEED, "drivetrain_loss")
+    problem = build_problem(synthetic.campaign, fmu_path, None)
     loss = CANDIDATES["drivetrain_loss"]
     candidate = replace(loss, params=loss.params[:1], active=loss.active[:1])
-    lean = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=2)
+    start = dict(start_ext=start_extension(synthetic, candidate))
+    lean = fit_candidate(problem, candidate, start_soil(synthetic), max_nfev=2, **start)
     init = fitting._TrainingResiduals.__init__
 
     def every_jacobian(self, *args, **kwargs):
         init(self, *args, **kwargs)
         self.max_nfev = None
     monkeypatch.setattr(fitting._TrainingResiduals, "__init__", every_jacobian)
-    full = fit_candidate(problem, candidate, dict(PAPER_INITIAL), max_nfev=2)
+    full = fit_candidate(problem, candidate, start_soil(synthetic), max_nfev=2, **start)
     assert lean.error is None and full.error is None
     assert same_fits(lean, full) == [f"evaluations: {lean.evaluations!r} != {full.evaluations!r}"]
     assert (lean.evaluations, full.evaluations) == (1 + 5 + 1, 1 + 5 + 1 + 5)
