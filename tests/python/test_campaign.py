@@ -529,6 +529,17 @@ def test_a_stated_sensor_noise_beyond_a_double_is_refused_as_not_finite(campaign
     assert_refused(campaign_dir, file="campaign.json", says="'sensor_noise.drawbar_force' must be a finite number > 0")
 
 
+def test_a_calibrated_imu_mounting_is_read_from_the_manifest_and_anything_else_refused(campaign_dir: Path) -> None:
+    """``imu_mounting``: "free" unless the manifest says "calibrated" (the pitch measured against a
+    mounting calibrated on the rover); any other value is refused, naming the key."""
+    assert load_campaign(campaign_dir).imu_mounting == "free"
+    rewrite_manifest(campaign_dir, lambda d: d.update(imu_mounting="calibrated"))
+    c = load_campaign(campaign_dir)
+    assert c.imu_mounting == "calibrated" and "imu_mounting" not in c.extra
+    rewrite_manifest(campaign_dir, lambda d: d.update(imu_mounting="levelled"))
+    assert_refused(campaign_dir, file="campaign.json", says="'imu_mounting' must be one of 'free', 'calibrated'")
+
+
 @pytest.mark.parametrize("text, says", [('{"runs": [], "runs": []}', "twice"), ('{"name": NaN}', "NaN"), ("[1, 2]", "object")])
 def test_manifest_json_strictness(campaign_dir: Path, text: str, says: str) -> None:
     (campaign_dir / "campaign.json").write_text(text)

@@ -52,6 +52,7 @@ def test_no_effect_names_no_cause(none_case):
     assert diagnosis["cause"] == "none", f"seed {seed}: a false cause was named: {candidates_summary(diagnosis)}"
     assert len(diagnosis["candidates"]) == 6
     assert diagnosis["criteria"]["terrain_replicas"] == 20, "the terrain run's evidence is judged against replicas"
+    assert diagnosis["criteria"]["pitch_offset_free"] is True, "a mounting not said to be calibrated is free"
 
 
 @pytest.mark.parametrize("effect", EFFECT_IDS)

@@ -102,7 +102,8 @@ def test_the_diagnosis_writes_its_keys_in_order_without_the_figures_data():
                                              "difference_within_campaign", "ladder"]
     assert list(out["criteria"]) == ["block_s", "z_min", "gain_min", "tie_ratio", "terrain_segment_s",
                                      "terrain_drive", "terrain_drive_training_loss", "terrain_drive_settled",
-                                     "negligible_change", "registration_held_out_ratio", "terrain_replicas"]
+                                     "negligible_change", "registration_held_out_ratio", "terrain_replicas",
+                                     "pitch_offset_free"]
     json.dumps(to_jsonable(out))
 
 

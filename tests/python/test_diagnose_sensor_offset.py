@@ -95,6 +95,15 @@ def test_a_run_the_model_could_not_simulate_stays_lost_and_the_others_are_still_
     assert np.allclose(free[first], r[first] - r[first & problem.train].mean())
 
 
+def test_with_a_calibrated_mounting_no_offset_is_taken_off():
+    """A campaign whose manifest says the IMU's mounting is calibrated (Problem.pitch_offset_free
+    False, from Campaign.imu_mounting) keeps every pitch residual: its pitch is evidence."""
+    problem, kinds, pitch, _time = _campaign()
+    problem.pitch_offset_free = False
+    r = np.random.default_rng(2).standard_normal(len(kinds)) + np.where(pitch, BIAS, 0.0)
+    assert np.array_equal(offset_free(problem, r), r)
+
+
 def test_a_problem_without_a_pitch_is_left_as_it_is():
     problem, kinds, pitch, _time = _campaign()
     problem.prepared = [p for p in problem.prepared if p.kind == "terrain"]

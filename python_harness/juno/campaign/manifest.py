@@ -13,6 +13,10 @@ from ..errors import InputError, decode_input_text, read_input_bytes
 from .records import (_ID_RE, COLUMN_UNITS, KINDS, MANIFEST_NAME, NOISE_COLUMNS, RIG_WHEEL_KEYS, Campaign,
                       PathLike, RigSetup, RunSpec)
 
+#: How a manifest may say the IMU's mounting is known (Campaign.imu_mounting).
+IMU_MOUNTINGS = ("free", "calibrated")
+
+
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -263,7 +267,8 @@ def load_campaign(path: PathLike) -> Campaign:
     for wheel_rig runs); a wheel_rig run has a ``wheel`` object (radius, width > 0 m; lug_height
     >= 0 m and lug_count >= 0, both 0 or both > 0) and optionally ``carriage_speed`` > 0 m/s;
     ``rover`` maps names to finite numbers or strings; ``name`` is a string; ``sensor_noise``, of
-    the campaign and of a drawbar or terrain run, maps measured columns to finite numbers > 0.
+    the campaign and of a drawbar or terrain run, maps measured columns to finite numbers > 0;
+    ``imu_mounting`` is "free" (the default) or "calibrated".
     Run CSV contents are checked by :func:`read_run`.
 
     Raises:
@@ -287,9 +292,15 @@ def load_campaign(path: PathLike) -> Campaign:
     if not isinstance(runs, list) or not runs:
         raise InputError("'runs' must be a non-empty list of run objects", manifest)
     noise = _parse_sensor_noise(manifest, doc.get("sensor_noise", {}), "", None)
+    mounting = doc.get("imu_mounting", "free")
+    if mounting not in IMU_MOUNTINGS:
+        raise InputError(f"'imu_mounting' must be one of {', '.join(map(repr, IMU_MOUNTINGS))} ('calibrated': the "
+                         f"pitch is measured against a mounting calibrated on the rover), got {json.dumps(mounting)}",
+                         manifest)
     seen: dict[str, int] = {}
     specs = tuple(_parse_run(root, manifest, text, i, entry, seen, noise) for i, entry in enumerate(runs))
     _check_one_file_per_run(root, manifest, text, specs)
     rover = _parse_rover(manifest, doc.get("rover", {}))
-    extra = {k: v for k, v in doc.items() if k not in ("name", "runs", "rover", "sensor_noise")}
-    return Campaign(root=root, name=name, runs=specs, rover=rover, extra=extra, sensor_noise=noise)
+    extra = {k: v for k, v in doc.items() if k not in ("name", "runs", "rover", "sensor_noise", "imu_mounting")}
+    return Campaign(root=root, name=name, runs=specs, rover=rover, extra=extra, sensor_noise=noise,
+                    imu_mounting=mounting)

@@ -120,6 +120,10 @@ class Campaign:
         extra: other top-level manifest keys, kept as read.
         sensor_noise: the sensor noise the manifest states for every time-series run (column ->
             1 sigma in the column's units); a run's own statement is in its RunSpec.
+        imu_mounting: how the IMU's mounting is known (the manifest's ``imu_mounting``): "free"
+            (the default: its pitch offset is unknown, and the diagnosis takes it as a nuisance)
+            or "calibrated" (the pitch is measured against a mounting calibrated on the rover:
+            no offset is taken off).
 
     A loaded campaign is a snapshot of its folder: :func:`~juno.campaign.read_run` keeps every
     run it has read and checked here (keyed by the file and its size and modification time, so a
@@ -134,6 +138,7 @@ class Campaign:
     rover: dict[str, Union[float, int, str]] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
     sensor_noise: dict[str, float] = field(default_factory=dict)
+    imu_mounting: str = "free"
     #: the runs read so far: (file, kind, run id) -> (file's size and modification time, RunData)
     _runs_read: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 

@@ -43,6 +43,9 @@ class Problem:
     #: the terrain runs replayed with fresh sensor noise, for judging (terrain_replicas.py); made
     #: in the process that judges, and not sent to the processes that fit
     terrain_replicas: Any = field(default=None, repr=False, compare=False)
+    #: whether the IMU's pitch offset is a free nuisance (sensor_offset.py): not where the
+    #: campaign's manifest says the mounting is calibrated (Campaign.imu_mounting)
+    pitch_offset_free: bool = True
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -71,7 +74,7 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, 
     t = np.concatenate(times) if times else np.zeros(0)
     block = np.floor(t / BLOCK).astype(int)
     problem = Problem(str(campaign.root), grid_file, fmu_path, prepared, terrain_drive=terrain_drive,
-                      terrain_segment=terrain_segment)
+                      terrain_segment=terrain_segment, pitch_offset_free=campaign.imu_mounting != "calibrated")
     problem.train = (block % 2) == 0
     problem.meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
     return problem

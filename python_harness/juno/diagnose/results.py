@@ -231,7 +231,9 @@ class Criteria:
     and each drive's training loss (at the base model, and the lowest over every fitted model
     with that model's name), the negligible change of the paired test, the registration's
     held-out ratio, and how many replicas with fresh sensor noise each terrain run's evidence is
-    judged against (0 without a terrain run; terrain_replicas.py)."""
+    judged against (0 without a terrain run; terrain_replicas.py), and whether the IMU's pitch
+    offset was a free nuisance (sensor_offset.py; False where the manifest says the mounting is
+    calibrated)."""
 
     block_s: float
     z_min: float
@@ -244,6 +246,7 @@ class Criteria:
     negligible_change: float
     registration_held_out_ratio: float
     terrain_replicas: int = 0
+    pitch_offset_free: bool = True
 
     def to_json(self) -> dict[str, Any]:
         return _fields_json(self)

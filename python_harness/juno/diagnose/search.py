@@ -195,7 +195,8 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         scan = scan_against_pose(campaign, setting.grids, say)
     criteria = Criteria(BLOCK, Z_MIN, GAIN_MIN, TIE_RATIO, terrain_segment, first.terrain_drive, setting.drive_losses,
                         first.settled_losses, NEGLIGIBLE_CHANGE, HELD_OUT_RATIO,
-                        len(search.problem.terrain_replicas.problems) if search.problem.terrain_replicas else 0)
+                        len(search.problem.terrain_replicas.problems) if search.problem.terrain_replicas else 0,
+                        search.problem.pitch_offset_free)
     judged = verdict([r.name for r in outcome.chosen], *structures, scan=scan, candidates=first.candidates)
     result = diagnosis_result(search.problem, search.run_kind, first.base, first.duels, outcome, criteria, t_start,
                               judged, (structures[0], structures[1]), untested)

@@ -43,8 +43,12 @@ def offset_free(problem: Problem, r: np.ndarray) -> np.ndarray:
     """``r`` (residuals over ``problem``'s runs, in its order) with each mounted signal's
     campaign offset taken off every one of its residuals: the mean of its finite residuals on
     the drawbar runs' training blocks (``problem.train``).  A signal with no such residual keeps
-    its residuals; so does a residual that is not finite (a run the model could not simulate)."""
+    its residuals; so does a residual that is not finite (a run the model could not simulate);
+    and so does every residual where the campaign's mounting is calibrated
+    (``problem.pitch_offset_free`` False)."""
     out = np.array(r, dtype=float, copy=True)
+    if not problem.pitch_offset_free:
+        return out
     for every, training in _indices(problem):
         values = out[training]
         values = values[np.isfinite(values)]
