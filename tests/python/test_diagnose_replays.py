@@ -252,3 +252,18 @@ def test_the_jacobian_asked_for_with_the_budget_spent_is_not_simulated(small_cam
     assert lean.error is None and full.error is None
     assert same_fits(lean, full) == [f"evaluations: {lean.evaluations!r} != {full.evaluations!r}"]
     assert (lean.evaluations, full.evaluations) == (1 + 5 + 1, 1 + 5 + 1 + 5)
+
+
+def test_a_manifest_that_says_the_imu_mounting_is_calibrated_holds_the_pitch_offset_at_none(small_campaign, fmu_path,
+                                                                                             tmp_path):
+    """The diagnosis's problem takes the IMU's pitch offset as a free nuisance unless the
+    campaign's manifest says ``"imu_mounting": "calibrated"`` (sensor_offset.py)."""
+    import json
+    import shutil
+    from juno.campaign import load_campaign
+    source = small_campaign(SEED).path
+    assert build_problem(load_campaign(source), fmu_path, None).pitch_offset_free
+    copy = shutil.copytree(source, tmp_path / "campaign")
+    manifest = json.loads((copy / "campaign.json").read_text())
+    (copy / "campaign.json").write_text(json.dumps({**manifest, "imu_mounting": "calibrated"}))
+    assert not build_problem(load_campaign(copy), fmu_path, None).pitch_offset_free
