@@ -169,3 +169,22 @@ def test_the_report_of_an_unexplained_discrepancy_tables_what_is_left(tmp_path):
     assert "soil_patch would remove only 20% of it, so it is not named" in text
     assert "| torque_right | 5.1 N m | 1.8 | side (99%, +10.2 N m, left minus right) |" in text
     json.dumps(to_jsonable(public_json(result)))
+
+
+def test_the_report_gives_the_pitch_offset_in_degrees_and_what_was_made_of_it(tmp_path):
+    """The base model's pitch offset (rad in the JSON) is said in degrees, with whether every fit
+    took it off as the IMU's mounting or kept it as evidence (a calibrated mounting); without a
+    measured pitch nothing is said."""
+    from dataclasses import replace
+
+    from juno.diagnose import report_section
+    base = _no_cause_result()
+    offset = np.radians(1.5)
+    result = replace(base, plot_data=None, baseline=replace(base.baseline, pitch_offset=offset))
+    assert public_json(result)["baseline"]["pitch_offset"] == offset
+    free = "\n".join(report_section(result, tmp_path))
+    assert "The measured pitch reads +1.50 deg (+26.18 mrad) from the base model's" in free
+    assert "takes it off as the IMU's mounting, credited to no cause" in free
+    calibrated = replace(result, criteria=replace(result.criteria, pitch_offset_free=False))
+    assert "calibrated, so it is evidence like the rest" in "\n".join(report_section(calibrated, tmp_path))
+    assert "measured pitch reads" not in "\n".join(report_section(replace(base, plot_data=None), tmp_path))

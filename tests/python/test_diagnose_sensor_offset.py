@@ -17,7 +17,7 @@ import numpy as np
 from juno.diagnose.fitting import FitResult, fit_objective
 from juno.diagnose.judging import GAIN_MIN, held_out_mse, paired_z, relative_gain, z_threshold
 from juno.diagnose.problem import BLOCK, Problem
-from juno.diagnose.sensor_offset import offset_free
+from juno.diagnose.sensor_offset import mounting_offsets, offset_free
 from juno.identify import PreparedRun
 from juno.simulator import InputSignals
 
@@ -93,6 +93,48 @@ def test_a_run_the_model_could_not_simulate_stays_lost_and_the_others_are_still_
     assert np.all(np.isnan(free[problem.meta["run"] == "dbp2"]))
     first = pitch & (problem.meta["run"] == "dbp1")
     assert np.allclose(free[first], r[first] - r[first & problem.train].mean())
+
+
+def test_one_mounting_angle_is_taken_off_runs_whose_pitch_noise_differs():
+    """Each run's residuals are scaled by its own pitch noise (estimated from the run where the
+    sensor is noisier than the nominal scale), so one angle is a different scaled constant in each
+    run.  The offset is that angle (the noise-weighted least-squares constant of the unscaled
+    residuals), taken off each run over its own scale: a pure mounting bias leaves nothing in any
+    run, where a mean of the scaled residuals would leave a constant of opposite signs in the two."""
+    problem, kinds, pitch, _time = _campaign()
+    scales = {"dbp1": 0.0049, "dbp2": 0.0056}       # rad: the same IMU's noise estimated in two runs
+    bias = 0.023                                     # rad: a mounting off by 1.3 degrees
+    for p in problem.prepared:
+        if p.kind == "drawbar":
+            ts, values, output, _sigma, lag = p.targets["pitch"]
+            p.targets["pitch"] = (ts, values, output, scales[p.run_id], lag)
+    run = problem.meta["run"]
+    r = np.zeros(len(kinds))
+    for name, scale in scales.items():
+        r[pitch & (run == name)] = bias / scale
+    assert set(mounting_offsets(problem, r)) == {"pitch"}
+    assert abs(mounting_offsets(problem, r)["pitch"] - bias) < 1e-15
+    assert np.max(np.abs(offset_free(problem, r))) < 1e-12
+
+
+def test_the_offset_reported_is_the_angle_in_the_pitchs_units_with_its_sign():
+    """measured - simulated: an IMU that reads 1.2 degrees nose-up of the model gives +21 mrad,
+    whatever the mounting setting (the report says what the residuals hold); on the noise, within
+    the mean's own error."""
+    problem, kinds, pitch, _time = _campaign()
+    scale = 0.003
+    for p in problem.prepared:
+        if "pitch" in p.targets:
+            ts, values, output, _sigma, lag = p.targets["pitch"]
+            p.targets["pitch"] = (ts, values, output, scale, lag)
+    noise = np.random.default_rng(6).standard_normal(len(kinds))
+    r = noise + np.where(pitch, BIAS, 0.0)
+    n = int(np.sum(pitch & problem.train & (kinds == "drawbar")))
+    assert abs(mounting_offsets(problem, r)["pitch"] - BIAS * scale) < 4 * scale / np.sqrt(n)
+    problem.pitch_offset_free = False
+    assert mounting_offsets(problem, r)["pitch"] == mounting_offsets(problem, offset_free(problem, r))["pitch"]
+    problem.prepared = [p for p in problem.prepared if p.kind == "terrain"]
+    assert mounting_offsets(problem, r[kinds == "terrain"]) == {}
 
 
 def test_with_a_calibrated_mounting_no_offset_is_taken_off():

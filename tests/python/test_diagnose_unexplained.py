@@ -42,6 +42,9 @@ def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
     constant = {f["covariate"]: f for f in signals["pitch"]["follows"]}.get("constant", {"share": 0.0, "slope": 0.0})
     assert constant["share"] > 0.9 and constant["slope"] == pytest.approx(bias, rel=0.1), \
         f"[{replay}] the pitch follows {signals['pitch']['follows']}, the bias was {bias}"
+    # ... and the report gives it as the offset every fit took off as the IMU's mounting.
+    assert diagnosis["criteria"]["pitch_offset_free"]
+    assert diagnosis["baseline"]["pitch_offset"] == pytest.approx(bias, rel=0.1), f"[{replay}] the bias was {bias}"
 
 
 def test_a_clock_offset_between_instruments_is_reported_unexplained_with_its_size(tmp_path):

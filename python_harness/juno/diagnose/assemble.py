@@ -16,7 +16,7 @@ from .problem import Problem
 from ..residual_structure import ResidualStructure
 from .results import (Baseline, CauseGain, Criteria, DiagnosisResult, Duel, ExtendedModel, GainStep, JudgedCandidate,
                       NoCauseGain, PlotData, ResidualAnalysis, SignalGain)
-from .sensor_offset import offset_free
+from .sensor_offset import mounting_offsets, offset_free
 from .verdict import Verdict, explanation, ripple_between_tied
 
 if TYPE_CHECKING:
@@ -56,7 +56,8 @@ def residual_analysis(problem: Problem, r: np.ndarray) -> ResidualAnalysis:
 def baseline(problem: Problem, base: FitResult) -> Baseline:
     """The base model's fit as reported."""
     return Baseline({k: base.params[k] for k in SOIL_PARAMETERS}, base.test_mse, base.train_mse,
-                    per_signal_rms(problem, base.residuals), base.status, base.failed_evaluations)
+                    per_signal_rms(problem, base.residuals), base.status, base.failed_evaluations,
+                    mounting_offsets(problem, base.residuals).get("pitch"))
 
 
 def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], res: FitResult) -> ExtendedModel:
@@ -65,7 +66,8 @@ def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], re
     judged = np.isin(run_kind, sorted(set(run_kind.tolist())))
     return ExtendedModel("+".join(causes), causes, {k: res.params[k] for k in SOIL_PARAMETERS},
                          {k: v for k, v in res.params.items() if k not in SOIL_PARAMETERS}, res.test_mse,
-                         per_signal_rms(problem, res.residuals, mask=judged))
+                         per_signal_rms(problem, res.residuals, mask=judged),
+                         mounting_offsets(problem, res.residuals).get("pitch"))
 
 
 def cause_gain(problem: Problem, run_kind: np.ndarray, base: FitResult, outcome: Outcome) -> CauseGain:

@@ -273,6 +273,7 @@ def _base_model_lines(result: DiagnosisResult) -> list[str]:
     criteria = result.criteria
     lines = [f"Base model fitted on alternate {criteria.block_s:g} s training blocks of every run; "
              f"held-out mean squared scaled residual {result.baseline.test_mse:.3g} (1 = sensor noise).", ""]
+    lines += _mounting_lines(result)
     settled = criteria.terrain_drive_settled or {}
     if settled:
         drive = criteria.terrain_drive
@@ -281,6 +282,21 @@ def _base_model_lines(result: DiagnosisResult) -> list[str]:
                   f"({settled[drive]['model']}) fits its training blocks best (lowest training loss: "
                   + ", ".join(f"{d} {v['loss']:.3g}" for d, v in settled.items()) + ").", ""]
     return lines
+
+
+def _mounting_lines(result: DiagnosisResult) -> list[str]:
+    """The constant the base model's pitch residuals hold, and what the diagnosis made of it."""
+    offset = result.baseline.pitch_offset
+    if offset is None:
+        return []
+    said = (f"The measured pitch reads {np.degrees(offset):+.2f} deg ({offset * 1e3:+.2f} mrad) from the base "
+            "model's on the drawbar runs' training blocks (measured - simulated). ")
+    if result.criteria.pitch_offset_free:
+        said += ("Every fit and comparison takes it off as the IMU's mounting, credited to no cause "
+                 "(`imu_mounting` \"free\"; a manifest that says \"calibrated\" keeps it as evidence).")
+    else:
+        said += "The manifest says the IMU's mounting is calibrated, so it is evidence like the rest."
+    return [said, ""]
 
 
 def _candidates_table(result: DiagnosisResult) -> list[str]:

@@ -12,11 +12,16 @@ a soil patch is where the rover crosses it.  What a constant angle over the whol
 explains, a cause is not credited with.
 
 So every model is fitted and judged on residuals from which the campaign's pitch offset is
-taken off (:func:`offset_free`): the mean of the model's pitch residuals over the drawbar runs'
-training blocks, one value for the campaign (one IMU, one mounting), taken off every pitch
-residual.  It is least squares' own answer for a free offset (the mean, projected out), and it
-is estimated on the training blocks alone, so the held-out blocks judge it as they judge a
-fitted parameter.  With the offset held at none instead, a base model bends the soil to pitch
+taken off (:func:`offset_free`): one angle for the campaign (one IMU, one mounting), estimated
+on the drawbar runs' training blocks and taken off every pitch residual.  It is least squares'
+own answer for a free offset: the residuals are scaled by each run's pitch noise, which differs
+from run to run where the noise is estimated from each run (a sensor noisier than the nominal
+scale), so the angle is the noise-weighted mean of the unscaled residuals
+(:func:`mounting_offsets`), and each residual loses the angle over its own run's scale.  (A mean
+of the scaled residuals would take a different angle off each such run, and leave a constant
+of the opposite sign in each, which a cause that pitches the runs differently could be credited
+with.)  It is estimated on the training blocks alone, so the held-out blocks judge it as they
+judge a fitted parameter.  With the offset held at none instead, a base model bends the soil to pitch
 the rover, and a candidate that pitches it otherwise is credited with repairing what the bent
 soil spoils: on an alternative-design campaign with a pitch bias of 1.3 degrees, a multi-pass
 rut of 80 % of the front wheels' sinkage on soil softened to a quarter gained 41 % of the
@@ -31,6 +36,8 @@ runs' and there is none to take off elsewhere.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .problem import Problem
@@ -40,43 +47,86 @@ MOUNTED_SIGNALS = ("pitch",)
 
 
 def offset_free(problem: Problem, r: np.ndarray) -> np.ndarray:
-    """``r`` (residuals over ``problem``'s runs, in its order) with each mounted signal's
-    campaign offset taken off every one of its residuals: the mean of its finite residuals on
-    the drawbar runs' training blocks (``problem.train``).  A signal with no such residual keeps
-    its residuals; so does a residual that is not finite (a run the model could not simulate);
-    and so does every residual where the campaign's mounting is calibrated
-    (``problem.pitch_offset_free`` False)."""
+    """``r`` (scaled residuals over ``problem``'s runs, in its order) with each mounted signal's
+    campaign offset (:func:`mounting_offsets`, in the signal's units) taken off every one of its
+    residuals, over each residual's own scale.  A signal with no finite residual on the drawbar
+    runs' training blocks keeps its residuals; so does a residual that is not finite (a run the
+    model could not simulate); and so does every residual where the campaign's mounting is
+    calibrated (``problem.pitch_offset_free`` False)."""
     out = np.array(r, dtype=float, copy=True)
     if not problem.pitch_offset_free:
         return out
-    for every, training in _indices(problem):
-        values = out[training]
-        values = values[np.isfinite(values)]
-        if values.size:
-            out[every] -= values.mean()
+    for mounted in _mounted(problem):
+        offset = _offset(mounted, out)
+        if offset is not None:
+            out[mounted.every] -= offset / mounted.every_scale
     return out
 
 
-def _signals(problem: Problem) -> list[str]:
-    """The mounted signals ``problem``'s runs measure, in the order _indices gives them."""
-    present = {column for p in problem.prepared for column in p.targets}
-    return [s for s in MOUNTED_SIGNALS if s in present]
+def mounting_offsets(problem: Problem, r: np.ndarray) -> dict[str, float]:
+    """Each mounted signal's offset in its own units (the pitch's in rad) in the scaled residuals
+    ``r`` (measured - simulated, over each residual's scale): the weighted least-squares
+    constant of the unscaled residuals over the drawbar runs' finite training residuals, each
+    weighted by its scale's inverse square.  It is what offset_free takes off where the mounting
+    is free, and what a model's residuals hold whatever the mounting; a signal with no such
+    residual is left out."""
+    found = {}
+    for mounted in _mounted(problem):
+        offset = _offset(mounted, r)
+        if offset is not None:
+            found[mounted.signal] = offset
+    return found
 
 
-def _indices(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
-    """For every mounted signal _signals gives: the indices of all its residuals, and of those on
-    the drawbar runs' training blocks."""
-    every: dict[str, list[np.ndarray]] = {s: [] for s in _signals(problem)}
-    training: dict[str, list[np.ndarray]] = {s: [] for s in every}
+@dataclass(frozen=True)
+class _Mounted:
+    """A mounted signal's residuals in a problem: the indices of all of them and their scales
+    (the signal's units per scaled unit), and the same of those on the drawbar runs' training
+    blocks."""
+
+    signal: str
+    every: np.ndarray
+    every_scale: np.ndarray
+    training: np.ndarray
+    training_scale: np.ndarray
+
+
+def _offset(mounted: _Mounted, r: np.ndarray) -> float | None:
+    """The weighted least-squares constant (mounting_offsets) of ``r`` on ``mounted``'s training
+    residuals; None where none is finite."""
+    values = r[mounted.training]
+    finite = np.isfinite(values)
+    if not np.any(finite):
+        return None
+    scale = mounted.training_scale[finite]
+    return float(np.sum(values[finite] / scale) / np.sum(1.0 / scale ** 2))
+
+
+def _mounted(problem: Problem) -> list[_Mounted]:
+    """Every mounted signal ``problem``'s runs measure, in MOUNTED_SIGNALS' order, with the indices
+    and scales of its residuals."""
+    every: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
+    scales: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
+    training: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
+    training_scales: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
     start = 0
     for p in problem.prepared:
-        for column, (ts, *_rest) in p.targets.items():
+        for column, (ts, _values, _output, sigma, _lag) in p.targets.items():
             index = np.arange(start, start + len(ts))
             start += len(ts)
             if column not in every:
                 continue
             every[column].append(index)
+            scales[column].append(np.full(len(ts), float(sigma)))
             if p.kind == "drawbar":
-                training[column].append(index[problem.train[index]])
-    return [(np.concatenate(every[s]), np.concatenate(training[s]) if training[s] else np.zeros(0, int))
-            for s in every]
+                mine = problem.train[index]
+                training[column].append(index[mine])
+                training_scales[column].append(np.full(int(np.sum(mine)), float(sigma)))
+    return [_Mounted(s, np.concatenate(every[s]), np.concatenate(scales[s]), _joined(training[s], int),
+                     _joined(training_scales[s], float))
+            for s in MOUNTED_SIGNALS if every[s]]
+
+
+def _joined(parts: list[np.ndarray], dtype: type) -> np.ndarray:
+    """``parts`` end to end; an empty array of ``dtype`` where there are none."""
+    return np.concatenate(parts) if parts else np.zeros(0, dtype)
