@@ -1,8 +1,8 @@
 """LIDAR point clouds and terrain elevation grids.
 
-- :func:`read_xyz` / :func:`write_xyz`: scattered points ``x y z`` (m, world frame), one per
-  line, whitespace or comma separated, ``#`` comments and blank lines allowed; ASCII ``.ply``
-  (vertex x, y, z) is read too.
+- :func:`read_xyz` / :func:`write_xyz`: scattered points ``x y z`` (m, world frame); read from
+  text, PLY or LAS files (the formats: :mod:`juno.scan_formats`), written as text, one point per
+  line.
 - :func:`grid_from_points`: scattered points -> regular elevation :class:`Grid` (linear
   interpolation inside the convex hull, nearest-neighbour fill outside it).
 - :func:`write_esri_ascii` / :func:`read_esri_ascii`: the ESRI ASCII grid (``.asc``) that the
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Union
@@ -27,7 +26,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .atomic import atomic_write_text
-from .errors import InputError, parse_finite, decode_input_text, read_input_bytes
+from .errors import InputError, decode_input_text, parse_finite, read_input_bytes
+from .scan_formats import parse_scan
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -53,121 +53,27 @@ within it (:func:`juno.plausibility.path_off_scan`)."""
 MAX_GRID_CELLS = 40_000_000
 """Largest grid :func:`grid_from_points` builds (cells); beyond that the cell size is surely wrong."""
 
-_SEP_RE = re.compile(r"\s*,\s*|\s+")
-
 
 # --------------------------------------------------------------------------------------------
 # Point clouds
 # --------------------------------------------------------------------------------------------
 
-
-
-
-
 def read_xyz(path: PathLike) -> NDArray[np.float64]:
     """Read a LIDAR point cloud; returns an (N, 3) float array of x, y, z in m.
 
-    Text format: a point per line, ``x y z`` first (whitespace or comma separated), further
-    fields (intensity, colour) left out but as many on every line; an optional first line naming
-    the fields (``x y z ...``, or ``//X Y Z ...``); ``#`` starts a comment, blank lines are skipped. Files starting with the line ``ply`` (or
-    named ``*.ply``) are read as ASCII PLY (``element vertex`` with properties ``x``, ``y``,
-    ``z``); binary PLY is refused.
+    The file is text, ``x y z`` per line (further fields and a first line naming them allowed,
+    a Leica ``.pts`` point count allowed first), PLY (ASCII or binary) or uncompressed LAS
+    1.0-1.4; the format is told by the file's first bytes, then by its suffix
+    (:mod:`juno.scan_formats`). LAZ, E57 and other formats are refused with what to do.
 
     Raises:
-        InputError: wrong token count, a non-number or non-finite value (naming file and line),
-            an empty cloud, or fewer than 3 non-collinear points in x-y.
+        InputError: the file breaks its format (naming file and line, or byte offset), an empty
+            cloud, or fewer than 3 non-collinear points in x-y.
     """
     p = Path(path)
-    data = read_input_bytes(p)
-    if p.suffix.lower() == ".ply" or data[:4] in (b"ply\n", b"ply\r"):
-        points = _parse_ply(p, data)
-    else:
-        points = _parse_xyz_text(p, decode_input_text(p, data))
+    points = parse_scan(p, read_input_bytes(p))
     check_points(points, p)
     return points
-
-
-def _parse_xyz_text(path: Path, text: str) -> NDArray[np.float64]:
-    """x, y, z from the first three fields of every line.  Exports often add fields (intensity,
-    colour) and a header line naming them (``//X Y Z Intensity``): the first line may be such a
-    header, and fields beyond the third are left out, as extra CSV columns are; every point's line
-    must have as many fields as the first, so a broken line is not read as a point."""
-    rows: list[tuple[float, float, float]] = []
-    fields: Optional[int] = None
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        tokens = _SEP_RE.split(line)
-        if fields is None and not rows and _is_xyz_header(tokens):
-            continue
-        if len(tokens) < 3 or (fields is not None and len(tokens) != fields):
-            expected = "3 numbers 'x y z'" if fields is None else f"{fields} fields, as the first point's line has"
-            raise InputError(f"expected {expected}, found {len(tokens)} fields: {line[:60]!r}", path, lineno)
-        fields = len(tokens)
-        x, y, z = (parse_finite(t, path, lineno, name) for t, name in zip(tokens, "xyz"))
-        rows.append((x, y, z))
-    return np.array(rows, dtype=float).reshape(-1, 3)
-
-
-def _is_xyz_header(tokens: list[str]) -> bool:
-    """Whether a line's fields name the columns, the first three x, y and z (any case, a leading
-    ``//`` as some exporters write it)."""
-    names = [tok.lstrip("/").strip().lower() for tok in tokens]
-    return len(names) >= 3 and names[:3] == ["x", "y", "z"]
-
-
-def _parse_ply(path: Path, data: bytes) -> NDArray[np.float64]:
-    """ASCII PLY: the vertex element's x, y, z properties; other elements are skipped."""
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise InputError("not a PLY file (needs a 'ply' first line and 'end_header')", path, 1)
-    nl = data.find(b"\n", end)
-    header = decode_input_text(path, data[: end + len("end_header")]).splitlines()
-    body_start_line = len(header) + 1
-    body = decode_input_text(path, data[nl + 1:] if nl >= 0 else b"")
-    elements: list[tuple[str, int, list[str]]] = []
-    fmt = None
-    for lineno, raw in enumerate(header, start=1):
-        tok = raw.split()
-        if not tok or tok[0] in ("ply", "comment", "obj_info", "end_header"):
-            continue
-        if tok[0] == "format":
-            fmt = tok[1] if len(tok) > 1 else ""
-            if fmt != "ascii":
-                raise InputError(
-                    f"PLY format {fmt!r} is not supported: convert to ASCII PLY or to 'x y z' text", path, lineno
-                )
-        elif tok[0] == "element" and len(tok) == 3 and re.fullmatch(r"[0-9]{1,12}", tok[2]):
-            elements.append((tok[1], int(tok[2]), []))
-        elif tok[0] == "property" and elements:
-            elements[-1][2].append(tok[-1])
-        else:
-            raise InputError(f"bad PLY header line: {raw.strip()[:60]!r}", path, lineno)
-    if fmt is None:
-        raise InputError("PLY header has no 'format' line", path)
-    lines = body.splitlines()
-    skip = 0
-    for name, count, props in elements:
-        if name != "vertex":
-            skip += count
-            continue
-        missing = [c for c in "xyz" if c not in props]
-        if missing:
-            raise InputError(f"PLY vertex element lacks properties {missing}", path)
-        idx = [props.index(c) for c in "xyz"]
-        if len(lines) < skip + count:
-            raise InputError(f"PLY file ends early: {count} vertices announced", path, body_start_line + len(lines))
-        out = np.empty((count, 3))
-        for k in range(count):
-            lineno = body_start_line + skip + k
-            tok = lines[skip + k].split()
-            if len(tok) != len(props):
-                raise InputError(f"expected {len(props)} vertex values, found {len(tok)}", path, lineno)
-            for j, (i, c) in enumerate(zip(idx, "xyz")):
-                out[k, j] = parse_finite(tok[i], path, lineno, c)
-        return out
-    raise InputError("PLY file has no 'element vertex'", path)
 
 
 def check_points(points: ArrayLike, path: Optional[PathLike] = None) -> NDArray[np.float64]:

@@ -4,7 +4,7 @@ A campaign is a folder::
 
     campaign.json          manifest
     runs/NAME.csv          one file per experiment run
-    terrain/NAME.xyz       LIDAR points, "x y z" per line (m)
+    terrain/NAME.xyz       LIDAR points (m): "x y z" text, .pts, PLY or LAS (juno.scan_formats)
     runs/RIG.csv           a single-wheel testbed table (kind ``wheel_rig``)
 
 Reading is strict: anything that breaks the format is refused with an
