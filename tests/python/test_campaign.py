@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from juno.campaign import (
+    DEFAULT_IMU_MOUNT,
     aligned,
     forward_speed,
     format_run_csv,
@@ -538,6 +539,26 @@ def test_a_calibrated_imu_mounting_is_read_from_the_manifest_and_anything_else_r
     assert c.imu_mounting == "calibrated" and "imu_mounting" not in c.extra
     rewrite_manifest(campaign_dir, lambda d: d.update(imu_mounting="levelled"))
     assert_refused(campaign_dir, file="campaign.json", says="'imu_mounting' must be one of 'free', 'calibrated'")
+
+
+def test_each_run_may_name_the_imu_mounting_it_was_measured_with(campaign_dir: Path) -> None:
+    """``imu_mount`` on a run: runs that name the same mounting share one pitch offset in the
+    diagnosis; a run that names none is on the campaign's mounting.  A name that is not a plain
+    label is refused, naming the run and the key."""
+    assert {r.imu_mount for r in load_campaign(campaign_dir).runs} == {DEFAULT_IMU_MOUNT}
+
+    def mount(d, value):
+        d["runs"][0]["imu_mount"] = value
+    rewrite_manifest(campaign_dir, lambda d: mount(d, "day2"))
+    c = load_campaign(campaign_dir)
+    assert c.runs[0].imu_mount == "day2" and "imu_mount" not in c.runs[0].extra
+    assert {r.imu_mount for r in c.runs[1:]} == {DEFAULT_IMU_MOUNT}
+    for bad in ("", 2, "day 2/remounted"):
+        rewrite_manifest(campaign_dir, lambda d: mount(d, bad))
+        assert_refused(campaign_dir, file="campaign.json", says="'imu_mount' must name the IMU's mounting in the run")
+    rewrite_manifest(campaign_dir, lambda d: (mount(d, "day1"), d["runs"][1].update(
+        kind="wheel_rig", wheel={"radius": 0.1, "width": 0.1}, imu_mount="day1")))
+    assert_refused(campaign_dir, file="campaign.json", says="runs[1] (id 'dbp2'): a wheel_rig table has no IMU")
 
 
 @pytest.mark.parametrize("text, says", [('{"runs": [], "runs": []}', "twice"), ('{"name": NaN}', "NaN"), ("[1, 2]", "object")])

@@ -172,19 +172,24 @@ def test_the_report_of_an_unexplained_discrepancy_tables_what_is_left(tmp_path):
 
 
 def test_the_report_gives_the_pitch_offset_in_degrees_and_what_was_made_of_it(tmp_path):
-    """The base model's pitch offset (rad in the JSON) is said in degrees, with whether every fit
-    took it off as the IMU's mounting or kept it as evidence (a calibrated mounting); without a
-    measured pitch nothing is said."""
+    """The base model's pitch offset by IMU mounting (rad in the JSON) is said in degrees, with
+    whether every fit took it off as the IMU's mounting or kept it as evidence (a calibrated
+    mounting); a campaign whose runs name their mountings has one for each; without a measured
+    pitch nothing is said."""
     from dataclasses import replace
 
     from juno.diagnose import report_section
     base = _no_cause_result()
     offset = np.radians(1.5)
-    result = replace(base, plot_data=None, baseline=replace(base.baseline, pitch_offset=offset))
-    assert public_json(result)["baseline"]["pitch_offset"] == offset
+    result = replace(base, plot_data=None, baseline=replace(base.baseline, pitch_offset={"campaign": offset}))
+    assert public_json(result)["baseline"]["pitch_offset"] == {"campaign": offset}
     free = "\n".join(report_section(result, tmp_path))
     assert "The measured pitch reads +1.50 deg (+26.18 mrad) from the base model's" in free
     assert "takes it off as the IMU's mounting, credited to no cause" in free
     calibrated = replace(result, criteria=replace(result.criteria, pitch_offset_free=False))
     assert "calibrated, so it is evidence like the rest" in "\n".join(report_section(calibrated, tmp_path))
+    two = replace(base, plot_data=None,
+                  baseline=replace(base.baseline, pitch_offset={"day1": offset, "day2": -offset / 3}))
+    assert ("reads +1.50 deg (+26.18 mrad) on the mounting day1, -0.50 deg (-8.73 mrad) on the mounting day2"
+            in "\n".join(report_section(two, tmp_path)))
     assert "measured pitch reads" not in "\n".join(report_section(replace(base, plot_data=None), tmp_path))

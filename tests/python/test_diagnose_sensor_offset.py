@@ -112,8 +112,8 @@ def test_one_mounting_angle_is_taken_off_runs_whose_pitch_noise_differs():
     r = np.zeros(len(kinds))
     for name, scale in scales.items():
         r[pitch & (run == name)] = bias / scale
-    assert set(mounting_offsets(problem, r)) == {"pitch"}
-    assert abs(mounting_offsets(problem, r)["pitch"] - bias) < 1e-15
+    assert set(mounting_offsets(problem, r)) == {"pitch"} and set(mounting_offsets(problem, r)["pitch"]) == {"campaign"}
+    assert abs(mounting_offsets(problem, r)["pitch"]["campaign"] - bias) < 1e-15
     assert np.max(np.abs(offset_free(problem, r))) < 1e-12
 
 
@@ -130,11 +130,31 @@ def test_the_offset_reported_is_the_angle_in_the_pitchs_units_with_its_sign():
     noise = np.random.default_rng(6).standard_normal(len(kinds))
     r = noise + np.where(pitch, BIAS, 0.0)
     n = int(np.sum(pitch & problem.train & (kinds == "drawbar")))
-    assert abs(mounting_offsets(problem, r)["pitch"] - BIAS * scale) < 4 * scale / np.sqrt(n)
+    assert abs(mounting_offsets(problem, r)["pitch"]["campaign"] - BIAS * scale) < 4 * scale / np.sqrt(n)
     problem.pitch_offset_free = False
-    assert mounting_offsets(problem, r)["pitch"] == mounting_offsets(problem, offset_free(problem, r))["pitch"]
+    assert mounting_offsets(problem, r) == mounting_offsets(problem, offset_free(problem, r))
     problem.prepared = [p for p in problem.prepared if p.kind == "terrain"]
     assert mounting_offsets(problem, r[kinds == "terrain"]) == {}
+
+
+def test_an_imu_mounted_again_between_runs_has_one_offset_per_mounting():
+    """The manifest names each run's mounting (imu_mount): runs on one mounting share one angle,
+    estimated on their own drawbar training blocks and taken off their residuals alone."""
+    problem, kinds, pitch, _time = _campaign()
+    problem.imu_mounts = {"dbp1": "day1", "dbp2": "day2", "t3d": "day2"}
+    run = problem.meta["run"]
+    noise = np.random.default_rng(7).standard_normal(len(kinds))
+    r = noise + np.where(pitch & (run == "dbp1"), BIAS, 0.0) + np.where(pitch & (run == "dbp2"), -0.5 * BIAS, 0.0)
+    offsets = mounting_offsets(problem, r)["pitch"]
+    assert list(offsets) == ["day1", "day2"]
+    assert abs(offsets["day1"] - BIAS) < 0.2 and abs(offsets["day2"] + 0.5 * BIAS) < 0.2
+    free = offset_free(problem, r)
+    for name in ("dbp1", "dbp2"):
+        mine = pitch & (run == name)
+        assert np.allclose(free[mine], r[mine] - r[mine & problem.train].mean())
+    # the one campaign offset would leave each run a constant of half the two biases' difference
+    problem.imu_mounts = {}
+    assert abs(offset_free(problem, r)[pitch & (run == "dbp1")].mean()) > 0.7 * BIAS
 
 
 def test_with_a_calibrated_mounting_no_offset_is_taken_off():

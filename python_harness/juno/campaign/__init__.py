@@ -36,8 +36,8 @@ from __future__ import annotations
 
 from .manifest import load_campaign
 from .optional import OPTIONAL_COLUMN_USES, MissingColumn, missing_columns
-from .records import (ANGLE_COLUMNS, BASE_REQUIRED, COLUMN_UNITS, KINDS, KNOWN_COLUMNS, MANIFEST_NAME,
-                      NOISE_COLUMNS, OPTIONAL_COLUMNS,
+from .records import (ANGLE_COLUMNS, BASE_REQUIRED, COLUMN_UNITS, DEFAULT_IMU_MOUNT, KINDS, KNOWN_COLUMNS,
+                      MANIFEST_NAME, NOISE_COLUMNS, OPTIONAL_COLUMNS,
                       REQUIRED_COLUMNS, RIG_COLUMNS, RIG_INPUTS, RIG_MEASURED, RIG_REQUIRED, RIG_STD_SUFFIX,
                       RIG_WHEEL_KEYS, TIME_SERIES_KINDS, AlignedColumns, Campaign, RigSetup, RigTable, RunData,
                       RunSpec)
@@ -48,6 +48,7 @@ from .writing import format_rig_csv, format_run_csv, write_campaign
 __all__ = [
     "KINDS", "TIME_SERIES_KINDS", "REQUIRED_COLUMNS", "BASE_REQUIRED", "OPTIONAL_COLUMNS", "KNOWN_COLUMNS",
     "ANGLE_COLUMNS", "COLUMN_UNITS", "NOISE_COLUMNS", "MANIFEST_NAME", "RIG_INPUTS", "RIG_REQUIRED", "RIG_MEASURED", "RIG_STD_SUFFIX",
+    "DEFAULT_IMU_MOUNT",
     "RIG_COLUMNS", "RIG_WHEEL_KEYS",
     "Campaign", "RunSpec", "RigSetup", "RunData", "RigTable", "AlignedColumns",
     "load_campaign", "read_run", "read_run_csv", "read_rig", "read_rig_csv", "read_any", "read_terrain_points",

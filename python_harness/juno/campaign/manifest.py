@@ -10,8 +10,8 @@ from pathlib import Path, PurePosixPath
 from typing import Any, Optional, Union
 
 from ..errors import InputError, decode_input_text, read_input_bytes
-from .records import (_ID_RE, COLUMN_UNITS, KINDS, MANIFEST_NAME, NOISE_COLUMNS, RIG_WHEEL_KEYS, Campaign,
-                      PathLike, RigSetup, RunSpec)
+from .records import (_ID_RE, COLUMN_UNITS, DEFAULT_IMU_MOUNT, KINDS, MANIFEST_NAME, NOISE_COLUMNS, RIG_WHEEL_KEYS,
+                      Campaign, PathLike, RigSetup, RunSpec)
 
 #: How a manifest may say the IMU's mounting is known (Campaign.imu_mounting).
 IMU_MOUNTINGS = ("free", "calibrated")
@@ -176,10 +176,19 @@ def _parse_run(root: Path, manifest: Path, text: str, i: int, entry: Any, seen: 
                              "deviation in its column's '_std' column", manifest, line)
     else:
         noise = {**campaign_noise, **_parse_sensor_noise(manifest, entry.get("sensor_noise", {}), f"{label}: ", line)}
-    known = ("id", "kind", "file", "steady_window", "terrain", "wheel", "carriage_speed", "sensor_noise")
+    mount = DEFAULT_IMU_MOUNT
+    if "imu_mount" in entry:
+        mount = entry["imu_mount"]
+        if kind == "wheel_rig":
+            raise InputError(f"{label}: a wheel_rig table has no IMU and takes no 'imu_mount'", manifest, line)
+        if not isinstance(mount, str) or _ID_RE.fullmatch(mount) is None:
+            raise InputError(f"{label}: 'imu_mount' must name the IMU's mounting in the run, a non-empty string of "
+                             f"letters, digits, '_', '.', '-' (runs naming the same one share its pitch offset), "
+                             f"got {mount!r}", manifest, line)
+    known = ("id", "kind", "file", "steady_window", "terrain", "wheel", "carriage_speed", "sensor_noise", "imu_mount")
     extra = {k: v for k, v in entry.items() if k not in known}
     return RunSpec(id=run_id, kind=kind, file=file, steady_window=window, terrain=terrain, extra=extra, rig=rig,
-                   sensor_noise=noise)
+                   sensor_noise=noise, imu_mount=mount)
 
 
 def _check_one_file_per_run(root: Path, manifest: Path, text: str, specs: tuple[RunSpec, ...]) -> None:

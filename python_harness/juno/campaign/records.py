@@ -80,6 +80,10 @@ class RigSetup:
         return self.lug_height > 0.0
 
 
+#: The IMU mounting of a run whose manifest entry names none (RunSpec.imu_mount): the campaign's.
+DEFAULT_IMU_MOUNT = "campaign"
+
+
 @dataclass(frozen=True)
 class RunSpec:
     """One run of the manifest.
@@ -95,6 +99,10 @@ class RunSpec:
         sensor_noise: the sensor noise stated in the manifest for this run's columns (column ->
             1 sigma in the column's units): the campaign's ``sensor_noise``, with the run's own
             ``sensor_noise`` in its place for the columns that states; {} when none is stated.
+        imu_mount: the IMU mounting this run was measured with (the run's ``imu_mount``): runs
+            that name the same one share one pitch offset in the diagnosis (an IMU taken off and
+            mounted again between days has one offset per mounting); DEFAULT_IMU_MOUNT, the
+            campaign's one mounting, where the manifest names none.
     """
 
     id: str
@@ -105,6 +113,7 @@ class RunSpec:
     extra: dict[str, Any] = field(default_factory=dict)
     rig: Optional[RigSetup] = None
     sensor_noise: dict[str, float] = field(default_factory=dict)
+    imu_mount: str = DEFAULT_IMU_MOUNT
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,7 @@ def baseline(problem: Problem, base: FitResult) -> Baseline:
     """The base model's fit as reported."""
     return Baseline({k: base.params[k] for k in SOIL_PARAMETERS}, base.test_mse, base.train_mse,
                     per_signal_rms(problem, base.residuals), base.status, base.failed_evaluations,
-                    mounting_offsets(problem, base.residuals).get("pitch"))
+                    mounting_offsets(problem, base.residuals).get("pitch", {}))
 
 
 def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], res: FitResult) -> ExtendedModel:
@@ -67,7 +67,7 @@ def extended_model(problem: Problem, run_kind: np.ndarray, causes: list[str], re
     return ExtendedModel("+".join(causes), causes, {k: res.params[k] for k in SOIL_PARAMETERS},
                          {k: v for k, v in res.params.items() if k not in SOIL_PARAMETERS}, res.test_mse,
                          per_signal_rms(problem, res.residuals, mask=judged),
-                         mounting_offsets(problem, res.residuals).get("pitch"))
+                         mounting_offsets(problem, res.residuals).get("pitch", {}))
 
 
 def cause_gain(problem: Problem, run_kind: np.ndarray, base: FitResult, outcome: Outcome) -> CauseGain:

@@ -46,6 +46,9 @@ class Problem:
     #: whether the IMU's pitch offset is a free nuisance (sensor_offset.py): not where the
     #: campaign's manifest says the mounting is calibrated (Campaign.imu_mounting)
     pitch_offset_free: bool = True
+    #: each run's IMU mounting (run id -> RunSpec.imu_mount): runs on one mounting share one pitch
+    #: offset (sensor_offset.py); a run not named is on the campaign's (DEFAULT_IMU_MOUNT)
+    imu_mounts: dict[str, str] = field(default_factory=dict)
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -74,7 +77,8 @@ def build_problem(campaign: Campaign, fmu_path: str, grid_file: str | dict[str, 
     t = np.concatenate(times) if times else np.zeros(0)
     block = np.floor(t / BLOCK).astype(int)
     problem = Problem(str(campaign.root), grid_file, fmu_path, prepared, terrain_drive=terrain_drive,
-                      terrain_segment=terrain_segment, pitch_offset_free=campaign.imu_mounting != "calibrated")
+                      terrain_segment=terrain_segment, pitch_offset_free=campaign.imu_mounting != "calibrated",
+                      imu_mounts={spec.id: spec.imu_mount for spec in campaign.runs})
     problem.train = (block % 2) == 0
     problem.meta = {"run": np.array(runs), "signal": np.array(signals), "time": t, "block": block}
     return problem

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign import DEFAULT_IMU_MOUNT
 from ..registration import OFFSET_NAMES
 from ..sensor_noise import stated_noise_lines
 from .candidates import CANDIDATES
@@ -285,14 +286,18 @@ def _base_model_lines(result: DiagnosisResult) -> list[str]:
 
 
 def _mounting_lines(result: DiagnosisResult) -> list[str]:
-    """The constant the base model's pitch residuals hold, and what the diagnosis made of it."""
-    offset = result.baseline.pitch_offset
-    if offset is None:
+    """The constant the base model's pitch residuals hold on each IMU mounting, and what the
+    diagnosis made of it."""
+    offsets = result.baseline.pitch_offset
+    if not offsets:
         return []
-    said = (f"The measured pitch reads {np.degrees(offset):+.2f} deg ({offset * 1e3:+.2f} mrad) from the base "
-            "model's on the drawbar runs' training blocks (measured - simulated). ")
+    one = list(offsets) == [DEFAULT_IMU_MOUNT]
+    angles = [f"{np.degrees(v):+.2f} deg ({v * 1e3:+.2f} mrad)" + ("" if one else f" on the mounting {k}")
+              for k, v in offsets.items()]
+    said = (f"The measured pitch reads {', '.join(angles)} from the base model's on the drawbar runs' training "
+            "blocks (measured - simulated). ")
     if result.criteria.pitch_offset_free:
-        said += ("Every fit and comparison takes it off as the IMU's mounting, credited to no cause "
+        said += (f"Every fit and comparison takes {'it' if one else 'each'} off as the IMU's mounting, credited to no cause "
                  "(`imu_mounting` \"free\"; a manifest that says \"calibrated\" keeps it as evidence).")
     else:
         said += "The manifest says the IMU's mounting is calibrated, so it is evidence like the rest."

@@ -212,9 +212,10 @@ class TiedPair:
 class Baseline:
     """The base model's fit: soil, held-out and training mean squared scaled residual, held-out
     RMS per signal (in the signal's units), status and failed evaluations, and the constant its
-    pitch residuals hold on the drawbar runs' training blocks (rad, measured - simulated;
-    sensor_offset.mounting_offsets; None without a measured pitch): the IMU's mounting offset
-    that every fit and comparison takes off where the mounting is free (Criteria.pitch_offset_free)."""
+    pitch residuals hold on the drawbar runs' training blocks, by IMU mounting (mounting -> rad,
+    measured - simulated; sensor_offset.mounting_offsets; empty without a measured pitch): the
+    IMU's mounting offsets that every fit and comparison takes off where the mounting is free
+    (Criteria.pitch_offset_free)."""
 
     soil: dict[str, float]
     test_mse: float
@@ -222,7 +223,7 @@ class Baseline:
     rms: dict[str, float]
     status: str
     failed_evaluations: int
-    pitch_offset: float | None = None
+    pitch_offset: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         return _fields_json(self)
@@ -271,7 +272,7 @@ class ResidualAnalysis:
 @dataclass(frozen=True)
 class ExtendedModel:
     """The model with every named cause: its name ("a+b"), causes, soil, extension parameters,
-    held-out mean squared scaled residual, held-out RMS per signal, and its pitch offset (rad, as
+    held-out mean squared scaled residual, held-out RMS per signal, and its pitch offsets (as
     Baseline's); with no cause named, only ``name`` None and no causes."""
 
     name: str | None
@@ -280,7 +281,7 @@ class ExtendedModel:
     extension: dict[str, float] | None = None
     test_mse: float | None = None
     rms: dict[str, float] | None = None
-    pitch_offset: float | None = None
+    pitch_offset: dict[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         if self.name is None:

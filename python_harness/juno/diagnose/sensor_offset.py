@@ -21,7 +21,10 @@ scale), so the angle is the noise-weighted mean of the unscaled residuals
 of the scaled residuals would take a different angle off each such run, and leave a constant
 of the opposite sign in each, which a cause that pitches the runs differently could be credited
 with.)  It is estimated on the training blocks alone, so the held-out blocks judge it as they
-judge a fitted parameter.  With the offset held at none instead, a base model bends the soil to pitch
+judge a fitted parameter.  An IMU taken off and mounted again between runs has one angle per
+mounting: the manifest names each run's (``imu_mount``, Problem.imu_mounts), and each mounting's
+angle is estimated and taken off on its own runs alike; a mounting with no drawbar run keeps its
+pitch residuals (only the drawbar runs' replay compares the pitch).  With the offset held at none instead, a base model bends the soil to pitch
 the rover, and a candidate that pitches it otherwise is credited with repairing what the bent
 soil spoils: on an alternative-design campaign with a pitch bias of 1.3 degrees, a multi-pass
 rut of 80 % of the front wheels' sinkage on soil softened to a quarter gained 41 % of the
@@ -40,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..campaign import DEFAULT_IMU_MOUNT
 from .problem import Problem
 
 #: The replayed signals measured against a mounting: the IMU's pitch.
@@ -48,11 +52,11 @@ MOUNTED_SIGNALS = ("pitch",)
 
 def offset_free(problem: Problem, r: np.ndarray) -> np.ndarray:
     """``r`` (scaled residuals over ``problem``'s runs, in its order) with each mounted signal's
-    campaign offset (:func:`mounting_offsets`, in the signal's units) taken off every one of its
-    residuals, over each residual's own scale.  A signal with no finite residual on the drawbar
-    runs' training blocks keeps its residuals; so does a residual that is not finite (a run the
-    model could not simulate); and so does every residual where the campaign's mounting is
-    calibrated (``problem.pitch_offset_free`` False)."""
+    offset on each mounting (:func:`mounting_offsets`, in the signal's units) taken off every one
+    of its residuals on that mounting, over each residual's own scale.  A mounting with no finite
+    residual of the signal on the drawbar runs' training blocks keeps its residuals; so does a
+    residual that is not finite (a run the model could not simulate); and so does every residual
+    where the campaign's mounting is calibrated (``problem.pitch_offset_free`` False)."""
     out = np.array(r, dtype=float, copy=True)
     if not problem.pitch_offset_free:
         return out
@@ -63,28 +67,29 @@ def offset_free(problem: Problem, r: np.ndarray) -> np.ndarray:
     return out
 
 
-def mounting_offsets(problem: Problem, r: np.ndarray) -> dict[str, float]:
-    """Each mounted signal's offset in its own units (the pitch's in rad) in the scaled residuals
-    ``r`` (measured - simulated, over each residual's scale): the weighted least-squares
-    constant of the unscaled residuals over the drawbar runs' finite training residuals, each
-    weighted by its scale's inverse square.  It is what offset_free takes off where the mounting
-    is free, and what a model's residuals hold whatever the mounting; a signal with no such
-    residual is left out."""
-    found = {}
+def mounting_offsets(problem: Problem, r: np.ndarray) -> dict[str, dict[str, float]]:
+    """Each mounted signal's offset on each IMU mounting, in the signal's units (the pitch's in
+    rad), in the scaled residuals ``r`` (measured - simulated, over each residual's scale):
+    signal -> mounting (RunSpec.imu_mount) -> the weighted least-squares constant of the unscaled
+    residuals over the mounting's drawbar runs' finite training residuals, each weighted by its
+    scale's inverse square.  It is what offset_free takes off where the mounting is free, and what
+    a model's residuals hold whatever the mounting; a mounting with no such residual is left out."""
+    found: dict[str, dict[str, float]] = {}
     for mounted in _mounted(problem):
         offset = _offset(mounted, r)
         if offset is not None:
-            found[mounted.signal] = offset
+            found.setdefault(mounted.signal, {})[mounted.mount] = offset
     return found
 
 
 @dataclass(frozen=True)
 class _Mounted:
-    """A mounted signal's residuals in a problem: the indices of all of them and their scales
-    (the signal's units per scaled unit), and the same of those on the drawbar runs' training
-    blocks."""
+    """A mounted signal's residuals on one IMU mounting in a problem: the indices of all of them
+    and their scales (the signal's units per scaled unit), and the same of those on the drawbar
+    runs' training blocks."""
 
     signal: str
+    mount: str
     every: np.ndarray
     every_scale: np.ndarray
     training: np.ndarray
@@ -103,28 +108,30 @@ def _offset(mounted: _Mounted, r: np.ndarray) -> float | None:
 
 
 def _mounted(problem: Problem) -> list[_Mounted]:
-    """Every mounted signal ``problem``'s runs measure, in MOUNTED_SIGNALS' order, with the indices
-    and scales of its residuals."""
-    every: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
-    scales: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
-    training: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
-    training_scales: dict[str, list[np.ndarray]] = {s: [] for s in MOUNTED_SIGNALS}
+    """Every mounted signal ``problem``'s runs measure on every mounting, in MOUNTED_SIGNALS' order
+    and then the mountings' order of first appearance, with the indices and scales of its
+    residuals."""
+    groups: dict[tuple[str, str], dict[str, list[np.ndarray]]] = {}
     start = 0
     for p in problem.prepared:
+        mount = problem.imu_mounts.get(p.run_id, DEFAULT_IMU_MOUNT)
         for column, (ts, _values, _output, sigma, _lag) in p.targets.items():
             index = np.arange(start, start + len(ts))
             start += len(ts)
-            if column not in every:
+            if column not in MOUNTED_SIGNALS:
                 continue
-            every[column].append(index)
-            scales[column].append(np.full(len(ts), float(sigma)))
+            group = groups.setdefault((column, mount), {"every": [], "scale": [], "training": [], "training_scale": []})
+            group["every"].append(index)
+            group["scale"].append(np.full(len(ts), float(sigma)))
             if p.kind == "drawbar":
                 mine = problem.train[index]
-                training[column].append(index[mine])
-                training_scales[column].append(np.full(int(np.sum(mine)), float(sigma)))
-    return [_Mounted(s, np.concatenate(every[s]), np.concatenate(scales[s]), _joined(training[s], int),
-                     _joined(training_scales[s], float))
-            for s in MOUNTED_SIGNALS if every[s]]
+                group["training"].append(index[mine])
+                group["training_scale"].append(np.full(int(np.sum(mine)), float(sigma)))
+    ordered = sorted(groups, key=lambda key: MOUNTED_SIGNALS.index(key[0]))
+    return [_Mounted(signal, mount, np.concatenate(groups[signal, mount]["every"]),
+                     np.concatenate(groups[signal, mount]["scale"]), _joined(groups[signal, mount]["training"], int),
+                     _joined(groups[signal, mount]["training_scale"], float))
+            for signal, mount in ordered]
 
 
 def _joined(parts: list[np.ndarray], dtype: type) -> np.ndarray:
