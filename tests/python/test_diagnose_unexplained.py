@@ -7,7 +7,9 @@ campaign's pitch offset as a nuisance (the IMU's mounting, juno/diagnose/sensor_
 no fit bends the soil towards it: it stays in every model's pitch residuals alike, where the
 structure test finds it.  The campaign is half the
 standard length: the bias is many times the pitch sensor's noise, so half the blocks suffice, and
-the test costs half a diagnosis.  The second is a clock offset: the IMU and the total station
+the test costs half a diagnosis.  The second is a drag on one side (a brake dragging on the left wheels, which the motor current
+does not see), at half length like the bias: its torque is several times the torque's noise.
+The third is a clock offset: the IMU and the total station
 time-stamp their samples 0.17-0.25 s off the motor clock, which the block means average away and
 the timing test finds in the positions (one clock, one offset); at the standard length, since the default design's 5 Hz
 positions give half a campaign only about a hundred held-out samples.  Draws as in test_diagnose.py (blind_draws.py).
@@ -46,6 +48,28 @@ def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
     assert diagnosis["criteria"]["pitch_offset_free"]
     assert diagnosis["baseline"]["pitch_offset"]["campaign"] == pytest.approx(bias, rel=0.1), \
         f"[{replay}] the bias was {bias}"
+
+
+def test_a_brake_dragging_on_one_side_is_reported_unexplained_and_named_by_side(tmp_path):
+    """No candidate drags one side: the drivetrain loss drags both alike, and a soil patch that
+    the left wheels alone cross is the false cause such a drag was once given.  What the models
+    leave is a difference between the left and right drive torques, which the structure test
+    finds following the side."""
+    effect = "side_drag"
+    draws = draws_for(effect)
+    strength = round(draws.uniform(0.7, 1.0), 3)
+    seed = draws.randrange(10_000)
+    replay = f"juno synthesize OUT --effect {effect} --strength {strength} --seed {seed} --time-scale 0.5"
+    print(f"\n[diagnose] {replay}")
+    diagnosis, truth = hide_and_diagnose(tmp_path, effect, strength, seed, ("--time-scale", "0.5"))
+    assert [e["in_catalog"] for e in truth["effects"]] == [False]
+    assert diagnosis["cause"] == "unexplained" and diagnosis["causes"] == [], \
+        f"[{replay}] named {diagnosis['cause']}: {diagnosis['explanation']}; {candidates_summary(diagnosis)}"
+    signals = {s["signal"]: s for s in diagnosis["unexplained"]["signals"]}
+    torques = [signals[t] for t in ("torque_left", "torque_right") if t in signals]
+    assert torques, f"[{replay}] {diagnosis['unexplained']['summary']}"
+    follows = {f["covariate"] for t in torques for f in t["follows"]}
+    assert "side" in follows, f"[{replay}] the torques follow {follows}"
 
 
 def test_a_clock_offset_between_instruments_is_reported_unexplained_with_its_size(tmp_path):
