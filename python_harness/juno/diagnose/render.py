@@ -297,8 +297,8 @@ def _mounting_lines(result: DiagnosisResult) -> list[str]:
     said = (f"The measured pitch reads {', '.join(angles)} from the base model's on the drawbar runs' training "
             "blocks (measured - simulated). ")
     if result.criteria.pitch_offset_free:
-        said += (f"Every fit and comparison takes {'it' if one else 'each'} off as the IMU's mounting, credited to no cause "
-                 "(`imu_mounting` \"free\"; a manifest that says \"calibrated\" keeps it as evidence).")
+        said += (f"Every fit and comparison takes {'it' if one else 'each'} off as the IMU's mounting, credited to "
+                 "no cause (`imu_mounting` \"free\"; a manifest that says \"calibrated\" keeps it as evidence).")
     else:
         said += "The manifest says the IMU's mounting is calibrated, so it is evidence like the rest."
     return [said, ""]

@@ -11,24 +11,24 @@ starts, and by as much as the rut, which follows each run's load; slip-sinkage f
 a soil patch is where the rover crosses it.  What a constant angle over the whole campaign
 explains, a cause is not credited with.
 
-So every model is fitted and judged on residuals from which the campaign's pitch offset is
-taken off (:func:`offset_free`): one angle for the campaign (one IMU, one mounting), estimated
-on the drawbar runs' training blocks and taken off every pitch residual.  It is least squares'
-own answer for a free offset: the residuals are scaled by each run's pitch noise, which differs
-from run to run where the noise is estimated from each run (a sensor noisier than the nominal
-scale), so the angle is the noise-weighted mean of the unscaled residuals
-(:func:`mounting_offsets`), and each residual loses the angle over its own run's scale.  (A mean
-of the scaled residuals would take a different angle off each such run, and leave a constant
-of the opposite sign in each, which a cause that pitches the runs differently could be credited
-with.)  It is estimated on the training blocks alone, so the held-out blocks judge it as they
-judge a fitted parameter.  An IMU taken off and mounted again between runs has one angle per
-mounting: the manifest names each run's (``imu_mount``, Problem.imu_mounts), and each mounting's
-angle is estimated and taken off on its own runs alike; a mounting with no drawbar run keeps its
-pitch residuals (only the drawbar runs' replay compares the pitch).  With the offset held at none instead, a base model bends the soil to pitch
-the rover, and a candidate that pitches it otherwise is credited with repairing what the bent
-soil spoils: on an alternative-design campaign with a pitch bias of 1.3 degrees, a multi-pass
-rut of 80 % of the front wheels' sinkage on soil softened to a quarter gained 41 % of the
-held-out error and was named.
+So every model is fitted and judged on residuals from which the campaign's pitch offset is taken
+off (:func:`offset_free`): one angle for the campaign (one IMU, one mounting), estimated on the
+drawbar runs' training blocks and taken off every pitch residual. It is least squares' own
+answer for a free offset: the residuals are scaled by each run's pitch noise, which differs from
+run to run where the noise is estimated from each run (a sensor noisier than the nominal scale),
+so the angle is the noise-weighted mean of the unscaled residuals (:func:`mounting_offsets`),
+and each residual loses the angle over its own run's scale. (A mean of the scaled residuals
+would take a different angle off each such run, and leave a constant of the opposite sign in
+each, which a cause that pitches the runs differently could be credited with.) It is estimated
+on the training blocks alone, so the held-out blocks judge it as they judge a fitted parameter.
+An IMU taken off and mounted again between runs has one angle per mounting: the manifest names
+each run's (``imu_mount``, Problem.imu_mounts), and each mounting's angle is estimated and taken
+off on its own runs alike; a mounting with no drawbar run keeps its pitch residuals (only the
+drawbar runs' replay compares the pitch). With the offset held at none instead, a base model
+bends the soil to pitch the rover, and a candidate that pitches it otherwise is credited with
+repairing what the bent soil spoils: on an alternative-design campaign with a pitch bias of 1.3
+degrees, a multi-pass rut of 80 % of the front wheels' sinkage on soil softened to a quarter
+gained 41 % of the held-out error and was named.
 
 What the models report, and what the residual structure test reads, keep the offset: a pitch
 bias stays in every model's pitch residuals alike, where the structure test finds it as pitch
