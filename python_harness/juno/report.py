@@ -23,6 +23,7 @@ from .outputs import REPORT_MARKER, OutputError, marked_directory  # noqa: E402
 from .campaign import Campaign, forward_speed, missing_columns, read_run  # noqa: E402
 from .sensor_noise import noise_statements, stated_noise_lines  # noqa: E402
 from .identify import JointResult, PaperResult  # noqa: E402
+from .imu_mounting import offsets_text  # noqa: E402
 from . import rover_model  # noqa: E402
 from .rover_model import SOIL_PARAMETERS, Rover  # noqa: E402
 from .validate import SETTLING, ValidationResult  # noqa: E402
@@ -204,6 +205,11 @@ def _joint_section(joint: JointResult) -> list[str]:
         lines.append(f"| {k} | {_fmt(joint.params[k])} | {_fmt(joint.std[k])} | "
                      f"{joint.relative_std[k]:.2%} | {_fmt(stat)} | {bias} | {joint.identifiability[k]} |")
     corr = np.asarray(joint.correlation)
+    if joint.pitch_offset:
+        lines += ["", f"The measured pitch reads {offsets_text(joint.pitch_offset)} from the fitted model's: "
+                  + ("the IMU's mounting, a free parameter of the fit (the manifest's `imu_mounting` is free)."
+                     if joint.pitch_offset_free else
+                     "the manifest says the IMU's mounting is calibrated, so the fit took no offset.")]
     lines += ["", f"Mean squared scaled residual {joint.cost:.4g}; {joint.evaluations} model evaluations; "
               f"{joint.wall_time:.1f} s.", "", "Correlation of the estimates:", "",
               "| | " + " | ".join(SOIL_PARAMETERS) + " |", "|---|" + "---|" * 4]
@@ -335,6 +341,8 @@ def write_report(out_dir: str | Path, campaign: Campaign, paper: Sequence[PaperR
                                                         "std_statistical": joint.std_statistical,
                                                         "std_systematic": joint.std_systematic,
                                                         "replay_bias": joint.replay_bias,
+                                                        "pitch_offset": joint.pitch_offset,
+                                                        "pitch_offset_free": joint.pitch_offset_free,
                                                         "doubts": list(joint.doubts)},
                    "missing_columns": [m.to_json() for m in missing],
                    "sensor_noise": [n.to_json() for n in noise],

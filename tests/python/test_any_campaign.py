@@ -708,8 +708,9 @@ def test_the_report_says_what_the_campaign_lacks_and_that_its_joint_fit_is_doubt
 def test_validate_that_identifies_first_says_when_the_soil_it_validates_is_doubtful(short_campaign, tmp_path,
                                                                                    capsys):
     """Without --params, validate fits the soil itself; a fit the data make doubtful (a pitch
-    sensor 1.5 degrees off, which the soil bends to absorb) is validated all the same, and the
-    printout and the JSON (``soil_doubts``) say why it should not be trusted."""
+    sensor 1.5 degrees off on a mounting the manifest says is calibrated, so the soil bends to
+    absorb it) is validated all the same, and the printout and the JSON (``soil_doubts``) say why
+    it should not be trusted."""
     bias = float(np.radians(1.5))
 
     def pitch_biased(header: list[str], rows: list[list[str]]) -> Table:
@@ -718,6 +719,8 @@ def test_validate_that_identifies_first_says_when_the_soil_it_validates_is_doubt
                         for row in rows]
 
     root = variant(short_campaign, tmp_path / "campaign", pitch_biased)
+    manifest = root / "campaign.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "imu_mounting": "calibrated"}))
     out = tmp_path / "validate.json"
     proc = run_juno_here(capsys, "validate", root, "--quiet", "--json", out)
     assert proc.returncode == 0, proc.stderr

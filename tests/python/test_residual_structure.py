@@ -8,6 +8,7 @@ what it follows, when a sensor or the rover does something no model here knows.
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 from pathlib import Path
 
@@ -196,14 +197,39 @@ def test_a_joint_fit_of_the_models_own_data_has_no_doubts(noisy_campaign, harnes
     assert fit.structure is not None and not fit.structure["significant"]
 
 
-def test_a_joint_fit_of_data_with_a_pitch_bias_is_doubtful(noisy_campaign, harness_fmu, tmp_path):
-    """The fit bends the soil to absorb a sensor bias and its uncertainty says 'pinned'; the
-    structure its residuals keep says the estimates are not to be trusted."""
+def test_a_pitch_bias_is_the_joint_fits_mounting_offset_not_a_bent_soil(noisy_campaign, harness_fmu, tmp_path):
+    """With the IMU's mounting free (the manifest's default), the fit takes the pitch's constant
+    offset as a free parameter of the instrument: the bias comes back as the offset, the soil is
+    the fit's of the data without it (to a small part of its uncertainty: the biased samples are
+    written to the file's digits, so the two fits' paths differ by rounding), and nothing is left
+    to doubt."""
     from juno.identify import identify_joint
-    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": float(np.radians(1.5))})
+    bias = float(np.radians(1.5))
+    plain = identify_joint(harness_fmu, noisy_campaign.campaign, workers=1)
+    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": bias})
     fit = identify_joint(harness_fmu, load_campaign(root), workers=1)
+    assert fit.pitch_offset_free and fit.pitch_offset["campaign"] == pytest.approx(plain.pitch_offset["campaign"] + bias,
+                                                                                   abs=1e-4)
+    for k, v in plain.params.items():
+        assert abs(fit.params[k] - v) < 0.25 * plain.std[k], (k, fit.params[k], v, plain.std[k])
+    assert fit.doubts == [], fit.doubts
+
+
+def test_a_joint_fit_of_data_with_a_pitch_bias_and_a_calibrated_mounting_is_doubtful(noisy_campaign, harness_fmu,
+                                                                                     tmp_path):
+    """Where the manifest says the IMU's mounting is calibrated, the fit takes no offset: it bends
+    the soil to absorb the bias and its uncertainty says 'pinned'; the structure its residuals
+    keep says the estimates are not to be trusted, and the offset they hold is reported."""
+    from juno.identify import identify_joint
+    bias = float(np.radians(1.5))
+    root = _offset_columns(noisy_campaign.path, tmp_path / "campaign", {"pitch": bias})
+    manifest = root / "campaign.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "imu_mounting": "calibrated"}))
+    fit = identify_joint(harness_fmu, load_campaign(root), workers=1)
+    assert not fit.pitch_offset_free
     assert any("structure beyond sensor noise" in d for d in fit.doubts), fit.doubts
     assert fit.structure["significant"]
+    assert 0.0 < fit.pitch_offset["campaign"] < bias
 
 
 def test_a_parameter_at_a_bound_of_the_search_is_a_doubt(noisy_campaign, harness_fmu):

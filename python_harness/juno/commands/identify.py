@@ -105,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"joint: {k} = {v:.5g} +- {joint.std[k]:.2g}{uncertainty_parts(joint, k)} "
                       f"({joint.identifiability[k]})")
             print(f"joint: {joint.evaluations} evaluations in {joint.wall_time:.1f} s; status {joint.status}")
+            for line in pitch_offset_lines(joint):
+                print(line)
             for doubt in joint.doubts:
                 print(f"joint: doubtful: {doubt}")
     for m in missing:
@@ -113,6 +115,20 @@ def run(args: argparse.Namespace) -> int:
         print(line)
     write_json(args.json, out, "identify")
     return 0
+
+
+def pitch_offset_lines(joint) -> list[str]:
+    """What the joint fit made of the pitch's constant offset on each IMU mounting: a free
+    parameter of the fit (the mounting's), or, where the manifest says the mounting is
+    calibrated, what the fitted model's pitch residuals hold."""
+    from ..imu_mounting import offsets_text
+    if not joint.pitch_offset:
+        return []
+    if joint.pitch_offset_free:
+        return [f"joint: the pitch reads {offsets_text(joint.pitch_offset)} from the fitted model's: the IMU's "
+                "mounting, a free parameter of the fit (imu_mounting \"free\"; \"calibrated\" holds it at none)"]
+    return [f"joint: the pitch reads {offsets_text(joint.pitch_offset)} from the fitted model's; the manifest says "
+            "the IMU's mounting is calibrated, so the fit took no offset"]
 
 
 def uncertainty_parts(joint, name: str) -> str:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign import DEFAULT_IMU_MOUNT
+from ..imu_mounting import offsets_text
 from ..registration import OFFSET_NAMES
 from ..sensor_noise import stated_noise_lines
 from .candidates import CANDIDATES
@@ -292,10 +293,8 @@ def _mounting_lines(result: DiagnosisResult) -> list[str]:
     if not offsets:
         return []
     one = list(offsets) == [DEFAULT_IMU_MOUNT]
-    angles = [f"{np.degrees(v):+.2f} deg ({v * 1e3:+.2f} mrad)" + ("" if one else f" on the mounting {k}")
-              for k, v in offsets.items()]
-    said = (f"The measured pitch reads {', '.join(angles)} from the base model's on the drawbar runs' training "
-            "blocks (measured - simulated). ")
+    said = (f"The measured pitch reads {offsets_text(offsets)} from the base model's on the drawbar runs' "
+            "training blocks (measured - simulated). ")
     if result.criteria.pitch_offset_free:
         said += (f"Every fit and comparison takes {'it' if one else 'each'} off as the IMU's mounting, credited to "
                  "no cause (`imu_mounting` \"free\"; a manifest that says \"calibrated\" keeps it as evidence).")

@@ -14,6 +14,7 @@ from threadpoolctl import threadpool_limits
 
 from ..campaign import Campaign, RunData, RunSpec, read_run
 from ..errors import InputError
+from ..imu_mounting import MountedResiduals, mounted_residuals, mounting_offsets, without_offsets
 from ..parallel import FMUHandle, TaskPool, resolve_workers
 from ..rover_model import SOIL_PARAMETERS
 from ..simulator import JunoFMU, SimulationError
@@ -77,6 +78,12 @@ class JointResult:
     #: soil: what the replay does to a soil it should recover (empty where not estimated).
     replay_bias: dict[str, float] = field(default_factory=dict)
     bias_refit: dict | None = None
+    #: The constant the fitted model's pitch residuals hold on each IMU mounting (mounting -> rad,
+    #: measured - simulated; juno.imu_mounting): the IMU's mounting offset, a free parameter of
+    #: the fit unless the campaign's mounting is calibrated (``pitch_offset_free``); empty
+    #: without a measured pitch.
+    pitch_offset: dict[str, float] = field(default_factory=dict)
+    pitch_offset_free: bool = True
 
 
 def correlation_inflation(residuals: np.ndarray, segment_lengths: Sequence[int]) -> float:
@@ -123,10 +130,15 @@ class JointResiduals:
     process that made it, with a parallel ``pool``, one call evaluates the runs as parallel
     tasks; anywhere else it evaluates them one after the other with that process's FMU.
     ``evaluations`` counts the calls made in the owning process.
+
+    ``mounted``: the pitch's residuals on each IMU mounting (juno.imu_mounting); with
+    ``offset_free`` each mounting's offset is profiled out of the residuals (a free parameter of
+    the fit, so that no soil is bent to pitch the rover by a mounting bias), and the offsets the
+    owning process's evaluations held are kept for :meth:`offsets_at`.
     """
 
     def __init__(self, fmu: JunoFMU, prepared: Sequence[PreparedRun], extra: dict[str, object] | None = None,
-                 pool: TaskPool | None = None):
+                 pool: TaskPool | None = None, mounted: Sequence[MountedResiduals] = (), offset_free: bool = False):
         self.handle = FMUHandle(fmu)
         self.prepared = list(prepared)
         self.extra = extra
@@ -134,6 +146,9 @@ class JointResiduals:
         self.pool = pool
         self.log = EvaluationLog()
         self._failed_points: list[np.ndarray] = []
+        self.mounted = list(mounted)
+        self.offset_free = offset_free
+        self._offsets: dict[bytes, dict[str, dict[str, float]]] = {}
 
     @property
     def evaluations(self) -> int:
@@ -142,7 +157,17 @@ class JointResiduals:
     def __getstate__(self):
         state = dict(self.__dict__)
         state["pool"] = None
+        state["_offsets"] = {}
         return state
+
+    def offsets_at(self, x: np.ndarray) -> dict[str, dict[str, float]]:
+        """The offsets (signal -> mounting -> the signal's units) that the residuals at the search
+        point ``x`` hold before any is taken off; ``x`` is evaluated here unless this process
+        evaluated it already."""
+        key = np.asarray(x, float).tobytes()
+        if key not in self._offsets:
+            self(np.asarray(x, float))
+        return self._offsets.get(key, {})
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         soil = from_search(x)
@@ -161,7 +186,13 @@ class JointResiduals:
             self.log.record(failure)
         if failure is not None:
             return np.full(self.size, FAILED_RESIDUAL)
-        return np.concatenate([r for r, _f in outcomes])
+        r = np.concatenate([r for r, _f in outcomes])
+        if self.mounted:
+            if self.handle.is_local:
+                self._offsets[np.asarray(x, float).tobytes()] = mounting_offsets(self.mounted, r)
+            if self.offset_free:
+                r = without_offsets(self.mounted, r)
+        return r
 
     def map(self, fn: Callable[[np.ndarray], np.ndarray], points) -> list[np.ndarray]:
         """Map-like callable for SciPy's ``workers``: ``fn`` (SciPy's wrapper of this object)
@@ -264,8 +295,9 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     # campaign: BLAS threads gain nothing there, and OpenBLAS's spinning between calls took
     # 1.7-2.3 s of CPU per fit (measured) from the cores the simulations need.  One BLAS thread
     # during the fit, serial or parallel alike.
+    offset_free = campaign.imu_mounting != "calibrated"
     with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
-        fun = JointResiduals(fmu, prepared, extra, pool)
+        fun = JointResiduals(fmu, prepared, extra, pool, mounted_residuals(prepared, _mounts(runs)), offset_free)
         result, at_optimum = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
         result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
                                                      data=data, pool=pool)
@@ -287,6 +319,11 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
                 _add_replay_bias(result, refit)
     result.wall_time = time.perf_counter() - start
     return result
+
+
+def _mounts(runs: Sequence[RunSpec]) -> dict[str, str]:
+    """Each run's IMU mounting (run id -> RunSpec.imu_mount)."""
+    return {r.id: r.imu_mount for r in runs}
 
 
 def lacks_optional_columns(campaign: Campaign, runs: Sequence[RunSpec]) -> bool:
@@ -419,11 +456,21 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
     J = ls.jac if x_best is ls.x else None
     # ls.fun holds the residuals at ls.x (the model is deterministic): no need to simulate again.
     r = np.array(ls.fun, float) if x_best is ls.x else fun(x_best)
+    pitch_offset = fun.offsets_at(x_best).get("pitch", {}) if fun.mounted else {}
     optimum_failed = bool(np.all(r == FAILED_RESIDUAL))
     if not optimum_failed:
         if J is None:
             J = _forward_jacobian(fun, x_best, r, JACOBIAN_STEP)
-        rough = _rough_columns(J, _forward_jacobian(fun, x_best, r, JACOBIAN_CHECK_STEP))
+        check = _forward_jacobian(fun, x_best, r, JACOBIAN_CHECK_STEP)
+        rough = _rough_columns(J, check)
+        if rough.any():
+            # SciPy's Jacobian holds a failed simulation's made-up residuals where a point of its
+            # stencil failed: a column is recomputed (a failed point taken on the other side)
+            # before its disagreement with the check is called roughness.
+            J = np.array(J, float)
+            again = np.flatnonzero(rough)
+            J[:, again] = _forward_jacobian(fun, x_best, r, JACOBIAN_STEP, only=again)[:, again]
+            rough = _rough_columns(J, check)
     if optimum_failed or fun.log.failed_fraction > MAX_FAILED_FRACTION:
         fun.log.first_failure = fun.first_failure()
     fun.log.check("joint fit of " + ", ".join(f"'{r_.id}'" for r_ in runs), optimum_failed)
@@ -469,7 +516,8 @@ def _fit_joint(fun: JointResiduals, runs: list[RunSpec], prepared: list[Prepared
                        status=("not converged" if rough.any() else "not identified" if not np.all(seen)
                                else EVALUATION_LIMIT if at_limit else "ok"),
                        failed_evaluations=fun.log.failed, rough_parameters=[k for k, bad in
-                                                                             zip(SOIL_PARAMETERS, rough) if bad]), r
+                                                                             zip(SOIL_PARAMETERS, rough) if bad],
+                       pitch_offset=pitch_offset, pitch_offset_free=fun.offset_free), r
 
 
 #: The status of a joint fit that used its whole budget of evaluations without converging.
@@ -489,18 +537,27 @@ JACOBIAN_CHECK_STEP = 1e-3
 JACOBIAN_AGREEMENT = 0.25
 
 
-def _forward_jacobian(fun: JointResiduals, x: np.ndarray, r: np.ndarray, step: float) -> np.ndarray:
+def _forward_jacobian(fun: JointResiduals, x: np.ndarray, r: np.ndarray, step: float,
+                      only: Sequence[int] | None = None) -> np.ndarray:
     """Forward-difference Jacobian of ``fun`` at ``x`` (residuals ``r``) with relative step
-    ``step``, as least_squares takes it (h = step max(1, |x|)), its points through fun.map; a
-    failed point gives a column of non-finite values."""
+    ``step``, as least_squares takes it (h = step max(1, |x|)), its points through fun.map; with
+    ``only``, those columns alone (the others non-finite).  A
+    point whose simulation fails is taken again on the other side of ``x`` (a backward
+    difference, inside the search): a failed simulation says nothing of whether the residuals are
+    differentiable, which the check of another step (_rough_columns) judges.  A column whose
+    points fail on both sides is non-finite."""
     h = step * np.maximum(1.0, np.abs(x))
     lo, hi = SOIL_SEARCH_BOUNDS
     h = np.where(x + h > hi, -h, h)       # stay inside the search, as SciPy does
-    points = [x + np.where(np.arange(len(x)) == i, h[i], 0.0) for i in range(len(x))]
-    columns = []
-    for i, ri in enumerate(fun.map(fun, points)):
-        ri = np.asarray(ri, float)
-        columns.append(np.full(len(r), np.nan) if np.all(ri == FAILED_RESIDUAL) else (ri - r) / h[i])
+    unit = np.eye(len(x))
+    wanted = list(range(len(x))) if only is None else list(only)
+    values = {i: np.asarray(ri, float) for i, ri in zip(wanted, fun.map(fun, [x + h[i] * unit[i] for i in wanted]))}
+    failed = [i for i, ri in values.items() if np.all(ri == FAILED_RESIDUAL)]
+    back = [i for i in failed if lo[i] < x[i] - h[i] < hi[i]]
+    for i, ri in zip(back, fun.map(fun, [x - h[i] * unit[i] for i in back])):
+        values[i], h[i] = np.asarray(ri, float), -h[i]
+    columns = [np.full(len(r), np.nan) if i not in values or np.all(values[i] == FAILED_RESIDUAL)
+               else (values[i] - r) / h[i] for i in range(len(x))]
     return np.column_stack(columns)
 
 
