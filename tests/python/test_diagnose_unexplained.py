@@ -22,8 +22,10 @@ import pytest
 from blind_draws import candidates_summary, draw_and_diagnose, draws_for, hide_and_diagnose
 
 
-def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
-    effect = "imu_pitch_bias"
+def decoy_at_half_length(tmp_path, effect: str) -> tuple[dict, dict, str]:
+    """Hides the decoy ``effect`` blind in a half-length campaign (strength in [0.7, 1] and seed
+    drawn for it) and checks that the diagnosis names no catalog cause and reports the
+    discrepancy unexplained; returns (diagnosis, truth, the command that replays the draw)."""
     draws = draws_for(effect)
     strength = round(draws.uniform(0.7, 1.0), 3)
     seed = draws.randrange(10_000)
@@ -33,6 +35,11 @@ def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
     assert [e["in_catalog"] for e in truth["effects"]] == [False]
     assert diagnosis["cause"] == "unexplained" and diagnosis["causes"] == [], \
         f"[{replay}] named {diagnosis['cause']}: {diagnosis['explanation']}; {candidates_summary(diagnosis)}"
+    return diagnosis, truth, replay
+
+
+def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
+    diagnosis, truth, replay = decoy_at_half_length(tmp_path, "imu_pitch_bias")
     unexplained = diagnosis["unexplained"]
     signals = {s["signal"]: s for s in unexplained["signals"]}
     assert "pitch" in signals, f"[{replay}] {unexplained['summary']}"
@@ -52,19 +59,9 @@ def test_a_sensor_bias_no_candidate_models_is_reported_unexplained(tmp_path):
 
 def test_a_brake_dragging_on_one_side_is_reported_unexplained_and_named_by_side(tmp_path):
     """No candidate drags one side: the drivetrain loss drags both alike, and a soil patch that
-    the left wheels alone cross is the false cause such a drag was once given.  What the models
-    leave is a difference between the left and right drive torques, which the structure test
-    finds following the side."""
-    effect = "side_drag"
-    draws = draws_for(effect)
-    strength = round(draws.uniform(0.7, 1.0), 3)
-    seed = draws.randrange(10_000)
-    replay = f"juno synthesize OUT --effect {effect} --strength {strength} --seed {seed} --time-scale 0.5"
-    print(f"\n[diagnose] {replay}")
-    diagnosis, truth = hide_and_diagnose(tmp_path, effect, strength, seed, ("--time-scale", "0.5"))
-    assert [e["in_catalog"] for e in truth["effects"]] == [False]
-    assert diagnosis["cause"] == "unexplained" and diagnosis["causes"] == [], \
-        f"[{replay}] named {diagnosis['cause']}: {diagnosis['explanation']}; {candidates_summary(diagnosis)}"
+    the left wheels alone cross would be a false cause.  What the models leave is a difference
+    between the left and right drive torques, which the structure test finds following the side."""
+    diagnosis, _truth, replay = decoy_at_half_length(tmp_path, "side_drag")
     signals = {s["signal"]: s for s in diagnosis["unexplained"]["signals"]}
     torques = [signals[t] for t in ("torque_left", "torque_right") if t in signals]
     assert torques, f"[{replay}] {diagnosis['unexplained']['summary']}"
