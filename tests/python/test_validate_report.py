@@ -153,6 +153,30 @@ def test_report_has_the_joint_fit_and_validation_tables(noisy_report, noisy_join
     assert all(len(r) == len(validation[0]) for r in validation)
     truth = markdown_table_after(text, "## Synthetic truth")
     assert [r[0] for r in truth[2:]] == list(SOIL_PARAMETERS)
+    # the IMU's mounting offset the joint fit took as a free parameter, in degrees
+    offset = noisy_joint.pitch_offset["campaign"]
+    assert noisy_joint.pitch_offset_free
+    assert (f"The measured pitch reads {np.degrees(offset):+.2f} deg ({offset * 1e3:+.2f} mrad) from the fitted "
+            "model's: the IMU's mounting, a free parameter of the fit") in text
+
+
+def test_identify_prints_the_mounting_offset_and_what_the_fit_made_of_it():
+    """A free offset is the mounting's, a parameter of the fit; with a calibrated mounting it is
+    what the fitted model's pitch residuals hold; several mountings are named; no pitch, no line."""
+    from dataclasses import replace
+
+    from juno.commands.identify import pitch_offset_lines
+    from juno.identify import JointResult
+    fit = JointResult(dict.fromkeys(SOIL_PARAMETERS, 1.0), {}, {}, np.eye(4), {}, 1.0, 1, 0.0,
+                      pitch_offset={"campaign": float(np.radians(-0.5))})
+    assert pitch_offset_lines(fit) == [
+        "joint: the pitch reads -0.50 deg (-8.73 mrad) from the fitted model's: the IMU's mounting, a free parameter "
+        'of the fit (imu_mounting "free"; "calibrated" holds it at none)']
+    calibrated = replace(fit, pitch_offset_free=False, pitch_offset={"day1": 0.01, "day2": -0.01})
+    assert pitch_offset_lines(calibrated) == [
+        "joint: the pitch reads +0.57 deg (+10.00 mrad) on the mounting day1, -0.57 deg (-10.00 mrad) on the mounting "
+        "day2 from the fitted model's; the manifest says the IMU's mounting is calibrated, so the fit took no offset"]
+    assert pitch_offset_lines(replace(fit, pitch_offset={})) == []
 
 
 def test_report_links_only_figures_it_wrote(noisy_report):
