@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import atexit
 import concurrent.futures
+import concurrent.futures.process
 import contextlib
 import ctypes
 import heapq
@@ -151,13 +152,20 @@ def _reap(processes: list) -> None:
 
 def _join_manager(executor) -> None:
     """Wait for a ProcessPoolExecutor shut down without waiting (its workers terminated) to finish
-    its own clean-up.  Why: its management thread closes the pipe that wakes it, and CPython 3.11
-    checks that the pipe is open and writes to it from the interpreter's exit hook without a lock,
-    so an exit (SIGTERM, Ctrl-C) while the thread is closing it prints an ignored OSError's
-    traceback on stderr after juno's own message."""
+    its own clean-up, and take its management thread off the interpreter's exit hook.  Why: the
+    thread closes the pipe that wakes it, and CPython 3.11's exit hook (concurrent.futures.process
+    ._python_exit) checks that the pipe is open and writes to it without a lock, so an exit
+    (SIGTERM, Ctrl-C) while the thread is closing it, or once the pipe's descriptor is gone,
+    prints an ignored OSError's traceback on stderr after juno's own message; on two busy cores
+    the join's grace does not always cover it.  The hook has nothing left to do for this pool:
+    its workers are gone and the thread, if it still runs, is joined at exit as every
+    non-daemon thread is."""
     thread = getattr(executor, "_executor_manager_thread", None)
     if thread is not None:
         thread.join(timeout=TERMINATE_GRACE)
+        wakeups = getattr(concurrent.futures.process, "_threads_wakeups", None)
+        if wakeups is not None:
+            wakeups.pop(thread, None)
 
 
 def _pool_context():
