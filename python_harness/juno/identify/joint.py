@@ -150,6 +150,17 @@ class JointResiduals:
         self.offset_free = offset_free
         self._offsets: dict[bytes, dict[str, dict[str, float]]] = {}
 
+    @classmethod
+    def for_campaign(cls, fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec],
+                     prepared: Sequence[PreparedRun], extra: dict[str, object] | None = None,
+                     pool: TaskPool | None = None) -> "JointResiduals":
+        """The residuals of the ``prepared`` replays of ``runs`` (in the same order) as the
+        ``campaign`` states its IMU: each run on its mounting (RunSpec.imu_mount), every mounting's
+        pitch offset free unless the manifest says the mounting is calibrated."""
+        mounts = {r.id: r.imu_mount for r in runs}
+        return cls(fmu, prepared, extra, pool, mounted_residuals(prepared, mounts),
+                   offset_free=campaign.imu_mounting != "calibrated")
+
     @property
     def evaluations(self) -> int:
         return self.log.count
@@ -295,9 +306,8 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
     # campaign: BLAS threads gain nothing there, and OpenBLAS's spinning between calls took
     # 1.7-2.3 s of CPU per fit (measured) from the cores the simulations need.  One BLAS thread
     # during the fit, serial or parallel alike.
-    offset_free = campaign.imu_mounting != "calibrated"
     with TaskPool(n_workers, scheduler) as pool, threadpool_limits(limits=1, user_api="blas"):
-        fun = JointResiduals(fmu, prepared, extra, pool, mounted_residuals(prepared, _mounts(runs)), offset_free)
+        fun = JointResiduals.for_campaign(fmu, campaign, runs, prepared, extra, pool)
         result, at_optimum = _fit_joint(fun, runs, prepared, initial, max_evaluations, optimizer, progress, start)
         result.doubts, result.structure = fit_doubts(fmu, campaign, prepared, result, extra, residuals=at_optimum,
                                                      data=data, pool=pool)
@@ -319,11 +329,6 @@ def identify_joint(fmu: JunoFMU, campaign: Campaign, run_ids: Sequence[str] | No
                 _add_replay_bias(result, refit)
     result.wall_time = time.perf_counter() - start
     return result
-
-
-def _mounts(runs: Sequence[RunSpec]) -> dict[str, str]:
-    """Each run's IMU mounting (run id -> RunSpec.imu_mount)."""
-    return {r.id: r.imu_mount for r in runs}
 
 
 def lacks_optional_columns(campaign: Campaign, runs: Sequence[RunSpec]) -> bool:

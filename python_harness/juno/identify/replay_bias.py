@@ -39,7 +39,6 @@ from typing import Sequence
 import numpy as np
 
 from ..campaign import Campaign, RunData, RunSpec
-from ..imu_mounting import mounted_residuals
 from ..parallel import FMUHandle, TaskPool
 from ..simulator import JunoFMU, SimulationError
 from .replay import PreparedRun, prepare_run
@@ -117,7 +116,7 @@ def replay_bias(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec], data:
     ``max_evaluations`` and ``optimizer``.  The synthetic runs are simulated as parallel tasks on
     ``pool``, and the refit evaluates on it as the fit does.  Raises SimulationError (FitError
     among them) or ValueError when the world or the refit cannot be simulated."""
-    from .joint import JointResiduals, _fit_joint, _mounts
+    from .joint import JointResiduals, _fit_joint
     start = time.perf_counter()
     terrain_files = terrain_files or {}
     handle = FMUHandle(fmu)
@@ -134,8 +133,7 @@ def replay_bias(fmu: JunoFMU, campaign: Campaign, runs: Sequence[RunSpec], data:
         p = prepare_run(campaign, run, world, terrain_file=terrain_files.get(run.id))
         p.targets = {c: (ts, vs, out, fit_run.targets[c][3], lag) for c, (ts, vs, out, _s, lag) in p.targets.items()}
         synthetic.append(p)
-    fun = JointResiduals(fmu, synthetic, extra, pool, mounted_residuals(synthetic, _mounts(runs)),
-                         campaign.imu_mounting != "calibrated")
+    fun = JointResiduals.for_campaign(fmu, campaign, runs, synthetic, extra, pool)
     refit, _r = _fit_joint(fun, list(runs), synthetic, initial, max_evaluations, optimizer, None, start)
     return ReplayBias(params=refit.params, status=refit.status, evaluations=refit.evaluations,
                       wall_time=time.perf_counter() - start)
