@@ -193,3 +193,37 @@ def test_the_report_gives_the_pitch_offset_in_degrees_and_what_was_made_of_it(tm
     assert ("reads +1.50 deg (+26.18 mrad) on the mounting day1, -0.50 deg (-8.73 mrad) on the mounting day2"
             in "\n".join(report_section(two, tmp_path)))
     assert "measured pitch reads" not in "\n".join(report_section(replace(base, plot_data=None), tmp_path))
+
+
+def test_a_registration_significant_on_the_pose_alone_says_so_and_why_it_is_not_named(tmp_path):
+    """A soft patch sinks the wheels as a lowered scan would: the registration can pass the pose's
+    bar while the patch is the cause.  The printout and the report say what its significance
+    rests on, that the named cause explains the data better, and what it adds on top of it; a
+    registration that is named, or not significant, gets no such sentence."""
+    from juno.diagnose import report_section
+    base = _no_cause_result()
+    pose = KinematicEvidence(0.59, 0.18, 3.32, 0.70, True)
+    registration = JudgedCandidate("terrain_offset", "the scan is misregistered", -0.007, 0.0, True, True, "ok", 0,
+                                   gain_by_kind={"terrain": -0.05}, z_by_kind={"terrain": 0.0}, n_params=6,
+                                   kinematic=pose)
+    patch = JudgedCandidate("soil_patch", "soil varies", 0.79, 7.0, True, True, "ok", 0,
+                            gain_by_kind={"drawbar": 0.8}, z_by_kind={"drawbar": 7.0}, n_params=5)
+    on_top = replace(registration, gain=0.062, significant=False)
+    result = replace(base, cause="soil_patch", causes=["soil_patch"], equally_good=[], telling_apart=[],
+                     candidates=[patch, registration], second_round=[on_top], plot_data=None,
+                     extended=ExtendedModel("soil_patch", ["soil_patch"]),
+                     gain=CauseGain(4.9, 1.0, ["drawbar"], 0.79, 7.0, [GainStep("soil_patch", 0.79, 7.0, 4.9, 1.0)],
+                                    {"speed": SignalGain(0.2, 0.1, 0.5)}))
+    lines = summary_lines(result)
+    said = lines[lines.index(next(x for x in lines if x.startswith(" * terrain_offset"))) + 1].strip()
+    assert said.startswith("significant on the measured pose alone (held-out pose 3.32 times better registered, "
+                           "evidence from 4 times); not named: soil_patch explains the held-out data better, "
+                           "and on top of it the registration is not significant (further gain +6.2%)")
+    assert "The registration is significant on the measured pose alone" in "\n".join(report_section(result, tmp_path))
+    named = replace(result, cause="terrain_offset", causes=["terrain_offset"], second_round=[])
+    assert not any("on the measured pose alone" in x for x in summary_lines(named))
+    unexplained = replace(result, cause="unexplained", causes=[], second_round=[])
+    assert any("not named: the diagnosis is unexplained; a soil effect" in x for x in summary_lines(unexplained))
+    weak = replace(result, candidates=[patch, replace(registration, significant=False,
+                                                      kinematic=replace(pose, ratio=1.2, significant=False))])
+    assert not any("on the measured pose alone" in x for x in summary_lines(weak))

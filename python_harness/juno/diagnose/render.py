@@ -26,6 +26,8 @@ def summary_lines(result: DiagnosisResult) -> list[str]:
         mark = "*" if c.significant else " "
         lines.append(f" {mark} {c.name:16s} held-out gain {c.gain:+7.1%}  z {c.z:6.1f}   {by_kind(c)}")
         lines += at_bounds_lines(c, named_with(result, c))
+        said = pose_only_sentence(result, c)
+        lines += [f"      {said}"] if said else []
     lines += [duel_sentence(duel) for duel in result.head_to_head]
     if result.equally_good:
         lines.append("equally good: " + ", ".join(result.equally_good))
@@ -62,6 +64,28 @@ def at_bounds_lines(c: JudgedCandidate, second: str | None = None) -> list[str]:
                 f"{second} on top the soil is a real one, and that model explains the held-out data best"]
     return [f"      its soil sits at a bound of the search ({', '.join(c.soil_at_bounds)}): the data push the "
             "soil beyond any real one, so its gain is no evidence for the cause"]
+
+
+def pose_only_sentence(result: DiagnosisResult, c: JudgedCandidate) -> str | None:
+    """What a registration significant on the measured pose but not named rests on, and why it is
+    not named; None for any other candidate.  The pose is kinematic evidence: a soil effect that
+    sinks the wheels deeper in places (a soft patch or strip) lowers the rover as a lowered scan
+    would, so the registration's significance alone says the pose does not fit the scan as it
+    is, not that the scan is misregistered."""
+    if not (c.significant and c.kinematic and c.kinematic.significant) or c.name in result.causes:
+        return None
+    scans = c.kinematic.misregistered()
+    ratios = (", ".join(f"{s.scan} {s.ratio:.3g}" for s in scans) if len(c.kinematic.scans or []) > 1
+              else f"{c.kinematic.ratio:.3g}")
+    said = (f"significant on the measured pose alone (held-out pose {ratios} times better "
+            f"registered, evidence from {result.criteria.registration_held_out_ratio:g} times); not named: ")
+    said += (f"{result.causes[0]} explains the held-out data better" if result.causes
+             else f"the diagnosis is {result.cause}")
+    on_top = next((s for s in result.second_round if s.name == c.name), None)
+    if on_top is not None and not on_top.significant:
+        said += f", and on top of it the registration is not significant (further gain {on_top.gain:+.1%})"
+    return said + ("; a soil effect that sinks the wheels deeper in places moves the pose as a "
+                   "misregistered scan would")
 
 
 def significance(c: JudgedCandidate, second: str | None = None) -> str:
@@ -332,6 +356,9 @@ def _candidates_table(result: DiagnosisResult) -> list[str]:
                       f"{k.ratio:.3g} times better than the scan as it is (mean squared scaled residual "
                       f"{k.held_out_ms_as_scanned:.3g} against {k.held_out_ms_registered:.3g}; evidence from "
                       f"{result.criteria.registration_held_out_ratio:g} times).", ""]
+        said = pose_only_sentence(result, c)
+        if said:
+            lines += [f"The registration is {said}.", ""]
     return lines
 
 
