@@ -345,7 +345,12 @@ def test_a_candidate_that_explains_one_kind_of_run_but_is_no_cause_makes_nothing
     assert v.cause == "unexplained" and v.causes == []
     [partial] = v.unexplained.partial
     assert (partial.name, partial.kind) == ("grouser", "drawbar") and partial.z == 5.6
-    assert "grouser explains the drawbar runs' held-out data better" in explanation(v, "")
+    said = explanation(v, "")
+    assert said.startswith("a discrepancy no extension in the catalog explains well enough to be named: "
+                           "grouser explains the drawbar runs' held-out data better")
+    # the evidence is the candidate's own: a weak or other form of its cause fits it as well as an
+    # outside cause does, and the sentence says both
+    assert said.endswith("read it as a weak form of grouser's cause, or another cause it describes in part")
     assert partial.why_no_cause == ["its held-out gain over every run, -3.0%, is under the 6% its 2 parameters must buy"]
     assert v.unexplained.to_json()["partial"][0]["kind"] == "drawbar"
     # the threshold is Bonferroni's over the tests made: five physical candidates on the drawbar runs

@@ -275,6 +275,12 @@ def explanation(verdict_: Verdict, catalog_explanation: str) -> str:
         absorbed = (f"; {', '.join(u.absorbed_by)} would remove only {u.share_removed:.0%} of it, so it is not named"
                     if u.absorbed_by else "")
         if not u.signals and not u.ripples and not u.offsets:
+            if u.partial and (u.scan is None or not u.scan.significant):
+                # The only evidence is a candidate's own: the base model is wrong where that
+                # candidate acts, by less than a cause must explain.  Both readings fit it.
+                names = " or ".join(dict.fromkeys(p.name for p in u.partial))
+                return (f"a discrepancy no extension in the catalog explains well enough to be named: {u.summary()}; "
+                        f"read it as a weak form of {names}'s cause, or another cause it describes in part")
             return f"no extension in the catalog explains the data: {u.summary() or 'structure remains'}"
         return ("the drawbar runs' held-out residuals hold structure beyond sensor noise that no extension in the "
                 f"catalog explains: {u.summary()}{absorbed}")
