@@ -168,6 +168,53 @@ def low_pass_with_stated_noise(run: str, name: str, tau: float) -> Callable[[Pat
     return apply
 
 
+def swap_columns(run: str, a: str, b: str) -> Callable[[Path], None]:
+    """The file holds column ``a``'s values under ``b``'s name and the other way round."""
+    def apply(root: Path) -> None:
+        def change(c):
+            c[a], c[b] = c[b].copy(), c[a].copy()
+        edit_run(root, run, change)
+    return apply
+
+
+def parked(run: str) -> Callable[[Path], None]:
+    """The run logged with the rover parked: spins and drive torques 0.0, the position its first."""
+    def apply(root: Path) -> None:
+        def change(c):
+            for name in ("omega_left", "omega_right", "torque_left", "torque_right"):
+                c[name] = np.where(np.isnan(c[name]), np.nan, 0.0)
+            for name in ("pos_x", "pos_y", "pos_z"):
+                c[name] = np.where(np.isnan(c[name]), np.nan, c[name][~np.isnan(c[name])][0])
+        edit_run(root, run, change)
+    return apply
+
+
+def waiting_window(run: str, seconds: float) -> Callable[[Path], None]:
+    """The logger starts ``seconds`` before the rover, which waits with its wheels still (a row
+    every 0.1 s of its first readings, spins and torques 0.0), and the manifest's steady window is
+    that wait."""
+    def apply(root: Path) -> None:
+        start = [0.0]
+
+        def change(c):
+            t = c["time"]
+            step = 0.1
+            n = int(round(seconds / step))
+            for name, v in list(c.items()):
+                if name != "time":
+                    rest = 0.0 if name.startswith(("omega_", "torque_")) else v[~np.isnan(v)][0]
+                    c[name] = np.concatenate([np.full(n, rest), v])
+            c["time"] = np.concatenate([t[0] + step * np.arange(n), t + n * step])
+            start[0] = float(t[0])
+        edit_run(root, run, change)
+        path = root / "campaign.json"
+        doc = json.loads(path.read_text())
+        entry = next(r for r in doc["runs"] if r["id"] == run)
+        entry["steady_window"] = [start[0], start[0] + seconds]
+        path.write_text(json.dumps(doc, indent=2))
+    return apply
+
+
 def edit_scan(change: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path], None]:
     def apply(root: Path) -> None:
         path = root / "terrain" / "scan.xyz"
@@ -251,6 +298,25 @@ ERRORS = [
          "runs/dbp1.csv", "pos_z", ("another datum", "flat ground at z = 0", "312.")),
     Case("path far off the scan", cropped(0.5), "error", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan terrain/scan.xyz during", "s (")),
+    Case("a drawbar run logged with the rover parked", parked("dbp2"), "error", "runs/dbp2.csv", "omega_left",
+         ("median |spin| over the run is 0 rad/s", "a drawbar test drives the rover", "encoders")),
+    Case("a steady window while the rover waits at the start", waiting_window("dbp1", 1.0), "error", "campaign.json",
+         "steady_window", ("run 'dbp1'", "steady_window 0-1 s", "standing still", "give the span where it does")),
+    Case("drawbar heights with z pointing down", scale("dbp2", -1.0, "pos_z"), "error", "runs/dbp2.csv", "pos_z",
+         ("the median pos_z is -0.", "rover.pivotHeight", "does z point down")),
+    Case("drawbar heights of the y axis (a y-up frame)", swap_columns("dbp3", "pos_y", "pos_z"), "error",
+         "runs/dbp3.csv", "pos_z", ("flat ground at z = 0", "another axis (a y-up frame)")),
+    Case("terrain heights with z pointing down", scale("t3d", -1.0, "pos_z"), "error", "runs/t3d.csv", "pos_z",
+         ("pos_z falls where the ground under the wheels in terrain/scan.xyz rises", "z points down")),
+    Case("a scan with z pointing down", edit_scan(lambda p: p * [1.0, 1.0, -1.0]), "error", "runs/t3d.csv", "pos_z",
+         ("pos_z falls where the ground under the wheels in terrain/scan.xyz rises", "z points down")),
+    Case("a scan's heights from a map's datum", edit_scan(lambda p: p + [0.0, 0.0, 312.0]), "error", "runs/t3d.csv",
+         "pos_z", ("m above the ground under its wheels in terrain/scan.xyz", "-311.", "below that",
+                   "different datums")),
+    Case("terrain heights from a total station's datum", shift("t3d", 45.0, "pos_z"), "error", "runs/t3d.csv",
+         "pos_z", ("45.", "above that", "different datums")),
+    Case("a scan's heights in millimetres", edit_scan(lambda p: p * [1.0, 1.0, 1000.0]), "error", "runs/t3d.csv",
+         "pos_z", ("below that", "not in metres")),
     Case("a height noise stated in millimetres", state_noise({"pos_z": 3.0}), "error", "runs/dbp1.csv", "pos_z",
          ("the manifest states a sensor noise of 3 m (1 sigma)", "more than the column's whole range in this run",
           "another unit")),

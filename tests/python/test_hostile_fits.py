@@ -161,6 +161,22 @@ def test_fit_the_fmu_refuses_names_the_fmu_reason(campaign, harness_fmu):
         identify_joint(harness_fmu, campaign, extra={"rover.mass": -5.0}, workers=1)
 
 
+@pytest.mark.parametrize("length", [0.05, 0.2])
+def test_a_steady_window_shorter_than_the_paper_fits_output_intervals_is_compared_at_its_end(
+        campaign, harness_fmu, tmp_path, length):
+    """The paper-style fit compares the simulated drive every 0.1 s over the window and its rank
+    every 0.5 s: a shorter window (within its run) is compared at its end, not a crash."""
+    root = tmp_path / "campaign"
+    shutil.copytree(campaign.root, root)
+    manifest = json.loads((root / "campaign.json").read_text())
+    start = manifest["runs"][0]["steady_window"][0]
+    manifest["runs"][0]["steady_window"] = [start, start + length]
+    (root / "campaign.json").write_text(json.dumps(manifest, indent=2))
+    result = identify_paper(harness_fmu, load_campaign(root), "dbp1", max_evaluations=20)
+    assert result.averages.window == pytest.approx((start, start + length))
+    assert np.isfinite(result.cost) and result.jacobian_rank >= 1
+
+
 def test_fit_with_more_than_the_stated_fraction_failed_is_an_error(campaign, harness_fmu, monkeypatch):
     monkeypatch.setattr(JunoFMU, "simulate", _soil_simulate)
     ok = identify_joint(harness_fmu, campaign, workers=1)

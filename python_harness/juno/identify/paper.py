@@ -70,6 +70,8 @@ def paper_cost(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages,
     inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
                                    torqueRight=avg.torque_right)
     duration = avg.window[1] - avg.window[0]
+    # A window shorter than the output interval is compared at its end alone.
+    output_interval = min(output_interval, duration)
     try:
         sim = fmu.simulate(params, inputs, duration, output_interval, outputs=("vx", "omegaLeft", "omegaRight"))
     except SimulationError as exc:
@@ -160,7 +162,8 @@ def _paper_rank(fmu: JunoFMU, soil: dict[str, float], avg: SteadyAverages, base:
         inputs = InputSignals.constant(drawbarForce=avg.drawbar, torqueLeft=avg.torque_left,
                                        torqueRight=avg.torque_right)
         try:
-            sim = fmu.simulate(params, inputs, avg.window[1] - avg.window[0], 0.5,
+            duration = avg.window[1] - avg.window[0]
+            sim = fmu.simulate(params, inputs, duration, min(0.5, duration),
                                outputs=("vx", "omegaLeft", "omegaRight"))
         except SimulationError as exc:
             if log is not None:

@@ -16,7 +16,7 @@ from .outliers import check_outliers
 from .rig import check_rig, check_rig_wheel
 from .scan import check_scan
 from .sensors import (check_angles, check_drawbar, check_positions, check_signs, check_spins, check_time,
-                      check_power, check_rolling, check_torques,
+                      check_power, check_rolling, check_steady_drive, check_torques,
                       drawbar_in_kilonewtons)
 
 
@@ -56,6 +56,7 @@ def check_campaign(campaign: Campaign) -> list[Finding]:
             continue
         run = read_run(campaign, spec)
         found += check_run(run, spec.file, limits)
+        found += check_steady_drive(run, spec.file, spec.steady_window, campaign.manifest_path.name)
         if spec.terrain is not None:
             found += check_scan(campaign, spec, run, limits)
         if run.kind == "drawbar" and run.has("drawbar_force"):

@@ -11,6 +11,10 @@ parameters (the FMU's defaults, overridden by the campaign's ``rover`` entry):
   turn a wheel; a wheel may overrun it a little downhill (warning beyond ``SPIN_WARN`` times it)
   but not three times over (error beyond ``SPIN_ERROR`` times it: the rover pushed at three
   times its top speed). rpm are 9.55 times rad/s.
+* **Ride height.** The chassis reference point (the rocker pivots) rides ``wheel.radius +
+  rover.pivotHeight`` (0.43 m) above the ground its wheels rest on, less their sinkage; sunk to
+  their axles (a sinkage of the radius, where the FMU stops), it is ``rover.pivotHeight`` (0.15
+  m) above it.
 * **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
   speed over 1 s exceeds twice that are not in metres.
 """
@@ -25,7 +29,7 @@ from ..rover_model import fmu_defaults
 
 #: The FMU parameters the limits derive from: the FMU's defaults (juno.rover_model), which the
 #: campaign's ``rover`` overrides.
-ROVER_PARAMETERS = ("wheel.radius", "wheel.width", "rover.track", "rover.wheelbase", "rover.cgHeight",
+ROVER_PARAMETERS = ("wheel.radius", "wheel.width", "rover.track", "rover.wheelbase", "rover.cgHeight", "rover.pivotHeight",
                     "motor.voltage", "motor.kt", "motor.resistance", "motor.gearRatio", "motor.efficiency",
                     "drive.torqueMax")
 
@@ -46,6 +50,14 @@ class RoverLimits:
     cg_height: float = 0.0   # m: wheel radius + rover.cgHeight, the CG over flat ground
     track: float = 0.0       # m: rover.track, between the wheels' centre planes
     gear_ratio: float = 1.0  # motor.gearRatio, motor : wheel
+    wheelbase: float = 0.0   # m: rover.wheelbase, between the front and rear axles
+    pivot_height: float = 0.0  # m: rover.pivotHeight, the rocker pivots (the chassis reference point) above the axles
+
+    @property
+    def ride_height(self) -> float:
+        """The chassis reference point's height (m) above the ground its wheels rest on, before
+        they sink: wheel radius + rocker pivots above the axles."""
+        return self.wheel_radius + self.pivot_height
 
     @property
     def plugging_torque(self) -> float:
@@ -70,4 +82,5 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         top_speed=omega0 * r, wheel_radius=r, half_length=0.5 * p["rover.wheelbase"] + r,
         half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
         roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
-        cg_height=cg, track=p["rover.track"], gear_ratio=n)
+        cg_height=cg, track=p["rover.track"], gear_ratio=n, wheelbase=p["rover.wheelbase"],
+        pivot_height=p["rover.pivotHeight"])

@@ -6,11 +6,28 @@ footprint, must lie on the gridded scan (:func:`path_off_scan`): off it for more
 ``OFF_SCAN_ERROR`` (10 %) of the run's position samples is an error (the replay would be
 compared with the measurements over unmeasured ground for a significant part of the run), a
 briefer excursion a warning; both name the run and the time spans.
+
+The heights (terrain runs with pos_z): the chassis reference point rides ``wheel.radius +
+rover.pivotHeight`` above the ground its wheels rest on, less their sinkage (:mod:`.limits`,
+"Ride height"). :func:`ground_under_wheels` gives that ground from the scan at each position
+sample, and two errors follow from it:
+
+* **z reversed.** Where the ground under the wheels varies (its standard deviation over the
+  path at least ``GROUND_VARIES`` (2) times the noise of pos_z), the measured height follows it
+  (synthetic runs, misregistered scans included, correlate at 0.85-0.999). A correlation below
+  ``REVERSED_CORRELATION`` (-0.5) is a z axis pointing down in pos_z or in the scan (they then
+  correlate at -0.85 to -0.999).
+* **Height datum.** The chassis reference point's median height above that ground must lie
+  between ``rover.pivotHeight`` (the wheels sunk to their axles) and ``DATUM_LIMIT`` times the
+  centre of gravity's height, the band drawbar runs are held to on flat ground (:mod:`.sensors`,
+  "Ground datum"): outside it, pos_z and the scan are measured from different height datums, or
+  one of them is not in metres.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +39,14 @@ from .limits import RoverLimits
 
 #: Path off the scan for more than this fraction of the run's position samples: an error.
 OFF_SCAN_ERROR = 0.10
+#: The heights (module docstring): the scan's heights nearest a wheel's hub that give the ground
+#: under it (their median), the ground's variation over the path (in units of the noise of
+#: pos_z) above which the measured heights must follow it, and the correlation below which they
+#: run against it; the fewest position samples the test is made on.
+GROUND_POINTS = 8
+GROUND_VARIES = 2.0
+REVERSED_CORRELATION = -0.5
+HEIGHT_SAMPLES = 10
 
 
 def footprint_offsets(limits: RoverLimits) -> FloatArray:
@@ -91,6 +116,8 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
     if not (run.has("pos_x") and run.has("pos_y")):
         return out
     t, off = path_off_scan(run, points, limits)
+    if np.mean(off) <= OFF_SCAN_ERROR:
+        out += check_heights(run, points, limits, spec.file, scan_file)
     if off.any():
         spans = _spans(t, off)
         share = float(np.mean(off))
@@ -100,6 +127,73 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
                            f"scan {scan_file} during {_format_spans(spans)} ({share:.0%} of the position samples; "
                            f"more than {OFF_SCAN_ERROR:.0%} is an error): the terrain there is not measured{hint}"))
     return out
+
+
+def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits
+                        ) -> Optional[tuple[FloatArray, FloatArray, FloatArray]]:
+    """The scan's ground under the rover's wheels at each position sample of a run: (times (s),
+    measured pos_z (m), mean ground height under the four hubs (m)), for the samples whose every
+    hub has a scan point within ``GRID_MARGIN``; None without pos_z.
+
+    The hubs lie half the wheelbase ahead and behind the chassis reference point along the
+    heading (the measured yaw, else the direction of the track: juno.heading) and half the track
+    to either side; the ground under a hub is the median height of the ``GROUND_POINTS`` scan
+    points nearest it.
+    """
+    from scipy.spatial import cKDTree
+
+    from ..heading import track_headings
+
+    if not run.has("pos_z"):
+        return None
+    t, x, _ = _own(run, "pos_x")
+    at = aligned(run, ["pos_y", "pos_z"], t)
+    y, z = at["pos_y"], at["pos_z"]
+    heading = aligned(run, "yaw", t)["yaw"] if run.has("yaw") else track_headings(t, x, y)
+    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
+    fore = 0.5 * limits.wheelbase * np.array([1.0, -1.0, 1.0, -1.0])
+    side = 0.5 * limits.track * np.array([1.0, 1.0, -1.0, -1.0])
+    hx, hy = x[:, None] + c * fore - s * side, y[:, None] + s * fore + c * side
+    k = min(GROUND_POINTS, len(points))
+    dist, idx = cKDTree(points[:, :2]).query(np.column_stack([hx.ravel(), hy.ravel()]), k=k)
+    dist, idx = dist.reshape(len(t), 4, k), idx.reshape(len(t), 4, k)
+    ground = np.median(points[idx, 2], axis=2).mean(axis=1)
+    on_scan = np.all(dist[:, :, 0] <= GRID_MARGIN, axis=1) & np.isfinite(z)
+    return t[on_scan], z[on_scan], ground[on_scan]
+
+
+def check_heights(run: RunData, points: FloatArray, limits: RoverLimits, file: str, scan_file: str
+                  ) -> list[Finding]:
+    """pos_z against the scan's ground under the wheels (module docstring, "z reversed" and
+    "Height datum")."""
+    from ..sensor_noise import column_noise
+    from .sensors import DATUM_LIMIT
+
+    found = ground_under_wheels(run, points, limits)
+    if found is None or len(found[0]) < HEIGHT_SAMPLES:
+        return []
+    t, z, ground = found
+    noise = column_noise(*_own(run, "pos_z")[:2])
+    spread = float(np.std(ground))
+    if spread > 0 and spread >= GROUND_VARIES * noise and np.std(z) > 0:
+        r = float(np.corrcoef(z, ground)[0, 1])
+        if r < REVERSED_CORRELATION:
+            return [Finding("error", file, "pos_z", f"pos_z falls where the ground under the wheels in {scan_file} "
+                            f"rises (correlation {r:.2f} over {len(t)} position samples, where that ground varies "
+                            f"by {_g(spread)} m, 1 sigma): the rover rides on the ground, so z points down in pos_z "
+                            "or in the scan (the format's z is up)")]
+    height = float(np.median(z - ground))
+    top = DATUM_LIMIT * limits.cg_height
+    if limits.pivot_height <= height <= top:
+        return []
+    where = "below" if height < limits.pivot_height else "above"
+    return [Finding("error", file, "pos_z", f"the chassis reference point is typically (median over {len(t)} position "
+                    f"samples) {_g(height)} m above the ground under its wheels in {scan_file}, where it rides about "
+                    f"wheel.radius + rover.pivotHeight = {_g(limits.ride_height)} m and stays between "
+                    f"{_g(limits.pivot_height)} m (the wheels sunk to their axles) and {_g(top)} m ({DATUM_LIMIT:g} "
+                    f"times its centre of gravity's height); {where} that, pos_z and the scan's heights are measured "
+                    "from different datums (a total station's, a map's), or one is not in metres or has z pointing "
+                    "down: give both in one frame, z up, in metres")]
 
 
 #: Length units a scan may be written in by mistake, with the factor to metres.

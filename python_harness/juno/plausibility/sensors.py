@@ -4,9 +4,12 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
 * **Ground datum.** Drawbar runs are on flat ground at z = 0; the chassis rides at about its
   centre of gravity's height (wheel radius + ``rover.cgHeight``, 0.53 m) above it, less the
   sinkage. A drawbar run whose median pos_z lies more than ``DATUM_LIMIT`` (2) times that height
-  from the ground is measured from another datum (a total station's or a map's: a UTM height
+  above the ground is measured from another datum (a total station's or a map's: a UTM height
   of hundreds of metres), an error: compared with the model's flat ground, such heights would
-  bend every fit.
+  bend every fit. Below the ground's ``rover.pivotHeight`` (0.15 m), where the chassis
+  reference point is with the wheels sunk to their axles (:mod:`.limits`, "Ride height"), no
+  rover drives: a z axis pointing down, or pos_z holding another axis (a y-up frame), is an
+  error too. The fits compare pos_z with the model's height.
 * **Attitude.** The static tip-over angles are ``atan(half track / CG height)`` in roll and
   ``atan(half wheelbase / CG height)`` in pitch (CG height = wheel radius + ``rover.cgHeight``):
   0.91 and 0.66 rad. Beyond them a warning; beyond 1.2 rad (69 degrees, the rover on its side)
@@ -46,6 +49,11 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   times them keeps the bound), or a ``wheel.radius`` too small. 147 synthetic drawbar runs give
   0.12-0.83 (the slip of the load); with their spins in rev/s, 128 of them exceed 1.5 (the rest
   slip by over 76 %, where 2 pi times too slow a spin still rolls faster than the rover).
+* **Driving in the steady window.** A drawbar test drives the rover against its load, and the
+  paper-style fit compares the steady drive over the run's ``steady_window`` (the whole run
+  without one): its weights divide by the rover's speed over the radius plus the wheels' spin. A
+  drawbar run whose wheels' mean spin over that window lies within ``TURNING`` of zero (a window
+  before the rover starts, a run logged with the rover parked, spins never written) is an error.
 * **Time.** The rover's sensors sample at 5-100 Hz and a run lasts seconds to minutes: rows
   typically 10 s or more apart, or a run over an hour whose rows are typically half a second or
   more apart, are milliseconds (error); a run over an hour alone is a warning. A single gap of
@@ -246,6 +254,31 @@ def check_signs(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     return out
 
 
+def check_steady_drive(run: RunData, file: str, window: Optional[tuple[float, float]],
+                       manifest: str = "campaign.json") -> list[Finding]:
+    """A drawbar run whose wheels do not turn, over the whole run or over its steady window,
+    ``window`` (s; None: the whole run) (module docstring, "Driving in the steady window")."""
+    if run.kind != "drawbar" or not (run.has("omega_left") and run.has("omega_right")) or len(run.time) < 2:
+        return []
+    whole = _turning(run)
+    if whole <= TURNING:
+        return [Finding("error", file, "omega_left", f"the wheels' median |spin| over the run is {_g(whole)} rad/s "
+                        f"(within {TURNING:g} rad/s of standing still): a drawbar test drives the rover against its "
+                        "load, and the fits compare that drive; is this the run's file, and are the wheels' "
+                        "encoders connected?")]
+    if window is None:
+        return []
+    a, b = window
+    at = aligned(run, ["omega_left", "omega_right"], np.linspace(a, b, 101))
+    spin = float(np.mean(0.5 * (at["omega_left"] + at["omega_right"])))
+    if abs(spin) > TURNING:
+        return []
+    return [Finding("error", manifest, "steady_window", f"run {run.run_id!r}: the wheels' mean spin over its "
+                    f"steady_window {_time(a)}-{_time(b)} s is {_g(spin)} rad/s (within {TURNING:g} rad/s of "
+                    f"standing still; {file}): the steady window is where the rover drives steadily against its "
+                    "load, which the paper-style fit averages; give the span where it does")]
+
+
 def check_drawbar(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Drawbar force beyond what the wheels of both sides can push."""
     name = "drawbar_force"
@@ -387,6 +420,13 @@ def check_ground_datum(run: RunData, file: str, limits: RoverLimits) -> list[Fin
         return []
     height = float(np.median(_own(run, "pos_z")[1]))
     bound = DATUM_LIMIT * limits.cg_height
+    if height < limits.pivot_height:
+        return [Finding("error", file, "pos_z", f"the median pos_z is {_g(height)} m: drawbar runs are on flat "
+                        "ground at z = 0 (docs/campaign-format.md), where the chassis reference point (the rocker "
+                        f"pivots) rides about wheel.radius + rover.pivotHeight = {_g(limits.ride_height)} m high, "
+                        f"and {_g(limits.pivot_height)} m (rover.pivotHeight) with the wheels sunk to their axles: "
+                        "does z point down (the format's z is up), or does pos_z hold another axis (a y-up "
+                        "frame)?")]
     if abs(height) <= bound:
         return []
     return [Finding("error", file, "pos_z", f"the median pos_z is {_g(height)} m: drawbar runs are on flat ground at "
