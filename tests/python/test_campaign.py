@@ -252,6 +252,52 @@ def test_repeated_time(campaign_dir: Path) -> None:
     assert_refused(campaign_dir, file="dbp1.csv", line=line, column="time", says="time repeats")
 
 
+def _rewrite_rows(path: Path, change) -> None:
+    lines = path.read_text(encoding="utf-8").splitlines()
+    path.write_text("\n".join(change(lines)) + "\n", encoding="utf-8")
+
+
+def test_a_run_pasted_twice_is_refused_where_its_time_starts_again(campaign_dir: Path) -> None:
+    path = campaign_dir / "runs/dbp1.csv"
+    rows = len(path.read_text().splitlines())
+    _rewrite_rows(path, lambda lines: lines + lines[1:])
+    assert_refused(campaign_dir, file="dbp1.csv", line=rows + 1, column="time",
+                   says="back to the run's start at 0.0 s (line 2): the rows from here on look like the run again, "
+                        "or another run; a file holds one run: cut it here")
+
+
+def test_rows_out_of_order_are_refused_with_sort_them(campaign_dir: Path) -> None:
+    def swap(lines):
+        lines[60], lines[61] = lines[61], lines[60]
+        return lines
+    _rewrite_rows(campaign_dir / "runs/dbp1.csv", swap)
+    assert_refused(campaign_dir, file="dbp1.csv", line=62, column="time",
+                   says="time goes backwards: 0.59 s after 0.6 s (line 61): a run's rows are in time order; sort them")
+
+
+def test_a_row_written_twice_is_refused_as_such(campaign_dir: Path) -> None:
+    _rewrite_rows(campaign_dir / "runs/dbp1.csv", lambda lines: lines[:50] + [lines[49]] + lines[50:])
+    assert_refused(campaign_dir, file="dbp1.csv", line=51, column="time",
+                   says="time repeats: the row repeats line 50 cell for cell (a row written twice): delete one")
+
+
+def test_two_rows_of_one_time_with_other_values_are_refused_with_one_row_a_time(campaign_dir: Path) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 100, "time", "0.99")
+    assert_refused(campaign_dir, file="dbp1.csv", line=line, column="time",
+                   says="with other values: a time's samples go on one row")
+
+
+def test_a_run_file_linked_from_outside_the_folder_is_refused_with_copy_it_in(campaign_dir: Path,
+                                                                               tmp_path: Path) -> None:
+    outside = tmp_path / "raw" / "dbp1.csv"
+    outside.parent.mkdir()
+    (campaign_dir / "runs/dbp1.csv").rename(outside)
+    (campaign_dir / "runs/dbp1.csv").symlink_to(outside)
+    assert_refused(campaign_dir, file="campaign.json",
+                   says=f"'runs/dbp1.csv' points outside the campaign folder {campaign_dir} (a symbolic link to "
+                        f"{outside}); the harness keeps its outputs off the campaign folder")
+
+
 def test_empty_time_cell(campaign_dir: Path) -> None:
     line = edit_csv(campaign_dir / "runs/t3d.csv", 3, "time", "")
     assert_refused(campaign_dir, file="t3d.csv", line=line, column="time", says="time is empty")

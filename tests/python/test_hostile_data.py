@@ -268,6 +268,8 @@ ERRORS = [
     Case("roll in degrees", scale("t3d", 180 / math.pi, "roll"), "error", "runs/t3d.csv", "roll", ("degrees",)),
     Case("spins in rpm", scale("dbp1", 60 / (2 * math.pi), "omega_left"), "error", "runs/dbp1.csv", "omega_left",
          ("looks like rpm", "no-load spin")),
+    Case("spins in degrees per second", scale("dbp1", 180 / math.pi, "omega_left"), "error", "runs/dbp1.csv",
+         "omega_left", ("looks like degrees per second", "no-load spin")),
     Case("positions in millimetres", scale("dbp2", 1000.0, "pos_x", "pos_y", "pos_z"), "error", "runs/dbp2.csv",
          "pos_x", ("millimetres", "top speed")),
     Case("time in milliseconds", scale("t3d", 1000.0, "time"), "error", "runs/t3d.csv", "time",

@@ -89,7 +89,12 @@ def _check_relative_file(root: Path, manifest: Path, value: Any, where: str, lin
     except (OSError, RuntimeError, ValueError):
         raise InputError(f"{where}: cannot resolve {value!r}", manifest, line) from None
     if not inside:
-        raise InputError(f"{where} {value!r} points outside the campaign folder {root}", manifest, line)
+        link = ""
+        if ".." not in rel.parts:
+            # Inside by its path, outside once resolved: a symbolic link on the way leads out.
+            link = (f" (a symbolic link to {resolved}); the harness keeps its outputs off the campaign folder and "
+                    "everything in it, so a file it reads must lie inside: copy the file into the folder")
+        raise InputError(f"{where} {value!r} points outside the campaign folder {root}{link}", manifest, line)
     if not resolved.exists():
         raise InputError(f"{where}: file not found: {full}", manifest, line)
     if not resolved.is_file():

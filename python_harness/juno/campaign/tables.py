@@ -41,7 +41,7 @@ def read_run_csv(path: PathLike, kind: str = "drawbar", run_id: Optional[str] = 
     columns, extra, lines = _read_columns(p, lambda names: _check_header(p, names, REQUIRED_COLUMNS[kind], kind,
                                                                          KNOWN_COLUMNS), KNOWN_COLUMNS)
     line_arr = np.asarray(lines, dtype=np.int64)
-    _check_time(p, columns["time"], line_arr)
+    _check_time(p, columns["time"], line_arr, [*columns.values(), *extra.values()])
     for name in REQUIRED_COLUMNS[kind]:
         if np.all(np.isnan(columns[name])):
             raise InputError(f"required column {name!r} has no samples (every cell is empty)", p, 1, name)
@@ -246,15 +246,37 @@ def _parse_extra(cells: list[str]) -> np.ndarray:
     return np.array(stripped, dtype=str)
 
 
-def _check_time(path: Path, t: FloatArray, lines: NDArray[np.int64]) -> None:
+def _check_time(path: Path, t: FloatArray, lines: NDArray[np.int64], columns: Sequence[np.ndarray]) -> None:
+    """Every row has a time, strictly increasing.  A refusal says what the file most likely holds:
+    a run that starts again (time back at or before its first row: the run pasted twice, or two
+    runs in one file), rows out of order, a row written twice (equal cell for cell to the one
+    before it, ``columns`` every column of the file), or two rows of one time."""
     empty = np.flatnonzero(np.isnan(t))
     if empty.size:
         raise InputError("time is empty: every row needs a time", path, int(lines[empty[0]]), "time")
     bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        what = "time goes backwards" if t[i] < t[i - 1] else "time repeats"
-        raise InputError(f"{what}: {t[i]!r} s after {t[i - 1]!r} s (line {lines[i - 1]})", path, int(lines[i]), "time")
+    if not bad.size:
+        return
+    i = int(bad[0]) + 1
+    now, last, first = float(t[i]), float(t[i - 1]), float(t[0])
+    before = f"{now!r} s after {last!r} s (line {lines[i - 1]})"
+    if now < last and now <= first:
+        what = (f"time goes backwards: {before}, back to the run's start at {first!r} s (line {lines[0]}): the rows "
+                "from here on look like the run again, or another run; a file holds one run: cut it here")
+    elif now < last:
+        what = f"time goes backwards: {before}: a run's rows are in time order; sort them by time"
+    elif all(_same_cell(c[i], c[i - 1]) for c in columns):
+        what = (f"time repeats: the row repeats line {lines[i - 1]} cell for cell (a row written twice): "
+                "delete one of them")
+    else:
+        what = (f"time repeats: {before}, with other values: a time's samples go on one row (an empty cell "
+                "where a sensor has none); two readings at one time cannot be ordered")
+    raise InputError(what, path, int(lines[i]), "time")
+
+
+def _same_cell(a: object, b: object) -> bool:
+    """Two cells of a column read alike: equal, or both empty."""
+    return bool(a == b) or (isinstance(a, float) and isinstance(b, float) and a != a and b != b)
 
 
 def read_run(campaign: Campaign, run: Union[RunSpec, str]) -> RunData:

@@ -10,7 +10,7 @@ parameters (the FMU's defaults, overridden by the campaign's ``rover`` entry):
 * **Spin.** The no-load spin ``omega_0 = V / (kt * n)`` (4.0 rad/s) is the fastest the motors
   turn a wheel; a wheel may overrun it a little downhill (warning beyond ``SPIN_WARN`` times it)
   but not three times over (error beyond ``SPIN_ERROR`` times it: the rover pushed at three
-  times its top speed). rpm are 9.55 times rad/s.
+  times its top speed). rpm are 9.55 times rad/s, deg/s 57.3 times.
 * **Ride height.** The chassis reference point (the rocker pivots) rides ``wheel.radius +
   rover.pivotHeight`` (0.43 m) above the ground its wheels rest on, less their sinkage; sunk to
   their axles (a sinkage of the radius, where the FMU stops), it is ``rover.pivotHeight`` (0.15

@@ -179,6 +179,8 @@ def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
         hint = ""
         if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
             hint = f": looks like rpm ({_g(peak)} rpm = {_g(peak / RPM_PER_RAD_S)} rad/s)"
+        elif math.radians(peak) <= SPIN_WARN * w0:
+            hint = f": looks like degrees per second ({_g(peak)} deg/s = {_g(math.radians(peak))} rad/s)"
         if peak > SPIN_ERROR * w0:
             out.append(Finding("error", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, more than "
                                f"{SPIN_ERROR:g} times the motors' no-load spin of {_g(w0)} rad/s{hint}"))
