@@ -16,7 +16,7 @@ from .outliers import check_outliers
 from .rig import check_rig, check_rig_wheel
 from .scan import check_scan
 from .sensors import (check_angles, check_drawbar, check_positions, check_signs, check_spins, check_time,
-                      check_power, check_rolling, check_steady_drive, check_torques,
+                      check_energy, check_power, check_rolling, check_steady_drive, check_torques,
                       drawbar_in_kilonewtons)
 
 
@@ -24,7 +24,7 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     """Every check of one run's columns; a column with an error gets no outlier warning on top."""
     found = (check_time(run, file) + check_angles(run, file, limits) + check_spins(run, file, limits)
              + check_torques(run, file, limits) + check_drawbar(run, file, limits)
-             + check_signs(run, file, limits) + check_positions(run, file, limits)
+             + check_signs(run, file, limits) + check_energy(run, file, limits) + check_positions(run, file, limits)
              + check_turning(run, file, limits) + check_stated_noise(run, file))
     # The checks that compare columns with each other run on columns without an error of their
     # own, so that one mistake gets one message: spins in rev/s, say, would also make the

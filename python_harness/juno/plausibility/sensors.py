@@ -49,6 +49,14 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   times them keeps the bound), or a ``wheel.radius`` too small. 147 synthetic drawbar runs give
   0.12-0.83 (the slip of the load); with their spins in rev/s, 128 of them exceed 1.5 (the rest
   slip by over 76 %, where 2 pi times too slow a spin still rolls faster than the rover).
+* **Energy (terrain runs).** The drive torques' work over a run, the integral of
+  ``torque_left * omega_left + torque_right * omega_right``, is what the rover gains in height
+  (its weight times the rise of pos_z from the first to the last sample) and in speed, plus what
+  the soil and the drivetrain dissipate, which is never negative. A run whose drive work falls
+  short of the height it gains by more than the kinetic energy of the rover at its top speed and
+  ``WORK_MARGIN`` (10 %) of the integral of each side's power's magnitude is an error: the torques' sign
+  is reversed against the spins' (synthetic terrain runs dissipate 1.5-6 kJ; reversed, they fall
+  short by as much). Drawbar runs are judged by their signs directly (below).
 * **Driving in the steady window.** A drawbar test drives the rover against its load, and the
   paper-style fit compares the steady drive over the run's ``steady_window`` (the whole run
   without one): its weights divide by the rover's speed over the radius plus the wheels' spin. A
@@ -110,6 +118,9 @@ POWER_WINDOWS = 10
 #: A drawbar run moving faster than this times its wheels' rim speed is an error (module
 #: docstring, "Rolling").
 ROLLING_LIMIT = 1.5
+#: The energy check: the share of the sides' drive power's integrated magnitude a run's drive work may
+#: fall short of its gain in height by, beyond the kinetic energy at the top speed.
+WORK_MARGIN = 0.1
 #: A drawbar run's median pos_z beyond this multiple of the rover's centre-of-gravity height
 #: (above or below its flat ground at z = 0) is measured from another datum.
 DATUM_LIMIT = 2.0
@@ -254,6 +265,33 @@ def check_signs(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
                                "the wheels drive forward: the load cell's force holds the rover back and is "
                                "positive then (docs/campaign-format.md); is the sign reversed?"))
     return out
+
+
+def check_energy(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A terrain run whose drive torques do less work than the rover gains in height (module
+    docstring, "Energy")."""
+    names = ("torque_left", "torque_right", "omega_left", "omega_right", "pos_z")
+    if run.kind != "terrain" or not all(run.has(n) for n in names) or len(run.time) < 2:
+        return []
+    t = np.linspace(float(run.time[0]), float(run.time[-1]), max(2, min(20 * len(run.time), 20000)))
+    at = aligned(run, list(names), t)
+    left, right = at["torque_left"] * at["omega_left"], at["torque_right"] * at["omega_right"]
+    dt = np.diff(t)
+
+    def integral(power: FloatArray) -> float:
+        return float(np.sum(0.5 * (power[1:] + power[:-1]) * dt))
+    work = integral(left + right)
+    spent = integral(np.abs(left) + np.abs(right))
+    _, z, _ = _own(run, "pos_z")
+    rise = limits.weight * float(z[-1] - z[0])
+    kinetic = 0.5 * limits.weight / 9.81 * limits.top_speed ** 2
+    if work - rise >= -(kinetic + WORK_MARGIN * spent):
+        return []
+    return [Finding("error", file, "torque_left", f"the drive torques do {_g(work)} J of work over the run (the integral "
+                    f"of torque_left x omega_left + torque_right x omega_right) while the rover rises by "
+                    f"{_g(float(z[-1] - z[0]))} m, {_g(rise)} J against its weight: the soil and the drivetrain would "
+                    f"have given {_g(rise - work)} J, where they only take energy; is the torques' sign reversed (a "
+                    "driving torque has the spin's sign)?")]
 
 
 def check_steady_drive(run: RunData, file: str, window: Optional[tuple[float, float]],
