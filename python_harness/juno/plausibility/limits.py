@@ -52,7 +52,8 @@ class RoverLimits:
     gear_ratio: float = 1.0  # motor.gearRatio, motor : wheel
     wheelbase: float = 0.0   # m: rover.wheelbase, between the front and rear axles
     pivot_height: float = 0.0  # m: rover.pivotHeight, the rocker pivots (the chassis reference point) above the axles
-    weight: float = 0.0      # N: rover.mass (chassis, rockers and wheels) times env.gravity
+    mass: float = 0.0        # kg: rover.mass (chassis, rockers and wheels)
+    weight: float = 0.0      # N: rover.mass times env.gravity
 
     @property
     def ride_height(self) -> float:
@@ -84,4 +85,4 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
         roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
         cg_height=cg, track=p["rover.track"], gear_ratio=n, wheelbase=p["rover.wheelbase"],
-        pivot_height=p["rover.pivotHeight"], weight=p["rover.mass"] * p["env.gravity"])
+        pivot_height=p["rover.pivotHeight"], mass=p["rover.mass"], weight=p["rover.mass"] * p["env.gravity"])

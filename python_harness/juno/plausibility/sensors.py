@@ -284,7 +284,7 @@ def check_energy(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     spent = integral(np.abs(left) + np.abs(right))
     _, z, _ = _own(run, "pos_z")
     rise = limits.weight * float(z[-1] - z[0])
-    kinetic = 0.5 * limits.weight / 9.81 * limits.top_speed ** 2
+    kinetic = 0.5 * limits.mass * limits.top_speed ** 2
     if work - rise >= -(kinetic + WORK_MARGIN * spent):
         return []
     return [Finding("error", file, "torque_left", f"the drive torques do {_g(work)} J of work over the run (the integral "
