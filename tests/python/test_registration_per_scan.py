@@ -263,7 +263,7 @@ def test_the_result_names_the_misregistered_scan_and_lists_every_scans_registrat
                              kinematic=pose)
     said = _cause_named("terrain_offset", SimpleNamespace(candidates=[judged]))
     assert said.endswith("(scan terrain/b.xyz, runs t3d_b, t3d_c)") and "a.xyz" not in said
-    table = _candidates_table(SimpleNamespace(candidates=[judged],
+    table = _candidates_table(SimpleNamespace(candidates=[judged], causes=["terrain_offset"], second_round=[],
                                               criteria=SimpleNamespace(registration_held_out_ratio=HELD_OUT_RATIO)))
     rows = [line for line in table if line.startswith("| terrain/")]
     assert rows[0].startswith("| terrain/a.xyz | t3d_a | 1 | no |")
