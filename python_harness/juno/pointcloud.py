@@ -96,7 +96,8 @@ def check_points(points: ArrayLike, path: Optional[PathLike] = None) -> NDArray[
         raise InputError(f"need at least 3 non-collinear points in x-y, got {pts.shape[0]} points", path)
     s = np.linalg.svd(xy / scale, compute_uv=False)
     if s[-1] <= 1e-9 * s[0]:
-        raise InputError("all points are collinear in x-y: they do not span a terrain area", path)
+        raise InputError("all points are collinear in x-y: they do not span a terrain area (points on a vertical "
+                         "plane: are two axes swapped? the columns are x y z, z up)", path)
     return pts
 
 

@@ -65,9 +65,9 @@ def make_manifest() -> dict:
     }
 
 
-def make_terrain(seed: int = 1) -> np.ndarray:
+def make_terrain(seed: int = 1, points: int = 500) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    xy = rng.uniform(-2.0, 2.0, size=(500, 2))
+    xy = rng.uniform(-2.0, 2.0, size=(points, 2))
     z = 0.5 * np.exp(-(xy ** 2).sum(axis=1) / 0.5)
     return np.column_stack([xy, z])
 
@@ -738,8 +738,9 @@ def test_forward_speed_is_signed_by_yaw_when_reversing(tmp_path: Path) -> None:
 
 def wide_terrain() -> np.ndarray:
     """make_terrain spread over +-3.2 m: the runs' wheels (0.7 m ahead of the 1.8 m the rover
-    reaches, 0.8 m to the side) stay on it."""
-    pts = make_terrain()
+    reaches, 0.8 m to the side) stay on it, with a scan point within a wheel's radius of every
+    hub (50 points a square metre)."""
+    pts = make_terrain(points=2000)
     return np.column_stack([1.6 * pts[:, :2], pts[:, 2]])
 
 

@@ -233,6 +233,37 @@ def spike_point(points: np.ndarray) -> np.ndarray:
     return p
 
 
+def on_the_path(change: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]) -> Callable[[Path], None]:
+    """Edits the scan with the terrain run's measured path in hand: ``change(points, x, y)``, x and
+    y the position samples (m)."""
+    def apply(root: Path) -> None:
+        run = read_run_csv(root / "runs" / "t3d.csv", "terrain")
+        have = ~np.isnan(run["pos_x"])
+        path = root / "terrain" / "scan.xyz"
+        path.write_text("# x y z (m)\n" + format_xyz(change(read_xyz(path), run["pos_x"][have], run["pos_y"][have])))
+    return apply
+
+
+def rover_in_scan(points: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The rover scanned where it stands at the start: the ground under its footprint hidden, its
+    body and wheels' tops 0.3-0.8 m above it (as many points as the ground there had)."""
+    lim = rover_limits()
+    under = (np.abs(points[:, 0] - x[0]) < lim.half_length) & (np.abs(points[:, 1] - y[0]) < lim.half_width)
+    rng = np.random.default_rng(5)
+    n = max(int(under.sum()), 200)
+    ground = float(np.median(points[under, 2]))
+    body = np.column_stack([x[0] + rng.uniform(-lim.half_length, lim.half_length, n),
+                            y[0] + rng.uniform(-lim.half_width, lim.half_width, n), ground + rng.uniform(0.3, 0.8, n)])
+    return np.vstack([points[~under], body])
+
+
+def hole_under_path(points: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """No scan point over 2 m of the path's middle, across the whole scan (a shadow, a puddle): the
+    footprint stays within 1 m of the scan's points, the wheels do not."""
+    middle = 0.5 * (x.min() + x.max())
+    return points[np.abs(points[:, 0] - middle) > 1.0]
+
+
 def crop_scan(points: np.ndarray, root: Path, share: float) -> np.ndarray:
     """The scan without the part beyond where the rover is after ``share`` of the terrain run."""
     run = read_run_csv(root / "runs" / "t3d.csv", "terrain")
@@ -320,8 +351,21 @@ ERRORS = [
                    "different datums")),
     Case("terrain heights from a total station's datum", shift("t3d", 45.0, "pos_z"), "error", "runs/t3d.csv",
          "pos_z", ("45.", "above that", "different datums")),
-    Case("a scan's heights in millimetres", edit_scan(lambda p: p * [1.0, 1.0, 1000.0]), "error", "runs/t3d.csv",
-         "pos_z", ("below that", "not in metres")),
+    Case("a scan's heights in millimetres", edit_scan(lambda p: p * [1.0, 1.0, 1000.0]), "error",
+         "terrain/scan.xyz", "z", ("steeper than the soil's friction angle", "its heights look like millimetres",
+                                   "write every coordinate in metres")),
+    Case("a scan with y and z swapped", edit_scan(lambda p: p[:, [0, 2, 1]]), "error", "terrain/scan.xyz", "z",
+         ("typically slopes 90 deg", "steeper than the soil's friction angle soil.phi = 30 deg",
+          "y and z exchanged", "write the columns x y z, z up")),
+    Case("a scan with x and z swapped", edit_scan(lambda p: p[:, [2, 1, 0]]), "error", "terrain/scan.xyz", "z",
+         ("steeper than the soil's friction angle", "x and z exchanged")),
+    Case("a scan with the rover in it", on_the_path(rover_in_scan), "error", "terrain/scan.xyz", "z",
+         ("under the wheels of run runs/t3d.csv during 0", "rover.pivotHeight", "the rover itself",
+          "remove those points")),
+    Case("a hole in the scan under the path", on_the_path(hole_under_path), "error", "runs/t3d.csv", "pos_x",
+         ("a wheel has no point of the scan terrain/scan.xyz within its radius", "not measured", "has a hole there")),
+    Case("a scan too sparse for the wheels", edit_scan(lambda p: p[::250]), "error", "runs/t3d.csv", "pos_x",
+         ("within its radius", "too sparse for the wheels")),
     Case("a height noise stated in millimetres", state_noise({"pos_z": 3.0}), "error", "runs/dbp1.csv", "pos_z",
          ("the manifest states a sensor noise of 3 m (1 sigma)", "more than the column's whole range in this run",
           "another unit")),
@@ -755,3 +799,24 @@ def test_a_heading_wrapping_through_pi_is_motion_and_a_glitch_on_it_is_not(tmp_p
         return
     assert len(found) == 1 and found[0].column == "yaw", found
     assert f"line {flagged[0] + 2} " in found[0].message, found[0].message
+
+
+@pytest.mark.parametrize("rover, column, says", [
+    ({"wheel.radius": 4.0}, "wheel.radius", "front and rear wheels would overlap"),
+    ({"wheel.width": 1.5}, "wheel.width", "left and right wheels would overlap"),
+])
+def test_a_rover_whose_wheels_overlap_is_the_one_error(base, tmp_path, rover, column, says) -> None:
+    """A length of the manifest's rover in another unit that still lies within the FMU's range (a
+    wheel radius of 4 for 4 inches) makes wheels that overlap: the one error, on campaign.json and
+    the key given, asking for metres; the runs' checks, whose limits all derive from the rover,
+    are not made."""
+    root = tmp_path / "campaign"
+    shutil.copytree(base, root)
+    manifest = json.loads((root / "campaign.json").read_text())
+    manifest["rover"] = rover
+    (root / "campaign.json").write_text(json.dumps(manifest))
+    findings = check_campaign(load_campaign(root))
+    assert len(findings) == 1, [str(f) for f in findings]
+    f = findings[0]
+    assert (f.severity, f.file, f.column) == ("error", "campaign.json", column)
+    assert says in f.message and "is it in metres?" in f.message

@@ -9,7 +9,7 @@ from typing import Callable, Optional, TextIO, Union
 
 from ..campaign import KNOWN_COLUMNS, Campaign, RunData, read_rig, read_run
 from .findings import Finding, PlausibilityError
-from .limits import RoverLimits, rover_limits
+from .limits import RoverLimits, check_rover, rover_limits
 from .motion import check_heading, check_turning
 from .noise import check_stated_noise
 from .outliers import check_outliers
@@ -46,6 +46,11 @@ def check_campaign(campaign: Campaign) -> list[Finding]:
     Raises:
         InputError: a file breaks the format (see :func:`juno.campaign.read_run`).
     """
+    rover = check_rover(campaign.rover, campaign.manifest_path.name)
+    if rover:
+        # Every limit derives from the rover's geometry: with the rover wrong, the runs' findings
+        # would each repeat the one mistake.
+        return rover
     limits = rover_limits(campaign.rover)
     found: list[Finding] = []
     kilonewtons: list[tuple[str, Optional[str]]] = []

@@ -15,6 +15,10 @@ parameters (the FMU's defaults, overridden by the campaign's ``rover`` entry):
   rover.pivotHeight`` (0.43 m) above the ground its wheels rest on, less their sinkage; sunk to
   their axles (a sinkage of the radius, where the FMU stops), it is ``rover.pivotHeight`` (0.15
   m) above it.
+* **Slope.** Soil does not rest on a slope steeper than its friction angle ``soil.phi`` (its
+  angle of repose, without cohesion), and the FMU refuses a start where a wheel stands on one.
+* **Geometry.** The front and rear wheels of a side do not overlap: their diameter is less than
+  the wheelbase, and the left and right wheels' width less than the track.
 * **Speed.** The top speed is ``omega_0 * wheel.radius`` (1.1 m/s). Positions whose typical
   speed over 1 s exceeds twice that are not in metres.
 """
@@ -26,12 +30,13 @@ from dataclasses import dataclass
 from typing import Mapping, Optional
 
 from ..rover_model import fmu_defaults
+from .findings import Finding, _g
 
 #: The FMU parameters the limits derive from: the FMU's defaults (juno.rover_model), which the
 #: campaign's ``rover`` overrides.
 ROVER_PARAMETERS = ("wheel.radius", "wheel.width", "rover.track", "rover.wheelbase", "rover.cgHeight", "rover.pivotHeight", "rover.mass", "env.gravity",
                     "motor.voltage", "motor.kt", "motor.resistance", "motor.gearRatio", "motor.efficiency",
-                    "drive.torqueMax")
+                    "drive.torqueMax", "soil.phi")
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,7 @@ class RoverLimits:
     pivot_height: float = 0.0  # m: rover.pivotHeight, the rocker pivots (the chassis reference point) above the axles
     mass: float = 0.0        # kg: rover.mass (chassis, rockers and wheels)
     weight: float = 0.0      # N: rover.mass times env.gravity
+    friction_angle: float = math.radians(30.0)  # rad: soil.phi, the steepest slope the soil holds
 
     @property
     def ride_height(self) -> float:
@@ -85,4 +91,30 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         half_width=0.5 * p["rover.track"] + 0.5 * p["wheel.width"],
         roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
         cg_height=cg, track=p["rover.track"], gear_ratio=n, wheelbase=p["rover.wheelbase"],
-        pivot_height=p["rover.pivotHeight"], mass=p["rover.mass"], weight=p["rover.mass"] * p["env.gravity"])
+        pivot_height=p["rover.pivotHeight"], mass=p["rover.mass"], weight=p["rover.mass"] * p["env.gravity"],
+        friction_angle=p["soil.phi"])
+
+
+def check_rover(rover: Optional[Mapping[str, object]], manifest: str) -> list[Finding]:
+    """The campaign's rover entry against its own geometry (module docstring, "Geometry"): wheels
+    that overlap are a length in another unit (a radius of 11 written for 11 inches, which lies
+    within the FMU's range), named with the entry's keys, or the parameters it leaves at default."""
+    if not rover:
+        return []
+    d = fmu_defaults()
+    p = {k: rover.get(k, d[k]) for k in ("wheel.radius", "wheel.width", "rover.wheelbase", "rover.track")}
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p.values()):
+        return []
+    out = []
+    for size, what, span, between in (("wheel.radius", "diameter", "rover.wheelbase", "front and rear"),
+                                      ("wheel.width", "width", "rover.track", "left and right")):
+        if size not in rover and span not in rover:
+            continue
+        across = 2.0 * float(p[size]) if what == "diameter" else float(p[size])
+        if across >= float(p[span]):
+            given = [k for k in (size, span) if k in rover]
+            out.append(Finding("error", manifest, given[0], f"rover: the wheels' {what} of {_g(across)} m ({size} = "
+                               f"{_g(float(p[size]))} m) reaches {span} = {_g(float(p[span]))} m, so the {between} "
+                               f"wheels would overlap; {' and '.join(given)} given in the manifest: "
+                               f"{'are they' if len(given) > 1 else 'is it'} in metres?"))
+    return out

@@ -47,6 +47,10 @@ GROUND_POINTS = 8
 GROUND_VARIES = 2.0
 REVERSED_CORRELATION = -0.5
 HEIGHT_SAMPLES = 10
+#: The axes check (:func:`scan_slope`): the fewest points of a cell that has a normal, and the
+#: fewest such cells of a scan that has a typical slope.
+SLOPE_POINTS = 4
+SLOPE_CELLS = 10
 
 
 def footprint_offsets(limits: RoverLimits) -> FloatArray:
@@ -97,12 +101,98 @@ def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tupl
     return t, off_scan
 
 
+def scan_slope(points: FloatArray, cell: float) -> float:
+    """The typical slope (rad) of a scan's surface: the median, over square cells of ``cell`` m
+    in x-y, of the angle between the vertical and the normal of the cell's points (the direction
+    in which they spread least: their smallest principal axis). NaN when fewer than
+    ``SLOPE_CELLS`` cells hold a surface.
+
+    A cell holds a surface when it has at least ``SLOPE_POINTS`` points that spread in two
+    directions, the lesser at least half as far as across a cell filled evenly: points along one
+    scan line, or all at one place, have no normal. The principal axes do not depend on how the
+    surface lies, so a wall (a scan whose z and y are swapped) gives its horizontal normal as
+    well as level ground its vertical one; noise of the same size in every direction leaves them
+    unchanged.
+    """
+    pts = np.asarray(points, dtype=float)
+    if len(pts) < SLOPE_POINTS:
+        return math.nan
+    local = pts - pts.mean(axis=0)
+    ij = np.floor((local[:, :2] - local[:, :2].min(axis=0)) / cell).astype(np.int64)
+    _, cell_of, counts = np.unique(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1], return_inverse=True,
+                                   return_counts=True)
+    cell_of = cell_of.reshape(-1)
+    m = len(counts)
+    mean = np.column_stack([np.bincount(cell_of, weights=local[:, a], minlength=m) for a in range(3)]) / counts[:, None]
+    d = local - mean[cell_of]
+    cov = np.empty((m, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            cov[:, a, b] = cov[:, b, a] = np.bincount(cell_of, weights=d[:, a] * d[:, b], minlength=m)
+    cov /= counts[:, None, None]
+    full = counts >= SLOPE_POINTS
+    spread, axes = np.linalg.eigh(cov[full])
+    surface = spread[:, 1] >= 0.25 * cell * cell / 12.0
+    if int(surface.sum()) < SLOPE_CELLS:
+        return math.nan
+    return float(np.median(np.arccos(np.clip(np.abs(axes[surface, 2, 0]), 0.0, 1.0))))
+
+
+def typical_slope(points: FloatArray, limits: RoverLimits) -> float:
+    """:func:`scan_slope` over cells of a wheel's radius (the scale of the ground a wheel rests
+    on), widened up to eight times where the scan is too sparse to hold enough such cells."""
+    cell = limits.wheel_radius
+    for _ in range(4):
+        slope = scan_slope(points, cell)
+        if not math.isnan(slope):
+            return slope
+        cell *= 2.0
+    return math.nan
+
+
+#: The scan's columns read another way round, for the axes check's hint.
+SWAPPED_AXES = (("y and z", [0, 2, 1]), ("x and z", [2, 1, 0]))
+
+
+def check_axes(points: FloatArray, limits: RoverLimits, scan_file: str) -> list[Finding]:
+    """A scan whose surface typically slopes more steeply than the soil's friction angle is not
+    ground that soil rests on (limits, "Slope"): its axes are read wrongly, the heights in
+    another column (a wall, where a y-z swap puts the ground) or in another unit than x and y,
+    named as such when reading them from another column, or in millimetres, centimetres or feet,
+    gives a slope the soil holds."""
+    slope = typical_slope(points, limits)
+    if not slope > limits.friction_angle:
+        return []
+    readings = [(f"its axes look swapped, {which} exchanged (with them exchanged", points[:, order],
+                 "write the columns x y z, z up") for which, order in SWAPPED_AXES]
+    readings += [(f"its heights look like {unit} (read as {unit}", points * [1.0, 1.0, to_m],
+                  "write every coordinate in metres") for unit, to_m in SCAN_UNITS]
+    for said, other_points, fix in readings:
+        other = typical_slope(other_points, limits)
+        if other <= limits.friction_angle:
+            hint = f": {said}, the ground slopes {math.degrees(other):.0f} deg): {fix}"
+            break
+    else:
+        hint = ": are its columns x y z, z up, in metres?"
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return [Finding("error", scan_file, "z", f"the scan's ground typically slopes {math.degrees(slope):.0f} deg (the "
+                    f"median over cells of a wheel's radius), steeper than the soil's friction angle soil.phi = "
+                    f"{math.degrees(limits.friction_angle):.0f} deg, at which soil no longer rests; it spans x "
+                    f"{lo[0]:.2f} to {hi[0]:.2f} m, y {lo[1]:.2f} to {hi[1]:.2f} m, z {lo[2]:.2f} to {hi[2]:.2f} m{hint}")]
+
+
 def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLimits) -> list[Finding]:
-    """Gross outliers of a terrain run's scan (warning: dropped before gridding) and the path's
-    coverage: an error when the footprint is off the scan for more than OFF_SCAN_ERROR of the
-    run's position samples, a warning for a briefer excursion."""
+    """A terrain run's scan: its axes (:func:`check_axes`; an error there is the only finding),
+    its gross outliers (warning: dropped before gridding) and the path's coverage: an error when
+    the footprint is off the scan for more than OFF_SCAN_ERROR of the run's position samples, a
+    warning for a briefer excursion; then the heights (:func:`check_heights`) and the ground
+    under the wheels (:func:`hubs_unmeasured`: an error for more than OFF_SCAN_ERROR of the
+    samples, which the footprint's own excursions are then part of, else a warning)."""
     points = read_terrain_points(campaign, spec)
     scan_file = str(spec.terrain)
+    axes = check_axes(points, limits, scan_file)
+    if axes:
+        return axes
     out = []
     bad = gross_outliers(points)
     if bad.any():
@@ -117,7 +207,19 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
         return out
     t, off = path_off_scan(run, points, limits)
     if np.mean(off) <= OFF_SCAN_ERROR:
-        out += check_heights(run, points, limits, spec.file, scan_file)
+        heights = check_heights(run, points, limits, spec.file, scan_file)
+        if any(f.file == scan_file for f in heights):
+            # Something standing in the scan: the ground points around it stand out against its
+            # points, so an outlier warning would name the same mistake; it is checked again
+            # once those points are removed.
+            return heights
+        out += heights
+        unmeasured = _check_unmeasured(run, points, limits, spec, off)
+        if any(f.severity == "error" for f in unmeasured):
+            # The wheels off measured ground for much of the run: the footprint's brief
+            # excursions beyond the scan's margin are part of the same gap.
+            return out + unmeasured
+        out += unmeasured
     if off.any():
         spans = _spans(t, off)
         share = float(np.mean(off))
@@ -127,6 +229,77 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
                            f"scan {scan_file} during {_format_spans(spans)} ({share:.0%} of the position samples; "
                            f"more than {OFF_SCAN_ERROR:.0%} is an error): the terrain there is not measured{hint}"))
     return out
+
+
+def hub_positions(run: RunData, limits: RoverLimits) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(times of the position samples (s), x and y of the four wheel hubs (m), each (n, 4)): half
+    the wheelbase ahead and behind the chassis reference point along the heading (the measured
+    yaw, else the direction of the track: juno.heading) and half the track to either side."""
+    from ..heading import track_headings
+
+    t, x, _ = _own(run, "pos_x")
+    y = aligned(run, "pos_y", t)["pos_y"]
+    heading = aligned(run, "yaw", t)["yaw"] if run.has("yaw") else track_headings(t, x, y)
+    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
+    fore = 0.5 * limits.wheelbase * np.array([1.0, -1.0, 1.0, -1.0])
+    side = 0.5 * limits.track * np.array([1.0, 1.0, -1.0, -1.0])
+    return t, x[:, None] + c * fore - s * side, y[:, None] + s * fore + c * side
+
+
+def hubs_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits
+                    ) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Which position samples put a wheel on ground the scan did not measure but the gridding
+    makes up: a hub inside the convex hull of the scan's points in x-y, where the gridding
+    interpolates linearly between them, with no scan point within a wheel's radius of it, the
+    farthest a wheel touches the ground from its hub (a hole in the scan, or a scan too sparse
+    for the wheels). Beyond the hull the gridding extends the nearest edge's height, and how far
+    the wheels may go there is :func:`path_off_scan`'s to judge.
+
+    Returns:
+        (times of the position samples (s), True where such a hub is, the distance (m) from each
+        sample's farthest such hub to its nearest scan point, 0 where there is none).
+    """
+    from scipy.spatial import ConvexHull, cKDTree
+
+    t, hx, hy = hub_positions(run, limits)
+    centre = points[:, :2].mean(axis=0)
+    hubs = np.column_stack([hx.ravel(), hy.ravel()]) - centre
+    finite = np.all(np.isfinite(hubs), axis=1)
+    try:
+        facets = ConvexHull(points[:, :2] - centre).equations
+    except Exception:  # Qhull refuses a degenerate cloud, which check_points has refused already
+        return t, np.zeros(len(t), dtype=bool), np.zeros(len(t))
+    inside = np.zeros(len(hubs), dtype=bool)
+    inside[finite] = np.all(hubs[finite] @ facets[:, :2].T + facets[:, 2] <= 1e-9, axis=1)
+    dist = np.zeros(len(hubs))
+    dist[inside], _ = cKDTree(points[:, :2] - centre).query(hubs[inside])
+    far = dist.reshape(hx.shape).max(axis=1)
+    return t, far > limits.wheel_radius, far
+
+
+def _check_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits, spec: RunSpec,
+                      off: NDArray[np.bool_]) -> list[Finding]:
+    """The samples on the scan whose wheels rest on unmeasured ground (:func:`hubs_unmeasured`):
+    an error for more than OFF_SCAN_ERROR of the run's position samples, else a warning; the
+    scan's typical point spacing tells a hole from a scan too sparse for the wheels."""
+    from scipy.spatial import cKDTree
+
+    t, unmeasured, far = hubs_unmeasured(run, points, limits)
+    unmeasured &= ~off
+    if not unmeasured.any():
+        return []
+    share = float(np.mean(unmeasured))
+    severity = "error" if share > OFF_SCAN_ERROR else "warning"
+    spacing = float(np.median(cKDTree(points[:, :2]).query(points[:, :2], k=2)[0][:, 1]))
+    cause = (f"the scan's points lie {_g(spacing)} m apart (the median distance to the nearest), so it has a hole "
+             "there" if spacing <= 0.5 * limits.wheel_radius else
+             f"the scan's points lie {_g(spacing)} m apart (the median distance to the nearest): too sparse for "
+             f"the wheels; scan the ground at least every {_g(0.5 * limits.wheel_radius)} m")
+    return [Finding(severity, spec.file, "pos_x", f"run {spec.id!r}: during {_format_spans(_spans(t, unmeasured))} "
+                    f"({share:.0%} of the position samples; more than {OFF_SCAN_ERROR:.0%} is an error) a wheel has no "
+                    f"point of the scan {spec.terrain} within its radius ({_g(limits.wheel_radius)} m) of its hub, up to "
+                    f"{_g(float(np.max(far[unmeasured])))} m away: the ground it rests on there is interpolated from "
+                    f"points beyond its reach, not measured; {cause}")]
 
 
 def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits
@@ -142,18 +315,10 @@ def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits
     """
     from scipy.spatial import cKDTree
 
-    from ..heading import track_headings
-
     if not run.has("pos_z"):
         return None
-    t, x, _ = _own(run, "pos_x")
-    at = aligned(run, ["pos_y", "pos_z"], t)
-    y, z = at["pos_y"], at["pos_z"]
-    heading = aligned(run, "yaw", t)["yaw"] if run.has("yaw") else track_headings(t, x, y)
-    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
-    fore = 0.5 * limits.wheelbase * np.array([1.0, -1.0, 1.0, -1.0])
-    side = 0.5 * limits.track * np.array([1.0, 1.0, -1.0, -1.0])
-    hx, hy = x[:, None] + c * fore - s * side, y[:, None] + s * fore + c * side
+    t, hx, hy = hub_positions(run, limits)
+    z = aligned(run, "pos_z", t)["pos_z"]
     k = min(GROUND_POINTS, len(points))
     dist, idx = cKDTree(points[:, :2]).query(np.column_stack([hx.ravel(), hy.ravel()]), k=k)
     dist, idx = dist.reshape(len(t), 4, k), idx.reshape(len(t), 4, k)
@@ -173,6 +338,9 @@ def check_heights(run: RunData, points: FloatArray, limits: RoverLimits, file: s
     if found is None or len(found[0]) < HEIGHT_SAMPLES:
         return []
     t, z, ground = found
+    standing = _standing_in_scan(t, z - ground, limits, file, scan_file)
+    if standing:
+        return standing
     noise = column_noise(*_own(run, "pos_z")[:2])
     spread = float(np.std(ground))
     if spread > 0 and spread >= GROUND_VARIES * noise and np.std(z) > 0:
@@ -194,6 +362,34 @@ def check_heights(run: RunData, points: FloatArray, limits: RoverLimits, file: s
                     f"times its centre of gravity's height); {where} that, pos_z and the scan's heights are measured "
                     "from different datums (a total station's, a map's), or one is not in metres or has z pointing "
                     "down: give both in one frame, z up, in metres")]
+
+
+def _standing_in_scan(t: FloatArray, height: FloatArray, limits: RoverLimits, file: str, scan_file: str
+                      ) -> list[Finding]:
+    """Where the run rides at its height above the scan's ground for the most part (the upper
+    quartile of ``height``, m, within the datum band: a short run may drive over what stands in
+    the scan for half its samples) but the scan's ground under the wheels rises to less than
+    ``rover.pivotHeight`` below the chassis reference point for some position samples (at least
+    two): the wheels would be sunk past their axles there, which the FMU stops at, so the scan
+    holds something that stood on the ground when it was scanned (the rover itself, scanned at
+    its start; a person, a box) and that the rover drove through."""
+    from .sensors import DATUM_LIMIT
+
+    typical = float(np.percentile(height, 75))
+    if not limits.pivot_height <= typical <= DATUM_LIMIT * limits.cg_height:
+        return []
+    low = height < limits.pivot_height
+    if int(low.sum()) < 2:
+        return []
+    least = float(np.min(height))
+    rise = typical - least
+    where = f"{_g(-least)} m above" if least < 0 else f"to {_g(least)} m below"
+    return [Finding("error", scan_file, "z", f"under the wheels of run {file} during {_format_spans(_spans(t, low))} "
+                    f"({int(low.sum())} of {len(t)} position samples) the scan's ground rises {where} the chassis "
+                    f"reference point, {_g(rise)} m higher than the run rides above it typically, closer than "
+                    f"rover.pivotHeight = {_g(limits.pivot_height)} m (the wheels sunk to their axles): the "
+                    "scan holds something that stood there when it was scanned, the rover itself (a scan taken with "
+                    "the rover at its start) or an object it did not drive over; remove those points from the scan")]
 
 
 #: Length units a scan may be written in by mistake, with the factor to metres.
