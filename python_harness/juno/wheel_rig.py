@@ -585,6 +585,7 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
     n_values = sum(int(np.sum(~np.isnan(v))) for r in runs for v in r.measured.values())
     if n_values == 0:
         raise InputError("the wheel_rig runs hold no measured value", campaign.manifest_path if campaign else None)
+    check_determined(runs, names, law, campaign.manifest_path if campaign else None)
     start_values = {n: PARAMETER_SPACE[n][3] for n in _search_names(names)}
     given = {k: float(v) for k, v in (initial or {}).items() if k in names}
     start_values.update(_from_fmu([k for k in names if k in given], {**_to_fmu(start_values), **given}))
@@ -673,6 +674,45 @@ def fit_rig(fmu: JunoFMU, campaign: Campaign | None = None, law: str = "volumetr
                         runs=[rr.run_id for rr in runs], evaluations=evaluations, failed_evaluations=failed,
                         wall_time=time.perf_counter() - start, status=_status(seen, identifiability, at_limit),
                         unsteady=fun.unsteady, doubts=doubts)
+
+
+def distinct_values(runs: Sequence[RigRun]) -> tuple[int, int]:
+    """(distinct set points, measured values at distinct set points) of testbed runs: a set point
+    is a run's (load, slip, slip angle), and a quantity measured at it, however often, is one
+    value. Rows repeated at one set point measure its scatter, not how the soil's response
+    changes with load and slip, which is what the law's parameters describe."""
+    points = values = 0
+    for r in runs:
+        keys = np.column_stack([r.points.load, r.points.slip, r.points.slip_angle])
+        _, which = np.unique(keys, axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        points += int(which.max()) + 1
+        for v in r.measured.values():
+            values += np.unique(which[~np.isnan(v)]).size
+    return points, values
+
+
+def check_determined(runs: Sequence[RigRun], names: Sequence[str], law: str, manifest: Path | None) -> None:
+    """A fit needs more measured values at distinct set points than the parameters it fits
+    (:func:`distinct_values`): with as many or fewer the law follows any table exactly, its
+    residuals say nothing of the noise and its uncertainties nothing of the soil.
+
+    Raises:
+        InputError: too few values, naming the tables, their set points and the parameters.
+    """
+    points, values = distinct_values(runs)
+    if values > len(names):
+        return
+    slips = sorted({float(s) for r in runs for s in r.points.slip})
+    loads = sorted({float(w) for r in runs for w in r.points.load})
+    tables = f"table{'s' if len(runs) > 1 else ''} {', '.join(r.file for r in runs)}"
+    raise InputError(f"the wheel_rig {tables} hold{'s' if len(runs) == 1 else ''} {points} distinct set point"
+                     f"{'s' if points != 1 else ''} (load, slip and slip angle; slips "
+                     f"{', '.join(f'{v:g}' for v in slips[:8])}{' ...' if len(slips) > 8 else ''}; loads "
+                     f"{', '.join(f'{v:g}' for v in loads[:8])}{' ...' if len(loads) > 8 else ''} N) with {values} "
+                     f"measured value{'s' if values != 1 else ''} among them, not more than the {len(names)} "
+                     f"parameters the {law} law fits ({', '.join(names)}): the fit cannot determine them; measure "
+                     "at more slips (rows repeated at one set point count once)", manifest)
 
 
 def _status(seen: NDArray[np.bool_], identifiability: Mapping[str, str], at_limit: bool = False) -> str:

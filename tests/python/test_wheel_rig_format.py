@@ -296,3 +296,44 @@ def test_the_rig_fmu_is_found_as_the_rover_fmu_is(tmp_path, monkeypatch):
     assert default_rig_fmu_path() == tmp_path / "WheelRig.fmu"
     monkeypatch.delenv("JUNO_FMU")
     assert default_rig_fmu_path() in (REPO / "build" / "WheelRig.fmu", PACKAGED_RIG_FMU)
+
+
+def test_a_pull_that_does_more_work_than_the_torque_puts_in_is_an_error(tmp_path):
+    """The soil gives back no more power than the wheel's motor puts in: drawbar_pull (1 - slip)
+    <= torque / radius in every row, braking rows included. A torque a thousand times too small
+    (kN m) breaks it by far more than a tenth of the load: an error on the torque naming the row;
+    Ding's table, with a braking row added, keeps it."""
+    def torque_findings(name, table):
+        campaign = load_campaign(make_campaign(tmp_path / name, table=table))
+        return [f for f in check_campaign(campaign) if f.column == "torque"]
+
+    found = torque_findings("knm", rig_table(DING_SMOOTH, torque_scale=1e-3))
+    assert len(found) == 1 and found[0].severity == "error", found
+    assert "does more work than the torque" in found[0].message and "line 4" in found[0].message
+    assert torque_findings("newton", rig_table(DING_SMOOTH + [(80, -0.2, -20.0, -1.0)])) == []
+
+
+def test_two_columns_written_under_each_others_names_are_named_as_swapped(tmp_path):
+    """When a table passes every check with two of its columns exchanged, each finding says which."""
+    table = rig_table(DING_SMOOTH).replace("drawbar_pull,torque", "torque,drawbar_pull", 1)
+    found = check_campaign(load_campaign(make_campaign(tmp_path, table=table)))
+    assert found and all("the columns 'drawbar_pull' and 'torque' look swapped" in f.message for f in found), found
+    assert check_campaign(load_campaign(make_campaign(tmp_path / "right", table=rig_table(DING_SMOOTH)))) == []
+
+
+@pytest.mark.parametrize("rows", [DING_SMOOTH[2:3], [DING_SMOOTH[2], (80, 0.2, 17.0, 4.6), (80, 0.2, 21.5, 5.1)]],
+                         ids=["one row", "every row at one slip"])
+def test_a_fit_needs_more_values_at_distinct_set_points_than_parameters(tmp_path, capsys, rows):
+    """A table of one set point (one row, or rows repeated at one load and slip) holds two values
+    (pull and torque) for the law's five parameters: the law would follow it exactly and report
+    any soil with a tiny uncertainty. `juno identify` refuses it in one line before the rig FMU
+    is looked for, naming the table, its set points and the parameters."""
+    from hostile_cases import refused
+    from juno.wheel_rig import fit_rig
+
+    make_campaign(tmp_path / "c", table=rig_table(rows))
+    line = refused(capsys, tmp_path, ["identify", "{w}/c", "--law", "volumetric", "--rig-fmu", "{w}/none.fmu"],
+                   ["runs/rig.csv", "1 distinct set point", "2 measured values", "5 parameters", "soil.kh"])
+    assert "none.fmu" not in line
+    with pytest.raises(InputError, match="cannot determine them"):
+        fit_rig(None, load_campaign(tmp_path / "c"), "wong-reece")

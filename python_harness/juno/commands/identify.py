@@ -168,9 +168,13 @@ def paper_fit_caveats(fit) -> list[str]:
 
 def _rig_fits(campaign, args: argparse.Namespace, say) -> dict[str, Any]:
     """The rig fit of each requested contact law on the campaign's wheel_rig runs, printed."""
-    from ..wheel_rig import RigFMU, fit_rig, rig_runs
+    from ..wheel_rig import RigFMU, check_determined, fit_rig, law_parameters, rig_runs
     runs = rig_runs(campaign)
     laws = ("volumetric", "wong-reece") if args.law == "both" else (args.law,)
+    both = {r.setup.lugged for r in runs} == {True, False}
+    for law in laws:  # before the FMU is opened: the tables alone decide it
+        check_determined(runs, law_parameters(law, both, args.slip_sinkage and law == "volumetric"), law,
+                         campaign.manifest_path)
     fits: dict[str, Any] = {}
     with RigFMU(args.rig_fmu) as fmu:
         for law in laws:

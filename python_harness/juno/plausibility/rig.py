@@ -1,7 +1,8 @@
 """Checks of a single-wheel testbed table (wheel_rig runs).
 
 A single-wheel testbed table (wheel_rig runs, :func:`check_rig`) is checked against the wheel
-of its manifest entry and against friction:
+of its manifest entry, against friction and against the power the wheel's motor puts in; when
+a table passes every check with two of its columns exchanged, each finding says so:
 
 * **Slip** is a fraction: a slip of 1 or more (the wheel spinning infinitely fast at the
   carriage's speed) is an error, "looks like percent" when the slips lie within 0-100.
@@ -19,6 +20,11 @@ of its manifest entry and against friction:
   times the pull stays within ``RIG_FORCE_ERROR`` loads, is an error, "kN?" (those tables in kN
   give 0.0004-0.001). Slips in one regime only (near the self-propelled point the pull is ~0) are
   not judged.
+* **Power.** The soil gives back no more power than the motor puts in: the drawbar pull times
+  the carriage's speed v = omega R (1 - slip) is at most the torque times the spin omega, so
+  drawbar_pull (1 - slip) <= torque / radius in every row, braking rows (both negative)
+  included. A row beyond that by more than ``RIG_POWER_SLACK`` (0.1) times the load, more than
+  a testbed's sensors err by, is an error.
 * **Sinkage** beyond the wheel radius (the axle under the surface) is an error, "looks like
   millimetres" when a thousandth of it fits.
 * **Slip angle** beyond pi/2 is an error ("looks like degrees"), beyond ``RIG_ANGLE_WARN``
@@ -29,11 +35,12 @@ of its manifest entry and against friction:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
-from ..campaign import RIG_STD_SUFFIX, RigTable, RunSpec
+from ..campaign import RIG_COLUMNS, RIG_STD_SUFFIX, RigTable, RunSpec
 from .findings import Finding, _g
 
 #: Single-wheel testbed: force (drawbar pull, lateral force, torque / radius) over the load
@@ -48,6 +55,9 @@ RIG_UNIT_KG_LIMIT = RIG_FORCE_ERROR * 9.81
 RIG_PULL_THRUST_MIN = 0.01
 RIG_ROLLING_SLIP = 0.1
 RIG_TRACTION_SLIP = 0.2
+#: The power balance (module docstring): the excess of the drawbar pull times (1 - slip) over
+#: the thrust the torque gives, as a fraction of the load, beyond which a row is an error.
+RIG_POWER_SLACK = 0.1
 #: Slip angle beyond which a testbed point is a warning (rad); beyond pi/2 an error.
 RIG_ANGLE_WARN = math.pi / 4
 #: The rig wheel's dimensions the FMU accepts (m): radius, width, lug height.
@@ -78,7 +88,24 @@ def check_rig_wheel(spec: RunSpec, manifest: str = "campaign.json") -> list[Find
 
 
 def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
-    """Units and physical limits of a wheel_rig table (module docstring)."""
+    """Units and physical limits of a wheel_rig table (module docstring); when the table passes
+    every check with two of its columns exchanged, each finding says so."""
+    out = _check_rig(table, spec, file)
+    if not out:
+        return out
+    names = [c for c in RIG_COLUMNS if c in table.columns and not c.endswith(RIG_STD_SUFFIX)]
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            swapped = dict(table.columns, **{a: table.columns[b], b: table.columns[a]})
+            if not _check_rig(dataclasses.replace(table, columns=swapped), spec, file):
+                hint = (f"; the columns '{a}' and '{b}' look swapped: exchanged, the table passes these checks "
+                        "(check the header's order)")
+                return [dataclasses.replace(f, message=f.message + hint) for f in out]
+    return out
+
+
+def _check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
+    """The checks of :func:`check_rig`."""
     out: list[Finding] = []
     slip, load = table["slip"], table["vertical_load"]
     high = np.flatnonzero(slip >= 1.0)
@@ -118,6 +145,8 @@ def check_rig(table: RigTable, spec: RunSpec, file: str) -> list[Finding]:
                                f"soil's friction limits it to below about 1 (more than {RIG_FORCE_ERROR:g} is an "
                                f"error){hint}"))
         out += _pull_in_kilonewton(table, radius, file)
+        if not out:
+            out += _power_balance(table, radius, file)
     if table.has("sinkage") and spec.rig is not None:
         z = table["sinkage"]
         i = int(np.nanargmax(np.abs(z)))
@@ -160,3 +189,23 @@ def _pull_in_kilonewton(table: RigTable, radius: float | None, file: str) -> lis
                     f"{_g(thrust[j])} N at {_rig_at(table, j)}) over slips from {_g(np.min(slip))} to "
                     f"{_g(np.max(slip))}, where a wheel pulls a sizeable part of its thrust; a thousand times it "
                     f"is a plausible pull: drawbar_pull{std} in kN? (1 kN is 1000 N)")]
+
+
+def _power_balance(table: RigTable, radius: float | None, file: str) -> list[Finding]:
+    """Rows whose drawbar pull does more work than the torque puts in (module docstring)."""
+    if not (table.has("torque") and radius):
+        return []
+    slip, load = table["slip"], table["vertical_load"]
+    pull, torque = table["drawbar_pull"], table["torque"]
+    with np.errstate(invalid="ignore"):
+        excess = (pull * (1.0 - slip) - torque / radius) / load
+        bad = np.flatnonzero(excess > RIG_POWER_SLACK)
+    if not bad.size:
+        return []
+    i = int(bad[np.argmax(excess[bad])])
+    return [Finding("error", file, "torque", f"at {_rig_at(table, i)} the drawbar pull of {_g(pull[i])} N at slip "
+                    f"{_g(slip[i])} does more work than the torque of {_g(torque[i])} N m puts in: drawbar_pull x (1 - "
+                    f"slip) = {_g(pull[i] * (1 - slip[i]))} N against torque / radius = {_g(torque[i] / radius)} N "
+                    f"({len(bad)} row{'s' if len(bad) > 1 else ''} beyond it by more than {RIG_POWER_SLACK:g} times "
+                    "the load); the soil gives back no more power than the wheel's motor puts in (drawbar_pull x "
+                    "carriage speed <= torque x spin): is the torque in another unit, or of the other sign?")]
