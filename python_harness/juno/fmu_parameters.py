@@ -49,9 +49,37 @@ def parse_assignments(items: Iterable[str] | None, option: str = "--param") -> d
 
 
 def _as_text(value: object) -> str:
+    """A value as the user wrote it: text as is, a number in its shortest exact decimal."""
     if isinstance(value, str):
         return value
-    return f"{value:.17g}" if isinstance(value, float) else f"{value!r}"
+    return repr(float(value)) if isinstance(value, float) else f"{value!r}"
+
+
+#: Units a value is often written in by mistake, by the FMU unit it belongs in: (name, size of
+#: one of them in the FMU's unit).
+MISTAKEN_UNITS = {
+    "m": (("millimetres", 1e-3), ("centimetres", 1e-2), ("inches", 0.0254)),
+    "kg": (("grams", 1e-3), ("pounds", 0.45359237)),
+    "rad": (("degrees", math.pi / 180.0),),
+    "m/s": (("km/h", 1.0 / 3.6),),
+}
+
+
+def _unit_hint(var: Any, number: float, low: float, high: float) -> str:
+    """Which mistaken units bring an out-of-range value within [low, high], those whose value
+    lies nearest the FMU's default first (ratio of the two), as a clause; empty when none."""
+    unit = var.unit or ""
+    try:
+        start = abs(float(var.start))
+    except (TypeError, ValueError):
+        start = 0.0
+    fits = [(name, number * size) for name, size in MISTAKEN_UNITS.get(unit, ()) if low <= number * size <= high]
+    if not fits:
+        return ""
+    if start > 0:
+        fits.sort(key=lambda f: abs(math.log(abs(f[1]) / start)) if f[1] != 0 else math.inf)
+    options = " or ".join(f"{name} ({value:.4g} {unit})" for name, value in fits)
+    return f": is it in {options}? Give it in {unit}"
 
 
 def parameter_value(variables: Mapping[str, Any], name: str, value: object, option: str = "--param") -> object:
@@ -91,7 +119,9 @@ def parameter_value(variables: Mapping[str, Any], name: str, value: object, opti
     low = float(var.min) if var.min not in (None, "") else -math.inf
     high = float(var.max) if var.max not in (None, "") else math.inf
     if not low <= number <= high:
-        raise InputError(f"{option} {name}={text}: out of the FMU's range [{low:g}, {high:g}] of '{name}'")
+        unit = f" {var.unit}" if var.unit and var.unit != "1" else ""
+        raise InputError(f"{option} {name}={text}: out of the FMU's range [{low:g}, {high:g}]{unit} of '{name}'"
+                         + _unit_hint(var, number, low, high))
     return number
 
 

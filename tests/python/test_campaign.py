@@ -332,6 +332,26 @@ def test_row_with_too_few_cells(campaign_dir: Path) -> None:
     assert_refused(campaign_dir, file="dbp1.csv", line=10, says="cells, the header has")
 
 
+def test_a_trailing_comma_on_every_line_is_named_as_such(campaign_dir: Path) -> None:
+    """An export that ends every line with a separator makes an empty last column: named as a
+    trailing separator, with what to do."""
+    p = campaign_dir / "runs/dbp1.csv"
+    p.write_text("".join(line + ",\n" for line in p.read_text().splitlines()))
+    err = assert_refused(campaign_dir, file="dbp1.csv", line=1, says="is an empty column name")
+    assert "trailing comma" in str(err) and "remove it" in str(err)
+
+
+def test_a_decimal_comma_is_named_as_such(campaign_dir: Path) -> None:
+    """Numbers written 1,5 split each number into two cells: the row is longer than the header,
+    holds no decimal point, and the refusal says it looks like a decimal comma."""
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    lines[1:] = [line.replace(",", ";").replace(".", ",").replace(";", ",") for line in lines[1:]]
+    p.write_text("\n".join(lines) + "\n")
+    err = assert_refused(campaign_dir, file="dbp1.csv", line=2, says="cells, the header has")
+    assert "decimal comma" in str(err)
+
+
 @pytest.mark.parametrize("separator, says", [(";", "separated by semicolons"), ("\t", "separated by tabs")])
 def test_a_file_not_separated_by_commas_is_named_as_such(campaign_dir: Path, separator: str, says: str) -> None:
     """A spreadsheet's export with another separator is refused with the reason, not as a file

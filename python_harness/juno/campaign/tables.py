@@ -87,7 +87,8 @@ def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
             if blank_at is not None:
                 raise InputError("empty line inside the data", p, blank_at)
             if len(row) != ncols:
-                raise InputError(f"row has {len(row)} cells, the header has {ncols}", p, lineno)
+                raise InputError(f"row has {len(row)} cells, the header has {ncols}{_cells_hint(row, ncols)}", p,
+                                 lineno)
             rows.append(row)
             lines.append(lineno)
     except csv.Error as e:
@@ -95,6 +96,19 @@ def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
     if not rows:
         raise InputError("no data rows: the file holds only a header", p, 1)
     return names, rows, lines
+
+
+def _cells_hint(row: list[str], ncols: int) -> str:
+    """Why a row has more cells than the header: numbers written with a decimal comma (``1,5``
+    is two cells), told by a row whose numbers hold no decimal point while some are split into a
+    whole part and digits after it."""
+    if len(row) <= ncols:
+        return ""
+    cells = [c.strip() for c in row]
+    if any("." in c for c in cells) or not any(c.lstrip("+-").isdigit() for c in cells):
+        return ""
+    return (": no number in it has a decimal point, so it looks written with a decimal comma (1,5 for 1.5), "
+            "which splits each number in two; the format is comma-separated with '.' as the decimal point")
 
 
 def _check_header(path: Path, names: list[str], required: Sequence[str], kind: str,
@@ -107,7 +121,9 @@ def _check_header(path: Path, names: list[str], required: Sequence[str], kind: s
     seen: set[str] = set()
     for j, name in enumerate(names):
         if not name:
-            raise InputError(f"header cell {j + 1} is an empty column name", path, 1)
+            hint = (": the header ends in a separator; a trailing comma at the end of each line (some exports "
+                    "write one) makes an empty last column: remove it") if j == len(names) - 1 and j > 0 else ""
+            raise InputError(f"header cell {j + 1} is an empty column name{hint}", path, 1)
         if name in seen:
             raise InputError("duplicate column name in the header", path, 1, name)
         seen.add(name)
