@@ -292,7 +292,8 @@ def _check_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits, spe
     severity = "error" if share > OFF_SCAN_ERROR else "warning"
     spacing = float(np.median(cKDTree(points[:, :2]).query(points[:, :2], k=2)[0][:, 1]))
     cause = (f"the scan's points lie {_g(spacing)} m apart (the median distance to the nearest), so it has a hole "
-             "there" if spacing <= 0.5 * limits.wheel_radius else
+             "there (a gap in the scan, or a scanner's shadow behind a mound or ridge: scan it from another side "
+             "too)" if spacing <= 0.5 * limits.wheel_radius else
              f"the scan's points lie {_g(spacing)} m apart (the median distance to the nearest): too sparse for "
              f"the wheels; scan the ground at least every {_g(0.5 * limits.wheel_radius)} m")
     return [Finding(severity, spec.file, "pos_x", f"run {spec.id!r}: during {_format_spans(_spans(t, unmeasured))} "
@@ -389,7 +390,9 @@ def _standing_in_scan(t: FloatArray, height: FloatArray, limits: RoverLimits, fi
                     f"reference point, {_g(rise)} m higher than the run rides above it typically, closer than "
                     f"rover.pivotHeight = {_g(limits.pivot_height)} m (the wheels sunk to their axles): the "
                     "scan holds something that stood there when it was scanned, the rover itself (a scan taken with "
-                    "the rover at its start) or an object it did not drive over; remove those points from the scan")]
+                    "the rover at its start) or an object it did not drive over: remove those points from the scan; "
+                    "or the scan is placed far off the positions' frame, a feature of the ground where the rover "
+                    "did not drive: register them to one frame")]
 
 
 #: Length units a scan may be written in by mistake, with the factor to metres.
