@@ -369,3 +369,71 @@ def test_a_las_scan_in_feet_is_named_as_such_by_the_scan_check(tmp_path: Path) -
     errors = [f for f in check_campaign(load_campaign(tmp_path / "camp")) if f.severity == "error"]
     assert [(f.file, f.column) for f in errors] == [("runs/t3d.csv", "pos_x")]
     assert "terrain/scan.las" in errors[0].message and "the scan looks like it is in feet" in errors[0].message
+
+
+# ---------------------------------------------------------------------------------------------
+# A text scan read as one table: the points of the line-by-line reading, bit for bit
+# ---------------------------------------------------------------------------------------------
+
+def shortest(points: np.ndarray) -> list[str]:
+    """Each point's coordinates as the shortest decimals that round-trip (17 significant digits
+    at most), the hardest for a reader to get bit for bit."""
+    return [" ".join(repr(float(v)) for v in p) for p in points]
+
+
+def _exact_cloud() -> np.ndarray:
+    rng = np.random.default_rng(11)
+    return cloud(200) + rng.normal(0.0, 1e-7, (200, 3)) * 10.0 ** rng.uniform(-3, 6, (200, 1))
+
+
+TABLES = {
+    "spaces and extra fields": lambda p: "\n".join(f"{line} 120 7 8 9" for line in shortest(p)) + "\n",
+    "an x y z header": lambda p: "//X Y Z Intensity\n" + "\n".join(f"{line} 0.5" for line in shortest(p)),
+    "a pts count and a header": lambda p: f"{len(p)}\nx y z\n" + "\n".join(shortest(p)) + "\n",
+    "commas and spaces around them": lambda p: "\n".join(", ".join(line.split()) for line in shortest(p)),
+    "Windows line ends, tabs": lambda p: "\r\n".join("\t".join(line.split()) for line in shortest(p)) + "\r\n",
+    "comments and blank lines inside": lambda p: "\n\n".join(f"{line}  # ok" for line in shortest(p)),
+}
+
+
+@pytest.mark.parametrize("form", TABLES)
+def test_a_plain_text_table_is_read_at_once_as_line_by_line(form: str) -> None:
+    """A scan of millions of points is read by NumPy's table reader in one pass; where it reads
+    the file at all, its points are the line-by-line reading's to the last bit."""
+    from juno.scan_formats import _parse_text_lines, _parse_text_table, parse_text
+    points = _exact_cloud()
+    text = TABLES[form](points)
+    table = _parse_text_table(text)
+    assert table is not None, "the table reader declined a plain table"
+    lines = _parse_text_lines(Path("scan.xyz"), text)
+    assert table.tobytes() == lines.tobytes() == np.ascontiguousarray(points).tobytes()
+    assert parse_text(Path("scan.xyz"), text).tobytes() == lines.tobytes()
+
+
+DECLINED = {
+    # what the table reader cannot read alike: the line-by-line reading reads it, or names the line
+    "old Mac line ends": ("1 2 3\r4 5 6\r", None),
+    "commas on one line, spaces on the next": ("1,2,3\n4 5 6\n", None),
+    "a blank line first": ("\n1 2 3\n4 5 6\n", None),
+    "digits of another script": ("\u0661 2 3\n4 5 6\n", "not a number"),
+    "a digit separator": ("1_000 2 3\n", "not a number"),
+    "a point short of a field": ("1 2 3 9\n4 5 6\n", "expected 4 fields"),
+    "a z of nan": ("1 2 3\n4 5 nan\n", "not finite"),
+    "a pts count off by one": ("3\n1 2 3\n4 5 6\n", "announces 3 points"),
+    "only two columns": ("1 2\n3 4\n", "expected 3 numbers"),
+}
+
+
+@pytest.mark.parametrize("form", DECLINED)
+def test_a_text_the_table_reader_would_misread_is_read_line_by_line(form: str) -> None:
+    """Line breaks other than a newline, mixed separators, what float() reads and the format's
+    numbers are not, and every fault: the table reader declines, and the line-by-line reading
+    reads the points or names the line at fault."""
+    from juno.scan_formats import _parse_text_table, parse_text
+    text, says = DECLINED[form]
+    assert _parse_text_table(text) is None
+    if says is None:
+        assert parse_text(Path("scan.xyz"), text).tolist() == [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+    else:
+        with pytest.raises(InputError, match=says):
+            parse_text(Path("scan.xyz"), text)
