@@ -820,3 +820,11 @@ def test_a_rover_whose_wheels_overlap_is_the_one_error(base, tmp_path, rover, co
     f = findings[0]
     assert (f.severity, f.file, f.column) == ("error", "campaign.json", column)
     assert says in f.message and "is it in metres?" in f.message
+
+
+def test_a_span_of_one_sample_is_named_by_its_time():
+    """Findings name the times of what they found; a span of a single sample is its time, not a
+    span from that time to itself."""
+    from juno.plausibility.findings import _format_spans
+    assert _format_spans([(0.5, 2.0), (3.25, 3.25)]) == "0.5-2 s, 3.25 s (one sample)"
+    assert _format_spans([(float(i), i + 0.5) for i in range(6)]) == "0-0.5 s, 1-1.5 s, 2-2.5 s, 3-3.5 s and 2 more"

@@ -84,5 +84,7 @@ def _spans(t: FloatArray, mask: NDArray[np.bool_]) -> list[tuple[float, float]]:
 
 
 def _format_spans(spans: list[tuple[float, float]], limit: int = 4) -> str:
-    text = ", ".join(f"{_time(a)}-{_time(b)} s" for a, b in spans[:limit])
+    """Time spans (s) as text, at most ``limit`` of them; a span of one sample as its time."""
+    text = ", ".join(f"{_time(a)}-{_time(b)} s" if _time(a) != _time(b) else f"{_time(a)} s (one sample)"
+                     for a, b in spans[:limit])
     return text + (f" and {len(spans) - limit} more" if len(spans) > limit else "")
