@@ -27,7 +27,7 @@ sample, and two errors follow from it:
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,8 +64,17 @@ def footprint_offsets(limits: RoverLimits) -> FloatArray:
     return np.array([[a, b], [a, 0.0], [a, -b], [0.0, -b], [-a, -b], [-a, 0.0], [-a, b], [0.0, b]])
 
 
-def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Which position samples put part of the wheel footprint off the scan.
+def xy_tree(points: FloatArray) -> Any:
+    """The search tree of a scan's points in x-y (scipy's cKDTree), which every check of a run
+    against its scan queries: built once for them all."""
+    from scipy.spatial import cKDTree
+    return cKDTree(points[:, :2])
+
+
+def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits, tree: Any = None
+                  ) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Which position samples put part of the wheel footprint off the scan (``tree``: the
+    points' x-y search tree, :func:`xy_tree`, built here when not given).
 
     The footprint (:func:`footprint_offsets`) is placed at each position sample, turned by the
     measured yaw (without a yaw column it is turned to every heading: a disc of its
@@ -80,11 +89,9 @@ def path_off_scan(run: RunData, points: FloatArray, limits: RoverLimits) -> tupl
     Returns:
         (times of the position samples (s), True where part of the footprint is off the scan).
     """
-    from scipy.spatial import cKDTree
-
     t, x, _ = _own(run, "pos_x")
     y = aligned(run, "pos_y", t)["pos_y"]
-    tree = cKDTree(points[:, :2])
+    tree = tree if tree is not None else xy_tree(points)
     if run.has("yaw"):
         yaw = aligned(run, "yaw", t)["yaw"]
         off = footprint_offsets(limits)
@@ -205,16 +212,17 @@ def check_scan(campaign: Campaign, spec: RunSpec, run: RunData, limits: RoverLim
         points = points[~bad]
     if not (run.has("pos_x") and run.has("pos_y")):
         return out
-    t, off = path_off_scan(run, points, limits)
+    tree = xy_tree(points)
+    t, off = path_off_scan(run, points, limits, tree)
     if np.mean(off) <= OFF_SCAN_ERROR:
-        heights = check_heights(run, points, limits, spec.file, scan_file)
+        heights = check_heights(run, points, limits, spec.file, scan_file, tree)
         if any(f.file == scan_file for f in heights):
             # Something standing in the scan: the ground points around it stand out against its
             # points, so an outlier warning would name the same mistake; it is checked again
             # once those points are removed.
             return heights
         out += heights
-        unmeasured = _check_unmeasured(run, points, limits, spec, off)
+        unmeasured = _check_unmeasured(run, points, limits, spec, off, tree)
         if any(f.severity == "error" for f in unmeasured):
             # The wheels off measured ground for much of the run: the footprint's brief
             # excursions beyond the scan's margin are part of the same gap.
@@ -246,20 +254,21 @@ def hub_positions(run: RunData, limits: RoverLimits) -> tuple[FloatArray, FloatA
     return t, x[:, None] + c * fore - s * side, y[:, None] + s * fore + c * side
 
 
-def hubs_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits
+def hubs_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits, tree: Any = None
                     ) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
     """Which position samples put a wheel on ground the scan did not measure but the gridding
     makes up: a hub inside the convex hull of the scan's points in x-y, where the gridding
     interpolates linearly between them, with no scan point within a wheel's radius of it, the
     farthest a wheel touches the ground from its hub (a hole in the scan, or a scan too sparse
     for the wheels). Beyond the hull the gridding extends the nearest edge's height, and how far
-    the wheels may go there is :func:`path_off_scan`'s to judge.
+    the wheels may go there is :func:`path_off_scan`'s to judge. ``tree``: the points' x-y
+    search tree (:func:`xy_tree`), built here when not given.
 
     Returns:
         (times of the position samples (s), True where such a hub is, the distance (m) from each
         sample's farthest such hub to its nearest scan point, 0 where there is none).
     """
-    from scipy.spatial import ConvexHull, cKDTree
+    from scipy.spatial import ConvexHull
 
     t, hx, hy = hub_positions(run, limits)
     centre = points[:, :2].mean(axis=0)
@@ -272,25 +281,23 @@ def hubs_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits
     inside = np.zeros(len(hubs), dtype=bool)
     inside[finite] = np.all(hubs[finite] @ facets[:, :2].T + facets[:, 2] <= 1e-9, axis=1)
     dist = np.zeros(len(hubs))
-    dist[inside], _ = cKDTree(points[:, :2] - centre).query(hubs[inside])
+    dist[inside], _ = (tree if tree is not None else xy_tree(points)).query(hubs[inside] + centre)
     far = dist.reshape(hx.shape).max(axis=1)
     return t, far > limits.wheel_radius, far
 
 
 def _check_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits, spec: RunSpec,
-                      off: NDArray[np.bool_]) -> list[Finding]:
+                      off: NDArray[np.bool_], tree: Any) -> list[Finding]:
     """The samples on the scan whose wheels rest on unmeasured ground (:func:`hubs_unmeasured`):
     an error for more than OFF_SCAN_ERROR of the run's position samples, else a warning; the
     scan's typical point spacing tells a hole from a scan too sparse for the wheels."""
-    from scipy.spatial import cKDTree
-
-    t, unmeasured, far = hubs_unmeasured(run, points, limits)
+    t, unmeasured, far = hubs_unmeasured(run, points, limits, tree)
     unmeasured &= ~off
     if not unmeasured.any():
         return []
     share = float(np.mean(unmeasured))
     severity = "error" if share > OFF_SCAN_ERROR else "warning"
-    spacing = float(np.median(cKDTree(points[:, :2]).query(points[:, :2], k=2)[0][:, 1]))
+    spacing = float(np.median(tree.query(points[:, :2], k=2)[0][:, 1]))
     cause = (f"the scan's points lie {_g(spacing)} m apart (the median distance to the nearest), so it has a hole "
              "there (a gap in the scan, or a scanner's shadow behind a mound or ridge: scan it from another side "
              "too)" if spacing <= 0.5 * limits.wheel_radius else
@@ -303,7 +310,7 @@ def _check_unmeasured(run: RunData, points: FloatArray, limits: RoverLimits, spe
                     f"points beyond its reach, not measured; {cause}")]
 
 
-def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits
+def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits, tree: Any = None
                         ) -> Optional[tuple[FloatArray, FloatArray, FloatArray]]:
     """The scan's ground under the rover's wheels at each position sample of a run: (times (s),
     measured pos_z (m), mean ground height under the four hubs (m)), for the samples whose every
@@ -314,28 +321,27 @@ def ground_under_wheels(run: RunData, points: FloatArray, limits: RoverLimits
     to either side; the ground under a hub is the median height of the ``GROUND_POINTS`` scan
     points nearest it.
     """
-    from scipy.spatial import cKDTree
-
     if not run.has("pos_z"):
         return None
     t, hx, hy = hub_positions(run, limits)
     z = aligned(run, "pos_z", t)["pos_z"]
     k = min(GROUND_POINTS, len(points))
-    dist, idx = cKDTree(points[:, :2]).query(np.column_stack([hx.ravel(), hy.ravel()]), k=k)
+    tree = tree if tree is not None else xy_tree(points)
+    dist, idx = tree.query(np.column_stack([hx.ravel(), hy.ravel()]), k=k)
     dist, idx = dist.reshape(len(t), 4, k), idx.reshape(len(t), 4, k)
     ground = np.median(points[idx, 2], axis=2).mean(axis=1)
     on_scan = np.all(dist[:, :, 0] <= GRID_MARGIN, axis=1) & np.isfinite(z)
     return t[on_scan], z[on_scan], ground[on_scan]
 
 
-def check_heights(run: RunData, points: FloatArray, limits: RoverLimits, file: str, scan_file: str
-                  ) -> list[Finding]:
+def check_heights(run: RunData, points: FloatArray, limits: RoverLimits, file: str, scan_file: str,
+                  tree: Any = None) -> list[Finding]:
     """pos_z against the scan's ground under the wheels (module docstring, "z reversed" and
     "Height datum")."""
     from ..sensor_noise import column_noise
     from .sensors import DATUM_LIMIT
 
-    found = ground_under_wheels(run, points, limits)
+    found = ground_under_wheels(run, points, limits, tree)
     if found is None or len(found[0]) < HEIGHT_SAMPLES:
         return []
     t, z, ground = found
