@@ -31,7 +31,7 @@ enum { U_VX = 0, U_WX = 3, U_BETA = 6, U_SPIN_L = 7, U_SPIN_R = 8, NU = 9 };
 typedef struct {
     double soil_kh, soil_eta, soil_gamma, soil_Kvx, soil_KvyRatio, soil_cohesion, soil_phi;
     double wheel_radius, wheel_width, wheel_mass, wheel_inertia;
-    double rover_mass, rover_wheelbase, rover_track, rover_pivotHeight, rover_rockerMass;
+    double rover_mass, rover_payload, rover_wheelbase, rover_track, rover_pivotHeight, rover_rockerMass;
     double rover_cgHeight, rover_hitchX, rover_hitchZ, rover_rockerDamping, env_gravity;
     int drive_mode;
     double drive_Kp, drive_Ki, drive_Kd, drive_torqueMax;

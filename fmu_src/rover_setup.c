@@ -24,6 +24,9 @@ static int check_params(const Params *p, char *err, size_t n)
     if (!(p->rover_mass > wheels + rockers))
         return snprintf(err, n, "rover.mass = %g must exceed the wheels' and rockers' mass, 4 wheel.mass + "
                         "2 rover.rockerMass = %g kg", p->rover_mass, wheels + rockers), -1;
+    if (!(p->rover_mass + p->rover_payload > wheels + rockers))
+        return snprintf(err, n, "rover.mass + rover.payload = %g + %g must exceed the wheels' and rockers' mass, "
+                        "4 wheel.mass + 2 rover.rockerMass = %g kg", p->rover_mass, p->rover_payload, wheels + rockers), -1;
     if (!(p->rover_wheelbase > 0)) return snprintf(err, n, "rover.wheelbase = %g must be positive", p->rover_wheelbase), -1;
     if (!(p->rover_track > p->wheel_width))
         return snprintf(err, n, "rover.track = %g must exceed wheel.width = %g", p->rover_track, p->wheel_width), -1;
@@ -42,7 +45,8 @@ static void derive(Model *m)
     const Params *p = &m->p;
     Derived *d = &m->d;
     const double L = p->rover_wheelbase, W = p->rover_track, hp = p->rover_pivotHeight;
-    d->chassis_mass = p->rover_mass - 4 * p->wheel_mass - 2 * p->rover_rockerMass;
+    /* Assumption: a payload sits at the chassis's centre of gravity and is spread like the chassis's own mass. */
+    d->chassis_mass = p->rover_mass + p->rover_payload - 4 * p->wheel_mass - 2 * p->rover_rockerMass;
     /* Assumption (the paper gives no inertias): chassis inertia of a uniform 1.38 x 1.6 x 0.5 m box. */
     const double bx = 1.38, by = 1.6, bz = 0.5;
     d->chassis_inertia[0] = d->chassis_mass * (by * by + bz * bz) / 12;
@@ -257,7 +261,7 @@ static double newton(Model *m, double x[4], double r[4], double weight, double m
 static int find_equilibrium(Model *m, char *err, size_t errlen)
 {
     const Params *p = &m->p;
-    const double weight = p->rover_mass * p->env_gravity, moment_scale = weight * p->rover_wheelbase;
+    const double weight = (p->rover_mass + p->rover_payload) * p->env_gravity, moment_scale = weight * p->rover_wheelbase;
     double x[4], r[4];
     initial_pose(m, x);
     settle_height(m, x, r);

@@ -48,6 +48,7 @@
     REAL(123, "wheel.inertia",  PARAM, "kg.m2",  0.35,   1e-6, 1e4, p.wheel_inertia, "Spin inertia of one wheel (assumed)") \
     /* ---- rover ---- */ \
     REAL(130, "rover.mass",        PARAM, "kg", 317.7, 60, 2000, p.rover_mass,        "Total mass including wheels and rockers (more than 4 wheel.mass + 2 rover.rockerMass)") \
+    REAL(129, "rover.payload",     PARAM, "kg", 0.0,   -200, 1000, p.rover_payload,   "Mass on the chassis beyond rover.mass (instruments, ballast, what a weighing missed; negative: the rover is lighter than rover.mass states); it joins the chassis's mass and inertia box at the chassis's centre of gravity") \
     REAL(131, "rover.wheelbase",   PARAM, "m",  0.82,  0.01, 20, p.rover_wheelbase,   "Distance between front and rear axles (assumed)") \
     REAL(132, "rover.track",       PARAM, "m",  1.35,  0.3, 20, p.rover_track,       "Distance between left and right wheel centres (assumed); more than wheel.width") \
     REAL(133, "rover.pivotHeight", PARAM, "m",  0.15,  0, 10, p.rover_pivotHeight, "Rocker pivot height above the axle line (assumed)") \

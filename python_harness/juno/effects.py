@@ -21,6 +21,8 @@ drivetrain_loss   the motor-current torque over-reads the wheel torque:       lo
                   the wheels get (1 - 0.25 S) of it
 terrain_offset    the LIDAR scan is misregistered by 0.25 S m in a random     0.12 .. 0.25 m,
                   direction, 3 S deg in yaw and 3 S cm in height               1.5 .. 3 deg, 1.5 .. 3 cm
+payload           the rover carries 40 S kg that its manifest does not state   20 .. 40 kg
+                  (rover.payload; the manifest's rover.mass is the Juno's)    (6 .. 13 % of 318 kg)
 ================  =========================================================  =======================
 
 **Alternative forms** (:data:`ALTERNATIVE_FORMS`): the same mechanism as a catalog effect
@@ -97,6 +99,7 @@ EFFECTS: dict[str, str] = {
     "grouser": "lugged tyres shear the soil at a larger radius and gain thrust beyond the Mohr-Coulomb limit",
     "drivetrain_loss": "the torque from the motor current is larger than the torque at the wheels",
     "terrain_offset": "the scanned terrain is shifted and rotated relative to the real one",
+    "payload": "the rover carries a payload its manifest does not state",
 }
 
 ALTERNATIVE_FORMS: dict[str, str] = {
@@ -207,6 +210,8 @@ def effect_parameters(effect: str, strength: float, rng: np.random.Generator) ->
         ext = {"terrain.offsetX": 0.25 * s * float(np.cos(angle)), "terrain.offsetY": 0.25 * s * float(np.sin(angle)),
                "terrain.offsetZ": 0.03 * s * float(rng.choice([-1.0, 1.0])),
                "terrain.offsetYaw": float(np.radians(3.0)) * s * float(rng.choice([-1.0, 1.0]))}
+    elif effect == "payload":
+        ext = {"rover.payload": 40.0 * s}
     elif effect != "none":
         raise ValueError(f"'{effect}' is not a catalog effect; its parameters come from hidden_parameters")
     return ext, ({} if effect == "terrain_offset" else dict(ext))

@@ -79,6 +79,8 @@ def extension_close(effect: str, fitted: dict, truth: dict) -> list[str]:
             far.append(f"multipass.rutFraction fitted {fitted['multipass.rutFraction']:.3f}, "
                        f"truth {truth['multipass.rutFraction']:.3f}")
         rel("multipass.khFactor", 0.3)
+    elif effect == "payload":
+        rel("rover.payload", 0.3)
     elif effect == "terrain_offset":
         if abs(fitted["terrain.offsetZ"] - truth["terrain.offsetZ"]) > 0.015:
             far.append(f"offsetZ fitted {fitted['terrain.offsetZ']:.4f}, truth {truth['terrain.offsetZ']:.4f}")

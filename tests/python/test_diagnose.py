@@ -30,7 +30,7 @@ import pytest
 from blind_draws import (assert_found_blind, assert_gain_beats_no_effect, candidates_summary, draws_for,
                          draw_and_diagnose, extension_close, hide_and_diagnose)
 
-EFFECT_IDS = ("soil_patch", "terrain_offset", "multipass")
+EFFECT_IDS = ("soil_patch", "terrain_offset", "multipass", "payload")
 #: Effects that another candidate can mimic so closely that the data cannot tell them apart:
 #: each has its own test below, which accepts that tie only where the diagnosis reports it.
 MIMICKED = {"grouser": "drivetrain_loss"}
@@ -50,7 +50,7 @@ def test_no_effect_names_no_cause(none_case):
         assert key in diagnosis, f"diagnose JSON lacks '{key}'"
     assert diagnosis["missing_columns"] == [], "a full campaign lacks no column"
     assert diagnosis["cause"] == "none", f"seed {seed}: a false cause was named: {candidates_summary(diagnosis)}"
-    assert len(diagnosis["candidates"]) == 6
+    assert len(diagnosis["candidates"]) == 7
     assert diagnosis["criteria"]["terrain_replicas"] == 20, "the terrain run's evidence is judged against replicas"
     assert diagnosis["criteria"]["pitch_offset_free"] is True, "a mounting not said to be calibrated is free"
 

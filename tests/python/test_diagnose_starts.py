@@ -3,11 +3,13 @@ patch's centre kept on the ground the wheels touched (juno/diagnose/starts.py)."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from juno.campaign import read_run
 from juno.diagnose.candidates import CANDIDATES
-from juno.diagnose.starts import PATCH_CONVERGES, patch_grid, patch_on_the_ground
+from juno.diagnose.starts import PATCH_CONVERGES, patch_grid, patch_on_the_ground, payload_for_the_rover
 from juno.rover_model import rover
 
 pytest_plugins = ["harness_fixtures"]
@@ -74,3 +76,17 @@ def test_the_grouser_fit_also_starts_from_thrust_gains_away_from_none():
     tried = sorted(dict(point)["grouser.thrustGain"] for point in grouser.grid)
     assert gain.start == 0.0 and tried == [0.5, 1.0]
     assert all(gain.lower < g <= gain.upper for g in tried)
+
+
+def test_the_payload_ranges_from_half_the_stated_rover_to_twice_it(noisy_campaign, fmu_path):
+    """The payload's bounds follow the mass the campaign states (rover.mass in the manifest's rover
+    entry, else the FMU's default), within the FMU's range of rover.payload (-200 to 1000 kg);
+    its neutral start and the catalog's other settings stay."""
+    catalog = CANDIDATES["payload"]
+    for rover_entry, lower, upper in (({}, -0.5 * 317.7, 317.7), ({"rover.mass": 120.0}, -60.0, 120.0),
+                                      ({"rover.mass": 1500.0}, -200.0, 1000.0)):
+        campaign = replace(noisy_campaign.campaign, rover=rover_entry)
+        (param,) = payload_for_the_rover(campaign, fmu_path).params
+        assert (param.lower, param.upper) == (lower, upper), rover_entry
+        assert param.start == catalog.params[0].start == 0.0
+    assert payload_for_the_rover(noisy_campaign.campaign, fmu_path).active == catalog.active

@@ -16,7 +16,7 @@ OUTPUTS = {"plots": "plots"}
 #: The names of the diagnosis's candidates (juno.diagnose.CANDIDATES), sorted: the choices of
 #: --candidates.  Written out so that building the parser, on every ``juno`` start, does not
 #: import the diagnosis (SciPy's optimizers, half a second); a test keeps it equal to the catalogue.
-CANDIDATE_NAMES = ("drivetrain_loss", "grouser", "multipass", "slip_sinkage", "soil_patch", "terrain_offset")
+CANDIDATE_NAMES = ("drivetrain_loss", "grouser", "multipass", "payload", "slip_sinkage", "soil_patch", "terrain_offset")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

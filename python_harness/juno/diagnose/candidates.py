@@ -212,6 +212,18 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               (ExtParam("drive.lossFraction", 0.0, 0.0, 0.9),
                ExtParam("drive.friction", 0.0, 0.0, 100.0, sets=("drive.frictionLeft", "drive.frictionRight"))),
               active=(("drive.lossFraction", 0.0, 0.005), ("drive.friction", 0.0, 0.5)), soil_restart=True),
+    # The rover's mass as the campaign states it (rover.mass, the FMU's default unless the
+    # manifest's rover entry gives one) is an input of every replay, and a rover heavier or
+    # lighter than that (instruments or ballast nobody logged, a mis-weighed rover) sinks,
+    # resists and climbs as no soil of the stated rover does: its weight scales the normal loads
+    # on the drawbar runs and the climbing torque on the terrain runs alike, which a soil refit
+    # cannot follow on both.  One parameter, the mass beyond the stated one (rover.payload, at the
+    # chassis's centre of gravity), linear near 0, so the fit starts at neutral; it acts beyond
+    # 2 kg (0.6 % of the Juno's 318 kg, what a platform scale resolves).  Its bounds are the
+    # stated mass's (starts.payload_for_the_rover): down to half the rover, up to twice it.
+    Candidate("payload", "the rover's mass is not the stated one (a payload nobody logged, or a mis-weighed rover)",
+              (ExtParam("rover.payload", 0.0, -150.0, 300.0),),
+              active=(("rover.payload", 0.0, 2.0),), soil_restart=True),
     # The registration is kinematic (juno.registration: the scan against the measured height,
     # pitch and roll on the terrain runs' training blocks, no simulation) and judged on the
     # held-out blocks the same way (starts.registration_evidence, judging.judge).  These six

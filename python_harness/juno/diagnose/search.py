@@ -33,8 +33,8 @@ from .problem import BLOCK, Problem, build_problem, run_kinds
 from .references import best_reference, on_reference_soil
 from .results import Contender, Criteria, DiagnosisResult, Duel, JudgedCandidate, Ranked, TiedPair
 from .ripple_nuisance import with_lug_ripple
-from .starts import (patch_grid, patch_on_the_ground, patch_start, registration_candidate, registration_evidence,
-                     registration_start)
+from .starts import (patch_grid, patch_on_the_ground, patch_start, payload_for_the_rover, registration_candidate,
+                     registration_evidence, registration_start)
 from ..parallel import BackgroundTask, TaskPool
 from ..periodic_structure import PeriodicBases, PeriodicStructure, periodic_structure, series_of_residuals
 from ..residual_structure import UNITS, ResidualStructure, residual_structure
@@ -183,6 +183,7 @@ def diagnose(campaign: Campaign | str | Path, fmu: JunoFMU | None = None, worker
         setting = prepare(campaign, fmu_path, names, tmp, terrain_segment, say, workers, on_grid=start_registration,
                           periodic_bases=bases)
         searched = {"soil_patch": replace(patch_on_the_ground(campaign, fmu_path), grid=patch_grid(campaign)),
+                    "payload": payload_for_the_rover(campaign, fmu_path),
                     **({"grouser": with_lug_ripple(CANDIDATES["grouser"], setting.problem, setting.base.params,
                                                    setting.base.residuals)} if "grouser" in setting.names else {})}
         search = Search(campaign, setting.problem, searched, None, workers, scheduler, say,

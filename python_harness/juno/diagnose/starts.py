@@ -128,6 +128,18 @@ def patch_on_the_ground(campaign: Campaign, fmu_path: str) -> Candidate:
     return replace(patch, params=params)
 
 
+def payload_for_the_rover(campaign: Campaign, fmu_path: str) -> Candidate:
+    """The payload candidate with bounds from the rover's stated mass m (rover.mass as the
+    manifest's rover entry or the FMU's default gives it): from -m/2 (a rover half as heavy as
+    stated) to +m (twice as heavy), within the FMU's range of rover.payload (-200 to 1000 kg).
+    Beyond those a weighing was not wrong, the rover is another one."""
+    from ..rover_model import rover
+    mass = rover(campaign.rover, fmu_path).mass
+    payload = CANDIDATES["payload"]
+    (param,) = payload.params
+    return replace(payload, params=(replace(param, lower=max(-0.5 * mass, -200.0), upper=min(mass, 1000.0)),))
+
+
 def registration_evidence(campaign: Campaign, grids) -> ScanRegistrations | None:
     """Each scan's registration fitted kinematically on the training blocks of the terrain runs on
     it (the measured height, pitch and roll against the rover posed on the scan, no simulation:
