@@ -221,7 +221,7 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
     # chassis's centre of gravity), linear near 0, so the fit starts at neutral; it acts beyond
     # 2 kg (0.6 % of the Juno's 318 kg, what a platform scale resolves).  Its bounds are the
     # stated mass's (starts.payload_for_the_rover): down to half the rover, up to twice it.
-    Candidate("payload", "the rover's mass is not the stated one (a payload nobody logged, or a mis-weighed rover)",
+    Candidate("payload", "the rover's mass is not the stated one: a payload nobody logged, or a mis-weighed rover",
               (ExtParam("rover.payload", 0.0, -150.0, 300.0),),
               active=(("rover.payload", 0.0, 2.0),), soil_restart=True),
     # The registration is kinematic (juno.registration: the scan against the measured height,
