@@ -59,7 +59,7 @@ class Rover:
 
     wheel_radius: float     # m, including the lugs
     wheel_width: float      # m
-    mass: float             # kg, total: chassis, rockers and wheels
+    mass: float             # kg, total: chassis, rockers, wheels and a stated rover.payload
     wheelbase: float        # m, front to rear axle
     track: float            # m, between left and right wheel centres
     pivot_height: float     # m, rocker pivots above the axle line
@@ -85,7 +85,9 @@ def rover(overrides: Mapping[str, object] | None = None, fmu_path: str | os.Path
     """The FMU's defaults, each replaced by ``overrides`` (a campaign's ``rover`` block, FMU names
     to values) where it gives one.  ``fmu_path``: as for :func:`fmu_defaults`."""
     values = {**fmu_defaults(fmu_path), **(overrides or {})}
-    return Rover(**{field: float(values[name]) for field, name in _FMU_NAMES.items()})
+    fields = {field: float(values[name]) for field, name in _FMU_NAMES.items()}
+    fields["mass"] += float(values.get("rover.payload", 0.0))   # the mass the rover stands on
+    return Rover(**fields)
 
 
 def traction_ratio(slip: np.ndarray, kvx: float, normal_force: float, area: float, cohesion: float,

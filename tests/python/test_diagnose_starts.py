@@ -90,3 +90,13 @@ def test_the_payload_ranges_from_half_the_stated_rover_to_twice_it(noisy_campaig
         assert (param.lower, param.upper) == (lower, upper), rover_entry
         assert param.start == catalog.params[0].start == 0.0
     assert payload_for_the_rover(noisy_campaign.campaign, fmu_path).active == catalog.active
+
+
+def test_a_payload_the_manifest_states_is_part_of_the_stated_mass(noisy_campaign, fmu_path):
+    """A manifest's rover.payload is given to every replay as part of rover.mass (the same rover to
+    the FMU), so that the payload candidate's neutral 0 is the campaign's statement."""
+    from juno.identify import base_parameters
+    campaign = replace(noisy_campaign.campaign, rover={"rover.payload": 25.0, "wheel.width": 0.25})
+    assert base_parameters(campaign) == {"rover.mass": 317.7 + 25.0, "wheel.width": 0.25}
+    (param,) = payload_for_the_rover(campaign, fmu_path).params
+    assert param.upper == 317.7 + 25.0

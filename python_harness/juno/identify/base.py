@@ -152,8 +152,17 @@ def _jacobian_of_transform(params: dict[str, float]) -> np.ndarray:
 
 
 def base_parameters(campaign: Campaign) -> dict[str, object]:
-    """Fixed FMU parameters for identification: the campaign's rover overrides."""
-    return dict(campaign.rover)
+    """Fixed FMU parameters for identification: the campaign's rover overrides, a payload the
+    manifest states (rover.payload) given as part of rover.mass.  To the FMU that is the same
+    rover (the payload joins the chassis's mass as rover.mass does, and their sum is the same
+    number either way), and it leaves rover.payload to the diagnosis's payload candidate: the
+    mass the campaign does not state, 0 where the statement is right."""
+    params = dict(campaign.rover)
+    if "rover.payload" in params:
+        from ..rover_model import rover
+        params["rover.mass"] = rover(params).mass
+        del params["rover.payload"]
+    return params
 
 
 def terrain_grids(campaign: Campaign, out_dir: str | Path, step: str = "identify --with-terrain") -> dict[str, str]:
