@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from .campaign import Campaign, RunSpec, forward_speed, read_run, read_terrain_points
+from .campaign import Campaign, RunData, RunSpec, forward_speed, read_run, read_terrain_points
 from .heading import start_heading
 from .identify import SPIN_TRACKER, base_parameters
 from .pointcloud import GRID_MARGIN, Grid, grid_from_points, gross_outliers, write_esri_ascii
@@ -115,6 +115,16 @@ def simulate_terrain_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec, soil: d
         raise exc.located(run.id, run.file) from exc
 
 
+def _sampled_span(data: RunData, columns: tuple[str, ...], times: np.ndarray) -> np.ndarray:
+    """True at the ``times`` (s, on the run's clock) that lie between the first and the last
+    sample of every one of ``columns``."""
+    inside = np.ones(len(times), dtype=bool)
+    for name in columns:
+        ts, _ = data.samples(name)
+        inside &= (times >= ts[0]) & (times <= ts[-1])
+    return inside
+
+
 def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dict[str, float],
                  out_dir: str | Path, cell: float = GRID_CELL, extra: dict[str, object] | None = None,
                  grid_file: str | Path | None = None) -> ValidationResult:
@@ -131,14 +141,19 @@ def validate_run(fmu: JunoFMU, campaign: Campaign, run: RunSpec | str, soil: dic
         if name == "speed":
             m = forward_speed(data, times + t0)
             noise[name] = float("nan")
+            measured_at = _sampled_span(data, ("pos_x", "pos_y"), times + t0)
         else:
             ts, vs = data.samples(name)
             m = np.interp(times, ts - t0, vs)
             noise[name] = sensor_noise(data, name)
+            measured_at = _sampled_span(data, (name,), times + t0)
+        # A sensor that starts late or stops early has measured nothing beyond its own samples:
+        # there the interpolation would only hold its end value, which is no measurement.
+        m = np.where(measured_at, m, np.nan)
         s = np.interp(times, sim["time"], sim[output])
         measured[name], simulated[name] = m, s
         # The first SETTLING s are the PID catching the measured spins (the paper's settling
         # phase): plotted, but not in the RMS.
-        settled = times >= SETTLING
-        rms[name] = float(np.sqrt(np.mean((m[settled] - s[settled]) ** 2)))
+        compared = (times >= SETTLING) & measured_at
+        rms[name] = float(np.sqrt(np.mean((m[compared] - s[compared]) ** 2))) if compared.any() else float("nan")
     return ValidationResult(run.id, str(grid_file), cell, times, measured, simulated, rms, noise)

@@ -138,6 +138,28 @@ def freeze_position(run: str, after: float) -> Callable[[Path], None]:
     return apply
 
 
+def stop_early(run: str, after: float, *names: str) -> Callable[[Path], None]:
+    """The sensors of ``names`` stop measuring ``after`` s into the run: their cells empty from there."""
+    def apply(root: Path) -> None:
+        def change(c):
+            t = c["time"]
+            for n in names:
+                c[n] = np.where(t > t[0] + after, np.nan, c[n])
+        edit_run(root, run, change)
+    return apply
+
+
+def dropout(run: str, start: float, end: float, *names: str) -> Callable[[Path], None]:
+    """The sensors of ``names`` write nothing from ``start`` to ``end`` s into the run (empty cells)."""
+    def apply(root: Path) -> None:
+        def change(c):
+            t = c["time"] - c["time"][0]
+            for n in names:
+                c[n] = np.where((t > start) & (t < end), np.nan, c[n])
+        edit_run(root, run, change)
+    return apply
+
+
 def state_noise(noise: dict[str, float], run: str | None = None) -> Callable[[Path], None]:
     """The manifest states ``noise`` (column -> 1 sigma) for ``run``, or for the campaign (None)."""
     def apply(root: Path) -> None:
@@ -366,6 +388,9 @@ ERRORS = [
          ("a wheel has no point of the scan terrain/scan.xyz within its radius", "not measured", "has a hole there")),
     Case("a scan too sparse for the wheels", edit_scan(lambda p: p[::250]), "error", "runs/t3d.csv", "pos_x",
          ("within its radius", "too sparse for the wheels")),
+    Case("a wheel encoder that stops before the run ends", stop_early("t3d", 3.0, "omega_left"), "error",
+         "runs/t3d.csv", "omega_left", ("stops", "before the run's last row", "driven by omega_left",
+                                        "cut the run's rows to t = ")),
     Case("a height noise stated in millimetres", state_noise({"pos_z": 3.0}), "error", "runs/dbp1.csv", "pos_z",
          ("the manifest states a sensor noise of 3 m (1 sigma)", "more than the column's whole range in this run",
           "another unit")),
@@ -388,6 +413,11 @@ WARNINGS = [
          ("gross outliers", "dropped")),
     Case("path briefly off the scan", cropped(1.0), "warning", "runs/t3d.csv", "pos_x",
          ("run 't3d'", "leaves the scan")),
+    Case("a total station that stops before the run ends", stop_early("t3d", 3.0, "pos_x", "pos_y", "pos_z"),
+         "warning", "runs/t3d.csv", "pos_x", ("stops", "before the run's last row", "stopped measuring",
+                                              "compared only where it has samples")),
+    Case("a dropout of a wheel encoder inside the run", dropout("dbp1", 2.0, 4.0, "omega_right"), "warning",
+         "runs/dbp1.csv", "omega_right", ("has no sample for 2", "a dropout", "straight line across the gap")),
     Case("a filtered motor current with its sensor's noise stated", low_pass_with_stated_noise("dbp2", "torque_left", 0.15),
          "warning", "runs/dbp2.csv", "torque_left",
          ("sensor noise stated in the manifest", "N m) is under 1/3 of the stated", "filtered")),

@@ -1,5 +1,7 @@
 """Validation on the 3-D terrain (juno.validate) and the report (juno.report.write_report).
 
+* A measured column is compared only between its first and last sample: a sensor that stops
+  before the run ends leaves the rest of the run uncompared, not compared with its last value.
 * On a synthetic campaign, the true soil validates with much smaller RMS errors of position and
   drive torque than the paper's initial guess.
 * The gridded LIDAR scan reproduces the true surface (juno.synthesize.mound_surface) within
@@ -13,16 +15,18 @@ from __future__ import annotations
 import json
 import math
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from harness_fixtures import say
+from juno.campaign import format_run_csv, load_campaign, read_run_csv
 from juno.pointcloud import read_esri_ascii
 from juno.simulator import SOIL_PARAMETERS
 from juno.synthesize import TERRAIN_X, TERRAIN_Y, mound_surface
-from juno.validate import COMPARED, GRID_CELL
+from juno.validate import COMPARED, GRID_CELL, SETTLING, validate_run
 
 pytest_plugins = ["harness_fixtures"]
 
@@ -53,6 +57,29 @@ def test_validation_compares_every_signal_over_the_run(terrain_campaign, terrain
         for name in COMPARED:
             assert v.measured[name].shape == v.time.shape == v.simulated[name].shape
             assert np.all(np.isfinite(v.simulated[name])), f"simulated {name} is not finite"
+
+
+def test_a_sensor_that_stops_early_is_compared_only_up_to_its_last_sample(small_campaign, harness_fmu, tmp_path):
+    source = small_campaign(502)
+    root = tmp_path / "campaign"
+    shutil.copytree(source.path, root)
+    path = root / "runs" / "t3d.csv"
+    run = read_run_csv(path, "terrain")
+    columns = dict(run.columns)
+    stop = float(run.time[0] + 0.5 * (run.time[-1] - run.time[0]))
+    columns["torque_left"] = np.where(run.time > stop, np.nan, columns["torque_left"])
+    path.write_text(format_run_csv(columns))
+
+    whole = validate_run(harness_fmu, source.campaign, "t3d", source.soil, tmp_path / "whole")
+    cut = validate_run(harness_fmu, load_campaign(root), "t3d", source.soil, tmp_path / "cut")
+
+    last = float(run.time[run.time <= stop][-1] - run.time[0])
+    after = cut.time > last
+    assert after.any() and np.all(np.isnan(cut.measured["torque_left"][after]))
+    kept = (whole.time >= SETTLING) & (whole.time <= last)
+    expected = math.sqrt(float(np.mean((whole.measured["torque_left"][kept] - whole.simulated["torque_left"][kept]) ** 2)))
+    assert cut.rms["torque_left"] == pytest.approx(expected, rel=1e-9)
+    assert cut.rms["torque_right"] == pytest.approx(whole.rms["torque_right"], rel=1e-9)
 
 
 def test_true_soil_validates_much_better_than_the_initial_guess(terrain_validation):

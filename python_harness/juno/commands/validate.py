@@ -102,5 +102,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _rms_text(v, name: str) -> str:
     """``pos_x 0.009021 (4.5 x noise)``: an RMS error, in units of its sensor noise where known."""
+    if v.rms[name] != v.rms[name]:
+        from ..validate import SETTLING
+        return f"{name} not compared (no sample after the first {SETTLING:g} s)"
     ratio = v.noise_ratio(name)
     return f"{name} {v.rms[name]:.4g}" + (f" ({ratio:.2g} x noise)" if ratio == ratio else "")

@@ -21,6 +21,7 @@ one concept a module:
   datum, dead or frozen sensors;
 * :mod:`.motion`: how the rover moves against how its wheels turn (turning, yaw units, heading);
 * :mod:`.outliers`: single absurd samples, at a stated false-alarm rate;
+* :mod:`.coverage`: a sensor that starts late, stops early or drops out;
 * :mod:`.noise`: a sensor noise the manifest states, against the column's range and its samples;
 * :mod:`.rig`: single-wheel testbed tables;
 * :mod:`.scan`: a terrain run's scan against its path;

@@ -9,6 +9,7 @@ from typing import Callable, Optional, TextIO, Union
 
 from ..campaign import KNOWN_COLUMNS, Campaign, RunData, read_rig, read_run
 from .findings import Finding, PlausibilityError
+from .coverage import check_coverage
 from .limits import RoverLimits, check_rover, rover_limits
 from .motion import check_heading, check_turning
 from .noise import check_stated_noise
@@ -25,7 +26,8 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     found = (check_time(run, file) + check_angles(run, file, limits) + check_spins(run, file, limits)
              + check_torques(run, file, limits) + check_drawbar(run, file, limits)
              + check_signs(run, file, limits) + check_energy(run, file, limits) + check_positions(run, file, limits)
-             + check_turning(run, file, limits) + check_stated_noise(run, file))
+             + check_turning(run, file, limits) + check_stated_noise(run, file)
+             + check_coverage(run, file, tuple(c for c in KNOWN_COLUMNS if c != "time")))
     # The checks that compare columns with each other run on columns without an error of their
     # own, so that one mistake gets one message: spins in rev/s, say, would also make the
     # drive's power too small.

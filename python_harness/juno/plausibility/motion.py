@@ -97,6 +97,7 @@ def check_turning(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     with np.errstate(invalid="ignore"):
         material = np.isfinite(difference) & (np.abs(difference) >= np.maximum(TURN_SPIN_DIFFERENCE,
                                                                                 TURN_SPIN_SHARE * mean_spin))
+    material &= spins.coverage["omega_left"] & spins.coverage["omega_right"]
     steering = int(np.sum(material))
     if steering >= TURN_WINDOWS and np.all(yaw == yaw[0]):
         return [Finding("error", file, "yaw", f"is {_g(yaw[0])} rad in every sample ({len(yaw)} samples) while the "
@@ -152,6 +153,7 @@ def check_heading(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
         heading = np.arctan2(np.interp(t, ty, np.sin(yaw)), np.interp(t, ty, np.cos(yaw)))
     direction = np.arctan2(dy, dx) + np.where(forward < 0, np.pi, 0.0)
     moving = np.isfinite(heading) & (np.hypot(dx, dy) >= HEADING_MOVE) & (np.abs(forward) >= TURNING)
+    moving &= spins.coverage["omega_left"] & spins.coverage["omega_right"] & (t >= ty[0]) & (t <= ty[-1])
     if int(np.sum(moving)) < TURN_WINDOWS:
         return []
     off = np.abs(np.angle(np.exp(1j * (heading[moving] - direction[moving]))))

@@ -359,6 +359,7 @@ def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     wheels = at["torque_left"] * at["omega_left"] + at["torque_right"] * at["omega_right"]
     hitch = at["drawbar_force"] * speed
     driving = (0.5 * (at["omega_left"] + at["omega_right"]) > TURNING) & (wheels > 0) & np.isfinite(hitch)
+    driving &= np.logical_and.reduce(list(at.coverage.values()))
     if int(np.sum(driving)) < POWER_WINDOWS:
         return []
     ratio = float(np.median(hitch[driving]) / np.median(wheels[driving]))
@@ -390,6 +391,7 @@ def check_rolling(run: RunData, file: str, limits: RoverLimits) -> list[Finding]
     # Only where the load holds the rover back: a towed wheel (the hitch pulling) rolls faster
     # than its rim.
     driving = (forward > 0) & (at["drawbar_force"] > 0) & np.isfinite(speed)
+    driving &= np.logical_and.reduce(list(at.coverage.values()))
     if int(np.sum(driving)) < POWER_WINDOWS:
         return []
     ratio = float(np.median(speed[driving]) / (np.median(forward[driving]) * limits.wheel_radius))
