@@ -343,6 +343,9 @@ ERRORS = [
          "drawbar_force", ("the wheels could push",)),
     Case("torques at the motor shaft", scale("dbp3", 0.85 / 129.0, "torque_left", "torque_right"), "error",
          "runs/dbp3.csv", "torque_left", ("times the power", "gearbox", "motor.gearRatio")),
+    Case("torques logged as the motor current in A", scale("dbp3", 1.0 / (0.85 * 129.0 * 0.0465), "torque_left",
+                                                          "torque_right"), "error", "runs/dbp3.csv", "torque_left",
+         ("the torques are too small", "looks like the motor current in A", "5.099 N m per A")),
     Case("torques in kN m", scale("dbp2", 1e-3, "torque_left", "torque_right"), "error", "runs/dbp2.csv",
          "torque_left", ("times the power", "kN m")),
     Case("spins in rev/s", scale("dbp2", 1 / (2 * math.pi), "omega_left", "omega_right"), "error", "runs/dbp2.csv",
@@ -555,6 +558,21 @@ def test_outlier_k_gives_the_stated_false_alarm_rate() -> None:
     assert outlier_threshold_k(2000, 1e-4) == pytest.approx(5.45, abs=0.01)
     p_one = math.erfc(outlier_threshold_k(2000, 1e-4) / math.sqrt(2))
     assert 2000 * p_one == pytest.approx(1e-4, rel=1e-6)
+
+
+def test_a_drawbar_force_beyond_the_thrust_of_the_torques_is_an_error(base, tmp_path) -> None:
+    """A wheel's thrust is at most its torque over its radius: the pull check holds on a plausible
+    run and refuses its torques divided by the torque per ampere (a motor current in A)."""
+    from juno.plausibility.sensors import check_pull
+    limits = rover_limits()
+    assert limits.torque_per_amp == pytest.approx(0.85 * 129.0 * 0.0465)
+    root = bad_copy(base, tmp_path, case_named("torques logged as the motor current in A"))
+    as_measured = read_run_csv(base / "runs" / "dbp3.csv", "drawbar")
+    as_current = read_run_csv(root / "runs" / "dbp3.csv", "drawbar")
+    assert check_pull(as_measured, "runs/dbp3.csv", limits) == []
+    [finding] = check_pull(as_current, "runs/dbp3.csv", limits)
+    assert finding.severity == "error" and finding.column == "torque_left"
+    assert "holds back" in finding.message and "motor current in A" in finding.message
 
 
 def test_limits_follow_from_the_motor_constants() -> None:

@@ -17,7 +17,7 @@ from .outliers import check_outliers
 from .rig import check_rig, check_rig_wheel
 from .scan import check_scan
 from .sensors import (check_angles, check_drawbar, check_positions, check_signs, check_spins, check_time,
-                      check_energy, check_power, check_rolling, check_steady_drive, check_torques,
+                      check_energy, check_power, check_pull, check_rolling, check_steady_drive, check_torques,
                       drawbar_in_kilonewtons)
 
 
@@ -34,7 +34,8 @@ def check_run(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     for check, columns in ((check_heading, {"yaw", "pos_x", "pos_y", "omega_left", "omega_right"}),
                            (check_rolling, {"omega_left", "omega_right", "pos_x", "pos_y"}),
                            (check_power, {"drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right",
-                                          "pos_x", "pos_y"})):
+                                          "pos_x", "pos_y"}),
+                           (check_pull, {"drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right"})):
         if not columns & {f.column for f in found if f.severity == "error"}:
             found += check(run, file, limits)
     with_error = {f.column for f in found if f.severity == "error"}

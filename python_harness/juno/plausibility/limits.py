@@ -60,6 +60,7 @@ class RoverLimits:
     mass: float = 0.0        # kg: rover.mass (chassis, rockers and wheels)
     weight: float = 0.0      # N: rover.mass times env.gravity
     friction_angle: float = math.radians(30.0)  # rad: soil.phi, the steepest slope the soil holds
+    torque_per_amp: float = 0.0  # N m per A at the wheels: motor.efficiency * motor.gearRatio * motor.kt
 
     @property
     def ride_height(self) -> float:
@@ -92,7 +93,7 @@ def rover_limits(rover: Optional[Mapping[str, object]] = None) -> RoverLimits:
         roll_tip=math.atan2(0.5 * p["rover.track"], cg), pitch_tip=math.atan2(0.5 * p["rover.wheelbase"], cg),
         cg_height=cg, track=p["rover.track"], gear_ratio=n, wheelbase=p["rover.wheelbase"],
         pivot_height=p["rover.pivotHeight"], mass=p["rover.mass"], weight=p["rover.mass"] * p["env.gravity"],
-        friction_angle=p["soil.phi"])
+        friction_angle=p["soil.phi"], torque_per_amp=p["motor.efficiency"] * n * kt)
 
 
 def check_rover(rover: Optional[Mapping[str, object]], manifest: str) -> list[Finding]:

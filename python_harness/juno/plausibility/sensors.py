@@ -41,6 +41,16 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   where the wheels drive forward, is an error: the torques are too small. The message says
   when they look like the motor shaft's torque (before the ``motor.gearRatio`` gearbox) or kN m.
   Synthetic drawbar runs give 0.13-0.32.
+* **Pull.** A wheel pushes the soil back with the shear under it, at its rim or, with lugs,
+  further out: its thrust is at most its torque over its radius, and the drawbar pull, the
+  thrust less the soil's resistance, is less still. A drawbar run whose median drawbar force
+  times ``wheel.radius`` exceeds the median of ``torque_left + torque_right``, over the windows
+  where the wheels drive forward, is an error: the torques are too small. The message says when
+  they look like the motor current in A (the wheel torque over ``motor.efficiency *
+  motor.gearRatio * motor.kt``, 5.1 N m per A with the defaults), the motor shaft's torque or
+  kN m. 86 synthetic drawbar runs (every effect, both designs, the heavy run) give 0.23-0.66;
+  with their torques as motor currents, every one exceeds 1. Stricter than the power bound by
+  the wheels' slip, so it sees the motor current where the power does not.
 * **Rolling.** A wheel that pulls a load slips: the rover moves slower than its rims roll, and
   lugs reach beyond the rim by at most half the radius (the largest lugs the FMU accepts). A
   drawbar run whose median speed (of the positions, over 1 s) exceeds ``ROLLING_LIMIT`` (1.5)
@@ -115,6 +125,9 @@ KILONEWTON_SHARE = 0.01
 #: more windows where the wheels drive forward (module docstring, "Power").
 POWER_WINDOW = 1.0
 POWER_WINDOWS = 10
+#: A unit mistake is named for torques too small where undoing it brings the power or the pull
+#: ratio within (UNDONE_FLOOR, 1]: synthetic drawbar runs give 0.13-0.32 and 0.23-0.66.
+UNDONE_FLOOR = 0.05
 #: A drawbar run moving faster than this times its wheels' rim speed is an error (module
 #: docstring, "Rolling").
 ROLLING_LIMIT = 1.5
@@ -365,16 +378,52 @@ def check_power(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     ratio = float(np.median(hitch[driving]) / np.median(wheels[driving]))
     if not ratio > 1.0:
         return []
-    # The mistakes that make torques this small, each where undoing it keeps the bound.
-    mistakes = [what for what, factor in ((f"the motor shaft's torque, before the 1:{_g(limits.gear_ratio)} gearbox "
-                                           "(motor.gearRatio; the format's torques are at the wheels)",
-                                           limits.gear_ratio), ("kN m", 1000.0)) if ratio / factor <= 1.0]
-    hint = f": looks like {' or '.join(mistakes)}" if mistakes else ""
+    hint = _small_torque_hint(ratio, limits)
     return [Finding("error", file, "torque_left", f"the hitch takes {_g(ratio)} times the power the drive torques "
                     f"put into the wheels (median drawbar_force x speed against median torque_left x omega_left + "
                     f"torque_right x omega_right over the {int(np.sum(driving))} {_g(POWER_WINDOW)} s windows where "
                     f"the wheels drive forward); on flat ground the soil only takes power: the torques are too "
                     f"small{hint}")]
+
+
+def _small_torque_hint(ratio: float, limits: RoverLimits) -> str:
+    """The mistakes that make drive torques too small by ``ratio`` (the power or the pull bound
+    over 1), each named where undoing it brings the ratio to one drawbar runs give: at most 1
+    and over ``UNDONE_FLOOR``."""
+    mistakes = [what for what, factor in (
+        (f"the motor current in A (the torque at the wheels is motor.efficiency x motor.gearRatio x motor.kt = "
+         f"{_g(limits.torque_per_amp)} N m per A times it)", limits.torque_per_amp),
+        (f"the motor shaft's torque, before the 1:{_g(limits.gear_ratio)} gearbox (motor.gearRatio; the format's "
+         "torques are at the wheels)", limits.gear_ratio),
+        ("kN m", 1000.0)) if factor > 0 and UNDONE_FLOOR < ratio / factor <= 1.0]
+    return f": looks like {' or '.join(mistakes)}" if mistakes else ""
+
+
+def check_pull(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
+    """A drawbar run whose drawbar force exceeds the thrust its drive torques can give (module
+    docstring, "Pull")."""
+    names = ("drawbar_force", "torque_left", "torque_right", "omega_left", "omega_right")
+    if run.kind != "drawbar" or not all(run.has(n) for n in names) or len(run.time) < 2:
+        return []
+    t = np.arange(float(run.time[0]) + 0.5 * POWER_WINDOW, float(run.time[-1]) - 0.5 * POWER_WINDOW,
+                  0.5 * POWER_WINDOW)
+    if not t.size:
+        return []
+    at = aligned(run, list(names), t)
+    torque = at["torque_left"] + at["torque_right"]
+    driving = (0.5 * (at["omega_left"] + at["omega_right"]) > TURNING) & (torque > 0)
+    driving &= np.logical_and.reduce(list(at.coverage.values()))
+    if int(np.sum(driving)) < POWER_WINDOWS:
+        return []
+    ratio = float(np.median(at["drawbar_force"][driving]) * limits.wheel_radius / np.median(torque[driving]))
+    if not ratio > 1.0:
+        return []
+    hint = _small_torque_hint(ratio, limits)
+    return [Finding("error", file, "torque_left", f"the drawbar force holds back {_g(ratio)} times the thrust the drive "
+                    f"torques can give (median drawbar_force x wheel.radius = {_g(limits.wheel_radius)} m against "
+                    f"median torque_left + torque_right over the {int(np.sum(driving))} {_g(POWER_WINDOW)} s windows "
+                    f"where the wheels drive forward); a wheel's thrust is at most its torque over its radius: the "
+                    f"torques are too small{hint}")]
 
 
 def check_rolling(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
