@@ -100,11 +100,28 @@ def read_input_bytes(path: "Path") -> bytes:
         raise InputError(f"cannot read: {e.strerror or e}", path) from None
 
 
+#: What to do with a text file in another encoding than UTF-8.
+SAVE_AS_UTF8 = "save it as UTF-8 (in Excel: 'CSV UTF-8'; in other programs: encoding UTF-8)"
+
+
 def decode_input_text(path: "Path", data: bytes) -> str:
-    """UTF-8 (BOM allowed); refuse other bytes naming the line of the first bad byte."""
+    """UTF-8 (BOM allowed); refuse other bytes naming the line of the first bad byte.
+
+    A file in another encoding is named as such with what to do: UTF-16 (a byte-order mark, or
+    the NUL bytes its ASCII characters carry without one, as Excel's 'Unicode Text' saves it) and
+    a one-byte encoding (Windows-1252, Latin-1: a byte beyond ASCII that is no UTF-8, in a file
+    without NUL bytes, which a binary file would hold)."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise InputError(f"UTF-16 text (as Excel's 'Unicode Text' saves it), not UTF-8: {SAVE_AS_UTF8}", path, 1)
     try:
-        return data.decode("utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
-        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x})", path, line) from None
+        hint = "" if b"\x00" in data else f": another encoding than UTF-8 (Windows-1252, Latin-1); {SAVE_AS_UTF8}"
+        raise InputError(f"not UTF-8 text (byte {data[e.start]:#04x}){hint}", path, line) from None
+    nul = text.find("\x00")
+    if nul >= 0:
+        raise InputError("holds NUL bytes, which no text file has: UTF-16 text without a byte-order mark (as some "
+                         f"loggers write it), or not a text file; {SAVE_AS_UTF8}", path, text.count("\n", 0, nul) + 1)
+    return text
 

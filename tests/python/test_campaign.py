@@ -309,6 +309,13 @@ def test_non_finite_cell(campaign_dir: Path, cell: str) -> None:
     assert_refused(campaign_dir, file="dbp1.csv", line=line, column="omega_left", says="not finite")
 
 
+@pytest.mark.parametrize("cell", ["NaN", "nan", "NA", "#N/A", "null", "-"])
+def test_a_missing_sample_written_as_a_mark_is_refused_with_leave_the_cell_empty(campaign_dir: Path, cell: str) -> None:
+    line = edit_csv(campaign_dir / "runs/dbp1.csv", 15, "omega_left", cell)
+    assert_refused(campaign_dir, file="dbp1.csv", line=line, column="omega_left",
+                   says=f"{cell!r} marks a missing sample: leave the cell empty")
+
+
 @pytest.mark.parametrize("cell", ["abc", "1,5", "0x10", "1_000", "--1", "1.2.3", "٣"])
 def test_text_in_number_cell(campaign_dir: Path, cell: str) -> None:
     line = edit_csv(campaign_dir / "runs/dbp1.csv", 15, "omega_left", f'"{cell}"')
@@ -462,6 +469,37 @@ def test_not_utf8(campaign_dir: Path) -> None:
     data[3] = data[3] + b"\xff"
     p.write_bytes(b"\n".join(data))
     assert_refused(campaign_dir, file="dbp1.csv", line=4, says="UTF-8")
+
+
+@pytest.mark.parametrize("encoding, says", [
+    ("utf-16", "UTF-16 text (as Excel's 'Unicode Text' saves it), not UTF-8: save it as UTF-8"),
+    ("utf-16-le", "holds NUL bytes, which no text file has: UTF-16 text without a byte-order mark"),
+])
+@pytest.mark.parametrize("name", ["runs/dbp1.csv", "campaign.json"])
+def test_a_file_in_utf16_is_named_as_such_with_save_it_as_utf8(campaign_dir: Path, encoding: str, says: str,
+                                                                name: str) -> None:
+    p = campaign_dir / name
+    p.write_bytes(p.read_text().encode(encoding))
+    assert_refused(campaign_dir, file=name, line=1, says=says)
+
+
+def test_a_file_in_a_one_byte_encoding_is_named_as_such_with_save_it_as_utf8(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    lines = p.read_text().splitlines()
+    lines = [lines[0] + ",note"] + [row + ",20 \u00b0C" for row in lines[1:]]
+    p.write_bytes(("\n".join(lines) + "\n").encode("latin-1"))
+    assert_refused(campaign_dir, file="dbp1.csv", line=2, says="not UTF-8 text (byte 0xb0): another encoding than "
+                   "UTF-8 (Windows-1252, Latin-1); save it as UTF-8")
+
+
+def test_comment_lines_are_refused_as_such(campaign_dir: Path) -> None:
+    p = campaign_dir / "runs/dbp1.csv"
+    text = p.read_text()
+    p.write_text("# logger export v2\n" + text)
+    assert_refused(campaign_dir, file="dbp1.csv", line=1, says="the first line is a comment ('#')")
+    header, rest = text.split("\n", 1)
+    p.write_text(header + "\n# units: SI\n" + rest)
+    assert_refused(campaign_dir, file="dbp1.csv", line=2, says="a comment line ('#'): a CSV has no comment lines")
 
 
 def rewrite_manifest(root: Path, edit) -> None:

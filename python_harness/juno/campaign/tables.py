@@ -86,6 +86,8 @@ def _read_table(p: Path, text: str, check_header: Callable[[list[str]], None]
                 continue
             if blank_at is not None:
                 raise InputError("empty line inside the data", p, blank_at)
+            if len(row) != ncols and row[0].lstrip().startswith("#"):
+                raise InputError("a comment line ('#'): a CSV has no comment lines; remove it", p, lineno)
             if len(row) != ncols:
                 raise InputError(f"row has {len(row)} cells, the header has {ncols}{_cells_hint(row, ncols)}", p,
                                  lineno)
@@ -116,6 +118,10 @@ def _check_header(path: Path, names: list[str], required: Sequence[str], kind: s
     """Column names: present, unique, the ``required`` ones there.  A name that is a ``known``
     column written with its unit or in another case is refused, not kept as an extra column the
     harness would silently leave out."""
+    if names and names[0].startswith("#"):
+        raise InputError("the first line is a comment ('#'): the format's first line is the header of column names, "
+                         "and a CSV has no comment lines; remove them (keep notes in the manifest or a column of "
+                         "your own)", path, 1)
     if all(NUMBER_RE.fullmatch(n) for n in names if n) and any(names):
         raise InputError("the first line must be a header of column names; it holds numbers", path, 1)
     seen: set[str] = set()
@@ -235,6 +241,11 @@ def _check_rig_header(path: Path, names: list[str]) -> None:
 _COLUMN_RE = re.compile(rf"(?:{NUMBER_RE.pattern})?(?:\n(?:{NUMBER_RE.pattern})?)*")
 
 
+#: What loggers and spreadsheets write for a sample they do not have, where the format has an
+#: empty cell.
+MISSING_MARKS = ("nan", "-nan", "na", "n/a", "#n/a", "null", "none", "-")
+
+
 def _parse_column(path: Path, name: str, cells: list[str], lines: list[int]) -> FloatArray:
     """A known column's cells as numbers (NaN for an empty cell).  A column that is not plain
     decimal numbers throughout is read cell by cell, so the error names the first bad cell."""
@@ -248,6 +259,9 @@ def _parse_column(path: Path, name: str, cells: list[str], lines: list[int]) -> 
             return out
     out = np.full(len(cells), np.nan)
     for i, cell in enumerate(cells):
+        if cell.strip().lower() in MISSING_MARKS:
+            raise InputError(f"not finite: {cell.strip()!r} marks a missing sample: leave the cell empty, which the format reads as "
+                             "no sample (docs/campaign-format.md)", path, lines[i], name)
         if cell.strip():
             out[i] = parse_finite(cell, path, lines[i], name)
     return out
