@@ -116,11 +116,16 @@ def _parse_text_table(text: str) -> Optional[FloatArray]:
 
     start, announced = 0, None
     tokens, after = line_at(start)
+    # Blank and comment lines before the first (as ``juno synthesize`` and many exporters start a
+    # file with "# x y z"): the line-by-line reading skips them, and so does this one.
+    while not tokens and after < len(text):
+        start = after
+        tokens, after = line_at(start)
     if len(tokens) == 1 and _COUNT_RE.fullmatch(tokens[0]):
         announced, start = int(tokens[0]), after
         tokens, after = line_at(start)
     if not tokens:
-        return None      # a blank or comment line before the points: the line-by-line reading skips it
+        return None      # a blank or comment line after a count: the line-by-line reading decides
     if _is_xyz_header(tokens):
         start = after
     body = text[start:]

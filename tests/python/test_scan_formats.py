@@ -393,6 +393,8 @@ TABLES = {
     "commas and spaces around them": lambda p: "\n".join(", ".join(line.split()) for line in shortest(p)),
     "Windows line ends, tabs": lambda p: "\r\n".join("\t".join(line.split()) for line in shortest(p)) + "\r\n",
     "comments and blank lines inside": lambda p: "\n\n".join(f"{line}  # ok" for line in shortest(p)),
+    "comment and blank lines first": lambda p: "# x y z (m)\n\n# site 4\n" + "\n".join(shortest(p)) + "\n",
+    "a blank line first": lambda p: "\n" + "\n".join(shortest(p)) + "\n",
 }
 
 
@@ -414,7 +416,7 @@ DECLINED = {
     # what the table reader cannot read alike: the line-by-line reading reads it, or names the line
     "old Mac line ends": ("1 2 3\r4 5 6\r", None),
     "commas on one line, spaces on the next": ("1,2,3\n4 5 6\n", None),
-    "a blank line first": ("\n1 2 3\n4 5 6\n", None),
+    "a comment line first, then commas and spaces": ("# x y z\n1,2,3\n4 5 6\n", None),
     "digits of another script": ("\u0661 2 3\n4 5 6\n", "not a number"),
     "a digit separator": ("1_000 2 3\n", "not a number"),
     "a point short of a field": ("1 2 3 9\n4 5 6\n", "expected 4 fields"),
