@@ -4,18 +4,23 @@ A thin layer: the subcommands live in :mod:`juno.commands`, one module each, def
 way.  Before any computation every subcommand's arguments are checked (numbers by argparse,
 ``--param`` against the FMU's variable table, ``--params`` files) and so are its output paths
 (:mod:`juno.outputs`).  Errors are one line ``juno CMD: error: ...`` and exit code 2; Ctrl-C
-prints ``juno: interrupted`` (exit 130), SIGTERM ``juno: terminated`` (exit 143).
+prints ``juno: interrupted`` (exit 130), SIGTERM ``juno: terminated`` (exit 143).  Every
+temporary file of a command, its worker processes' included, lives in one folder of its own
+(:func:`scratch_folder`), removed when the command ends in any of those ways.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
+import shutil
 import signal
 import sys
+import tempfile
 import threading
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 from . import __version__
 from .commands import COMMANDS
@@ -118,6 +123,29 @@ def _message(exc: BaseException) -> str:
     return re.sub(r"np\.(?:float|int|uint)\d*\(([^()]*)\)", r"\1", str(exc))
 
 
+@contextlib.contextmanager
+def scratch_folder() -> Iterator[str]:
+    """A folder of the command's own in the system's temporary folder, made the temporary folder
+    of this process and of every process it starts (tempfile.tempdir, and TMPDIR for processes
+    started afresh) while the command runs, and removed with all it holds when the command ends,
+    however it ends but by SIGKILL.  Why: a worker process stopped in the middle of a task (the
+    pool terminates its workers on Ctrl-C, SIGTERM or a failed task) may be stopped before its
+    own clean-up has removed what it made (the FMU it extracted); its files are in this folder,
+    so they go with it."""
+    root = tempfile.mkdtemp(prefix="juno-run-")
+    saved_dir, saved_env = tempfile.tempdir, os.environ.get("TMPDIR")
+    tempfile.tempdir = os.environ["TMPDIR"] = root
+    try:
+        yield root
+    finally:
+        tempfile.tempdir = saved_dir
+        if saved_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved_env
+        shutil.rmtree(root, ignore_errors=True)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -129,7 +157,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         check_output_paths(args)
-        return int(args.func(args) or 0)
+        with scratch_folder():
+            return int(args.func(args) or 0)
     except (InputError, SimulationError, FileNotFoundError, FileExistsError, KeyError, ValueError,
             TaskError, SchedulerError, OSError) as exc:
         print(f"juno {args.command}: error: {_message(exc)}", file=sys.stderr)

@@ -5,6 +5,7 @@ Specification:
 * Ctrl-C (SIGINT to the whole process group, as a terminal sends it) during a pooled batch:
   exit code 130, one line ``juno: interrupted`` on stderr (no worker traceback), no worker left;
 * SIGTERM to ``juno``: a clean exit, code 143, one line ``juno: terminated``, no worker left;
+* after Ctrl-C or SIGTERM, nothing of juno's or its workers' left in the temporary folder;
 * SIGKILL to ``juno`` (no clean-up possible in it): its workers still die, by the parent-death
   signal (Linux) or their watchdog;
 * a pool worker ignores SIGINT, has the parent-death signal armed, and its watchdog ends it
@@ -64,10 +65,12 @@ def alive(pid: int) -> bool:
 
 
 def start_pooled_juno(tmp_path):
-    """``juno sweep`` in its own session, once both pool workers run: (process, worker ids)."""
+    """``juno sweep`` in its own session, once both pool workers run: (process, worker ids).  Its
+    temporary folder (TMPDIR) is ``tmp_path / "tmp"``, empty at the start."""
     err = open(tmp_path / "stderr.txt", "w")
+    (tmp_path / "tmp").mkdir()
     proc = subprocess.Popen([juno_command(), *SWEEP], stdout=subprocess.DEVNULL, stderr=err,
-                            start_new_session=True)
+                            start_new_session=True, env={**os.environ, "TMPDIR": str(tmp_path / "tmp")})
     deadline = time.monotonic() + 30
     workers: list[int] = []
     while len(workers) < 2:
@@ -105,6 +108,9 @@ def test_no_worker_outlives_juno(how, code, line, tmp_path):
         if line is not None:
             lines = [ln for ln in (tmp_path / "stderr.txt").read_text().splitlines() if ln.strip()]
             assert lines == [line], f"stderr after {how}: {lines}"
+            # and no temporary file of juno's or its workers' (the FMUs they extracted) is left
+            left_behind = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "tmp").rglob("*"))
+            assert not left_behind, f"left in the temporary folder after {how}: {left_behind[:5]}"
     finally:
         for pid in [proc.pid, *workers]:
             if alive(pid):
