@@ -66,6 +66,20 @@ def shift(run: str, delta: float, *names: str) -> Callable[[Path], None]:
     return apply
 
 
+def counted_angle(run: str, name: str) -> Callable[[Path], None]:
+    """Replaces a spin column by the wheel's angle counted up from 0 (rad) at the same samples, as
+    an encoder logs it: the spin's running integral."""
+    def apply(root: Path) -> None:
+        def change(c):
+            own = ~np.isnan(c[name])
+            t, spin = c["time"][own], c[name][own]
+            angle = np.concatenate([[0.0], np.cumsum(0.5 * (spin[1:] + spin[:-1]) * np.diff(t))])
+            c[name] = c[name].copy()
+            c[name][own] = angle
+        edit_run(root, run, change)
+    return apply
+
+
 def in_every_drawbar_run(change: Callable[[str], Callable[[Path], None]]) -> Callable[[Path], None]:
     """Applies ``change(run)`` to every drawbar run of the campaign."""
     def apply(root: Path) -> None:
@@ -323,6 +337,10 @@ ERRORS = [
          ("looks like rpm", "no-load spin")),
     Case("spins in degrees per second", scale("dbp1", 180 / math.pi, "omega_left"), "error", "runs/dbp1.csv",
          "omega_left", ("looks like degrees per second", "no-load spin")),
+    Case("the wheel's angle logged as its spin", counted_angle("dbp1", "omega_left"), "error", "runs/dbp1.csv",
+         "omega_left", ("angle counted up", "rate of change")),
+    Case("the wheel's angle logged as its spin on a terrain run", counted_angle("t3d", "omega_right"), "error",
+         "runs/t3d.csv", "omega_right", ("angle counted up", "rate of change")),
     Case("positions in millimetres", scale("dbp2", 1000.0, "pos_x", "pos_y", "pos_z"), "error", "runs/dbp2.csv",
          "pos_x", ("millimetres", "top speed")),
     Case("time in milliseconds", scale("t3d", 1000.0, "time"), "error", "runs/t3d.csv", "time",

@@ -26,6 +26,13 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   a constant pull), a warning otherwise. A position (pos_x and
   pos_y) repeated exactly for over ``FROZEN_SPAN`` s while the wheels turn is a warning: a
   total station that updates has noise in its last digits.
+* **Spin or angle.** A wheel's spin in a drive goes up and down with its load and its
+  sensor's noise; a wheel's angle counted up by its encoder only grows while the rover drives.
+  A spin column that moves the same way in at least ``ANGLE_SHARE`` (95 %) of its steps and by
+  more than ``ANGLE_RISE`` (1 rad) over the run is an error: the angle logged in the spin's
+  place (its rate of change, which the message gives, is the spin). A measured spin goes up and
+  down with its noise; a noise-free one holds still once it has reached its speed, and a drive
+  test is driven at speed for most of its run: either moves one way in far fewer steps.
 * **Drawbar force.** The wheels push at most the drive torque of both sides over the wheel
   radius: the same margins as the torque, times 2 / radius. At the other end, a load cell read
   in kN gives a drawbar force a thousand times too small: a run whose largest |drawbar_force|
@@ -98,6 +105,10 @@ TORQUE_MARGIN = 1.2
 #: Spin warning / error, as multiples of the no-load spin.
 SPIN_WARN = 1.25
 SPIN_ERROR = 3.0
+#: A spin column moving one way in at least this share of its steps, by more than this many
+#: radians, is a wheel angle (module docstring, "Spin or angle").
+ANGLE_SHARE = 0.95
+ANGLE_RISE = 1.0
 #: Positions: typical (median) speed over SPEED_WINDOW s beyond this times the top speed.
 SPEED_ERROR = 2.0
 SPEED_WINDOW = 1.0
@@ -200,6 +211,10 @@ def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
     for name in ("omega_left", "omega_right"):
         if not run.has(name):
             continue
+        angle = _counted_angle(run, name)
+        if angle:
+            out.append(Finding("error", file, name, angle))
+            continue
         peak, where, _, _, _ = _largest(run, name)
         hint = ""
         if peak / RPM_PER_RAD_S <= SPIN_WARN * w0:
@@ -213,6 +228,24 @@ def check_spins(run: RunData, file: str, limits: RoverLimits) -> list[Finding]:
             out.append(Finding("warning", file, name, f"|{name}| reaches {_g(peak)} rad/s at {where}, beyond the "
                                f"motors' no-load spin of {_g(w0)} rad/s{hint or ' (the wheel overran the motor)'}"))
     return out
+
+
+def _counted_angle(run: RunData, name: str) -> str:
+    """Why spin column ``name`` is a wheel's angle counted up over the run (module docstring,
+    "Spin or angle"), or "" when it is not."""
+    ts, vs, _ = _own(run, name)
+    steps = np.diff(vs)
+    total = float(vs[-1] - vs[0]) if len(vs) else 0.0
+    if len(steps) < 2 or not abs(total) > ANGLE_RISE:
+        return ""
+    share = float(np.mean(np.sign(steps) == np.sign(total)))
+    if share < ANGLE_SHARE:
+        return ""
+    rate = total / float(ts[-1] - ts[0])
+    return (f"moves the same way in {share:.0%} of its steps and by {_g(total)} rad from t = {_time(ts[0])} to "
+            f"{_time(ts[-1])} s: a wheel's angle counted up by its encoder, not its spin (a spin goes up and down "
+            f"with the load and the sensor's noise); the format's {name} is the spin in rad/s, the angle's rate of "
+            f"change (here {_g(rate)} rad/s on average)")
 
 
 def _turning(run: RunData) -> float:
