@@ -56,9 +56,8 @@ millimetres, milliseconds, kN), reversed signs, another datum, dead or frozen se
   they look like the motor current in A (the wheel torque over ``motor.efficiency *
   motor.gearRatio * motor.kt``, 5.1 N m per A with the defaults), the motor shaft's torque or
   kN m. 108 drawbar runs of 31 synthetic campaigns (every effect, both designs, the heavy run)
-  give 0.23-0.66;
-  with their torques as motor currents, every one exceeds 1. Stricter than the power bound by
-  the wheels' slip, so it sees the motor current where the power does not.
+  give 0.23-0.66; with their torques as motor currents, every one exceeds 1. Stricter than the
+  power bound by the wheels' slip, so it sees the motor current where the power does not.
 * **Rolling.** A wheel that pulls a load slips: the rover moves slower than its rims roll, and
   lugs reach beyond the rim by at most half the radius (the largest lugs the FMU accepts). A
   drawbar run whose median speed (of the positions, over 1 s) exceeds ``ROLLING_LIMIT`` (1.5)
