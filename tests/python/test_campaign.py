@@ -387,11 +387,13 @@ def test_a_column_named_with_its_unit_or_in_capitals_is_refused_with_the_name_it
 
 @pytest.mark.parametrize("shift, scale, says", [
     (1000.0, 1.0, "the run's own clock, which starts at 1000.0 s: counted from the start, it is [1002.0, 1005.0]"),
-    (0.0, 1000.0, "is the time column in milliseconds?")])
+    (0.0, 1000.0, "is the time column in milliseconds?"),
+    (1.7e12, 1000.0, "over an hour: is the time column in milliseconds (from 1700000000000.0)?")])
 def test_a_steady_window_off_its_run_names_the_likely_mistake(campaign_dir: Path, shift: float, scale: float,
                                                              says: str) -> None:
     """A steady window [2, 5] s that holds no sample of its run says why when the cause is
-    plain: the run's clock does not start at zero, or its time is in milliseconds."""
+    plain: the run's clock does not start at zero, or its time is in milliseconds (counted from
+    zero, or a logger's Unix time in milliseconds with the window counted from the start)."""
     p = campaign_dir / "runs/dbp1.csv"
     header, *rows = p.read_text().splitlines()
     assert header.startswith("time,")

@@ -383,10 +383,21 @@ def _read_once(campaign: Campaign, path: Path, kind: str, run_id: str, stated_no
     return data
 
 
+#: A run lasting longer than this (s) as written is taken for one whose time is in milliseconds
+#: when that reading fits its steady window (juno.plausibility.sensors's time check draws the
+#: same line: the rover's runs last seconds to minutes).
+AN_HOUR = 3600.0
+
+
 def _steady_window_hint(a: float, b: float, t0: float, t1: float) -> str:
     """The likely mistake behind a steady window [a, b] (s) outside a run spanning [t0, t1] (s):
-    a window counted from the run's start on a clock that does not start at zero, or a time
-    column in milliseconds."""
+    a time column in milliseconds (from zero, or from a clock that does not start at zero, such
+    as a logger's Unix time, with the window counted from the run's start), or a window counted
+    from the run's start on a clock that does not start at zero."""
+    if t0 > 0 and t1 - t0 > AN_HOUR and 0 <= a and b <= (t1 - t0) / 1000.0:
+        return (f"; the run lasts {t1 - t0:g} s as written, over an hour: is the time column in milliseconds "
+                f"(from {t0!r})? In seconds the run lasts {(t1 - t0) / 1000.0:g} s, and the window counted from "
+                "its start lies within it. The format's time is in seconds")
     if t0 > 0 and t0 <= a + t0 and b + t0 <= t1:
         return (f"; the window is on the run's own clock, which starts at {t0!r} s: counted from the "
                 f"start, it is [{a + t0!r}, {b + t0!r}]")
